@@ -1,0 +1,189 @@
+"""Arm parameters: geometry, joint limits and speed limits.
+
+All values are SI (m, rad, rad/s) inside the stack; the defaults are written in the
+thesis's units (mm, deg) next to their conversion so they can be checked against
+SPEC.md section 2. Configuration layers defaults < file < environment < command line;
+this module holds the defaults, the validation and the file layer.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from manus.errors import ConfigError
+
+DEG = math.pi / 180.0
+"""One degree in radians."""
+
+N_JOINTS = 6
+"""Revolute joints of the Manus (the lift unit is not modelled: always 0)."""
+
+
+def _default_lower() -> tuple[float, ...]:
+    # Joint 5 (wrist pitch) has a finite range; the others may turn more than once
+    # (SPEC 2): +-360 deg keeps a full turn available either way.
+    return tuple(d * DEG for d in (-360.0, -360.0, -360.0, -360.0, -120.0, -360.0))
+
+
+def _default_upper() -> tuple[float, ...]:
+    return tuple(d * DEG for d in (360.0, 360.0, 360.0, 360.0, 120.0, 360.0))
+
+
+def _default_speed() -> tuple[float, ...]:
+    # 10 counts of 0.1 deg per 20 ms = 50 deg/s, the arm's fastest joint speed.
+    return tuple(50.0 * DEG for _ in range(N_JOINTS))
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """Geometry and limits of one Manus arm.
+
+    Attributes:
+        l1: shoulder offset d_2 [m] (thesis 105 mm).
+        l2: upper-arm length a_2 [m] (thesis 400 mm).
+        l3: forearm length d_4 [m] (thesis 320 mm).
+        l4: wrist centre to gripper frame d_6 [m] (thesis 160 mm).
+        lower: lower joint limits in the DH frame [rad], shape (6,).
+        upper: upper joint limits in the DH frame [rad], shape (6,).
+        max_speed: per-joint speed limits [rad/s], shape (6,) (thesis: 5-50 deg/s).
+        max_accel: per-joint acceleration limits used by trajectory checks [rad/s^2].
+        gripper_max: largest gripper opening [m] (90 mm).
+        singular_tol: |sin q5| below which the wrist counts as singular [-].
+    """
+
+    l1: float = 0.105
+    l2: float = 0.400
+    l3: float = 0.320
+    l4: float = 0.160
+    lower: tuple[float, ...] = field(default_factory=_default_lower)
+    upper: tuple[float, ...] = field(default_factory=_default_upper)
+    max_speed: tuple[float, ...] = field(default_factory=_default_speed)
+    max_accel: tuple[float, ...] = field(
+        default_factory=lambda: tuple(200.0 * DEG for _ in range(N_JOINTS))
+    )
+    gripper_max: float = 0.090
+    singular_tol: float = 1e-3
+
+    def __post_init__(self) -> None:
+        for name in ("l1", "l2", "l3", "l4"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 <= value <= 2.0):
+                raise ConfigError(f"`{name}` must be a length in [0, 2] m, got {value!r}")
+        if self.l2 <= 0 or self.l3 <= 0:
+            raise ConfigError("`l2` and `l3` must be positive lengths [m]")
+        for name in ("lower", "upper", "max_speed", "max_accel"):
+            value = getattr(self, name)
+            if len(value) != N_JOINTS or not all(math.isfinite(v) for v in value):
+                raise ConfigError(f"`{name}` must hold {N_JOINTS} finite numbers, got {value!r}")
+        for j, (lo, hi) in enumerate(zip(self.lower, self.upper, strict=True), start=1):
+            if not lo < hi:
+                raise ConfigError(
+                    f"joint {j}: lower limit {lo / DEG:.1f} deg must be below upper "
+                    f"limit {hi / DEG:.1f} deg"
+                )
+        for j, v in enumerate(self.max_speed, start=1):
+            if not 0.0 < v <= 50.0 * DEG + 1e-12:
+                raise ConfigError(
+                    f"joint {j}: `max_speed` {v / DEG:.2f} deg/s must be in (0, 50] deg/s, "
+                    "the arm's fastest speed"
+                )
+        if not 0.0 < self.gripper_max <= 0.2:
+            raise ConfigError(f"`gripper_max` must be in (0, 0.2] m, got {self.gripper_max!r}")
+
+    @property
+    def lower_array(self) -> np.ndarray:
+        """Lower joint limits [rad], shape (6,)."""
+        return np.asarray(self.lower, dtype=float)
+
+    @property
+    def upper_array(self) -> np.ndarray:
+        """Upper joint limits [rad], shape (6,)."""
+        return np.asarray(self.upper, dtype=float)
+
+    @property
+    def speed_array(self) -> np.ndarray:
+        """Joint speed limits [rad/s], shape (6,)."""
+        return np.asarray(self.max_speed, dtype=float)
+
+    @classmethod
+    def from_mapping(cls, data: dict[str, Any], *, source: str = "<mapping>") -> ArmConfig:
+        """Build a config from thesis units: lengths in mm, angles in deg.
+
+        Keys: ``l1_mm`` .. ``l4_mm``, ``lower_deg``, ``upper_deg``, ``max_speed_deg_s``,
+        ``max_accel_deg_s2``, ``gripper_max_mm``. Unknown keys are an error.
+
+        Raises:
+            ConfigError: naming the source and the key.
+        """
+        scale = {
+            "l1_mm": ("l1", 1e-3),
+            "l2_mm": ("l2", 1e-3),
+            "l3_mm": ("l3", 1e-3),
+            "l4_mm": ("l4", 1e-3),
+            "lower_deg": ("lower", DEG),
+            "upper_deg": ("upper", DEG),
+            "max_speed_deg_s": ("max_speed", DEG),
+            "max_accel_deg_s2": ("max_accel", DEG),
+            "gripper_max_mm": ("gripper_max", 1e-3),
+        }
+        kwargs: dict[str, Any] = {}
+        for key, value in data.items():
+            if key not in scale:
+                raise ConfigError(
+                    f"{source}: unknown arm setting `{key}` (allowed: {sorted(scale)})"
+                )
+            name, factor = scale[key]
+            try:
+                if isinstance(value, list | tuple):
+                    kwargs[name] = tuple(float(v) * factor for v in value)
+                else:
+                    kwargs[name] = float(value) * factor
+            except (TypeError, ValueError) as exc:
+                raise ConfigError(f"{source}: `{key}` must be numeric, got {value!r}") from exc
+        try:
+            return cls(**kwargs)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: {exc}") from exc
+
+    def with_overrides(self, **changes: Any) -> ArmConfig:
+        """A copy with some SI fields replaced (validated again)."""
+        known = {f.name for f in fields(self)}
+        bad = sorted(set(changes) - known)
+        if bad:
+            raise ConfigError(f"unknown arm setting(s) {bad}")
+        return replace(self, **changes)
+
+
+def load_arm_config(path: str | os.PathLike[str] | None = None) -> ArmConfig:
+    """Defaults, then a JSON file (``path`` or ``$MANUS_ARM_CONFIG``) in thesis units."""
+    chosen = path if path is not None else os.environ.get("MANUS_ARM_CONFIG")
+    if not chosen:
+        return ArmConfig()
+    file = Path(chosen)
+    try:
+        data = json.loads(file.read_text())
+    except OSError as exc:
+        raise ConfigError(f"{file}: cannot read arm config: {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{file}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError(f"{file}: arm config must be a JSON object")
+    return ArmConfig.from_mapping(data, source=str(file))
+
+
+UNFOLDED_Q_DEG = (0.0, 30.0, -30.0, 0.0, -60.0, 0.0)
+"""The operational (unfolded) pose of SPEC 4, DH joint angles [deg]."""
+
+FOLDED_Q_DEG = (0.0, -90.0, -90.0, 0.0, -90.0, 0.0)
+"""The compact folded pose (upper arm up, forearm down, gripper at about (160, 105, 80) mm)
+used by the simulator's fold-in procedure and the named pose `folded` [deg]."""
+
+DEFAULT_ARM = ArmConfig()
+"""The thesis arm with the default limits (shared, immutable)."""

@@ -1,0 +1,271 @@
+"""The thin Zenoh shell around a service core: typed publish, subscribe and query.
+
+A :class:`Node` owns one session (from :mod:`manus.session`), declares a liveliness token
+``<prefix>/alive/<name>`` while it lives, and turns payloads into typed messages. A
+payload that fails to decode is counted per key and logged (at most once a second per
+key), never raised into the core: one bad publisher must not take a service down.
+
+Callbacks run on Zenoh's threads. Services serialise them into their core with
+:attr:`Node.lock` (one lock per node), so the core itself needs no locking.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from types import FrameType
+from typing import Any, TypeVar
+
+import zenoh
+
+from manus.errors import ManusError, SchemaError
+from manus.session import ZenohSettings, open_session
+from schemas.base import Message
+from schemas.keys import Keys
+
+M = TypeVar("M", bound=Message)
+R = TypeVar("R", bound=Message)
+
+log = logging.getLogger("manus.node")
+
+
+class QueryError(ManusError):
+    """A query got no valid reply (no service answered, timeout, or a bad payload)."""
+
+
+def now_ns() -> int:
+    """Wall-clock time [ns] used to stamp messages in live shells."""
+    return time.time_ns()
+
+
+class Publisher:
+    """Typed publisher on one key."""
+
+    def __init__(self, pub: zenoh.Publisher) -> None:
+        self._pub = pub
+
+    def put(self, msg: Message) -> None:
+        """Publish ``msg`` (MessagePack)."""
+        self._pub.put(msg.encode())
+
+
+class Node:
+    """One service's presence on the bus.
+
+    Args:
+        name: service name (liveliness token ``<prefix>/alive/<name>``).
+        settings: how to reach the bus; its ``prefix`` roots every key.
+        session: an already open session to use instead (not closed by :meth:`close`).
+        liveliness: declare the liveliness token.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        settings: ZenohSettings | None = None,
+        *,
+        session: zenoh.Session | None = None,
+        liveliness: bool = True,
+    ) -> None:
+        self.name = name
+        self.settings = settings or ZenohSettings()
+        self.keys = Keys(self.settings.prefix)
+        self._own_session = session is None
+        self.session = session if session is not None else open_session(self.settings)
+        self.lock = threading.RLock()
+        self.bad_payloads: Counter[str] = Counter()
+        self._last_bad_log: dict[str, float] = {}
+        self._entities: list[Any] = []
+        self._token = (
+            self.session.liveliness().declare_token(self.keys.alive(name)) if liveliness else None
+        )
+
+    # -- publish / subscribe -------------------------------------------------------------
+
+    def publisher(self, key: str, *, express: bool = True, reliable: bool = True) -> Publisher:
+        """A typed publisher on ``key`` (a full key expression).
+
+        ``express`` sends at once without batching (low latency for the control path).
+        Samples are never dropped by congestion control: the stack's streams are small
+        and a lost command is worse than a late one (the bridge judges freshness).
+        """
+        pub = self.session.declare_publisher(
+            key,
+            express=express,
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            reliability=zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
+        )
+        self._entities.append(pub)
+        return Publisher(pub)
+
+    def subscribe(
+        self,
+        key: str,
+        msg_type: type[M],
+        callback: Callable[[M, int], None],
+        *,
+        locked: bool = True,
+    ) -> None:
+        """Call ``callback(message, receive_ns)`` for each valid sample on ``key``.
+
+        Args:
+            key: key expression (wildcards allowed).
+            msg_type: the type every sample must decode to.
+            callback: the handler; runs under :attr:`lock` when ``locked``.
+            locked: serialise with the other locked callbacks of this node.
+        """
+
+        def handler(sample: zenoh.Sample) -> None:
+            rx = now_ns()
+            if sample.kind != zenoh.SampleKind.PUT:
+                return
+            try:
+                msg = msg_type.decode(sample.payload.to_bytes())
+            except SchemaError as exc:
+                self._bad(str(sample.key_expr), exc)
+                return
+            try:
+                if locked:
+                    with self.lock:
+                        callback(msg, rx)
+                else:
+                    callback(msg, rx)
+            except Exception:
+                log.exception("%s: handler for %s failed", self.name, sample.key_expr)
+
+        self._entities.append(self.session.declare_subscriber(key, handler))
+
+    def subscribe_raw(self, key: str, callback: Callable[[zenoh.Sample, int], None]) -> None:
+        """Call ``callback(sample, receive_ns)`` for every sample (recorders, tools)."""
+        self._entities.append(self.session.declare_subscriber(key, lambda s: callback(s, now_ns())))
+
+    # -- queries -------------------------------------------------------------------------
+
+    def queryable(
+        self,
+        key: str,
+        request_type: type[M],
+        handler: Callable[[M], Message],
+        *,
+        locked: bool = True,
+    ) -> None:
+        """Answer queries on ``key``: decode the request, reply with ``handler(request)``.
+
+        A request that fails to decode is counted and answered with a Zenoh error reply
+        naming the problem.
+        """
+
+        def on_query(query: zenoh.Query) -> None:
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            try:
+                request = request_type.decode(payload)
+            except SchemaError as exc:
+                self._bad(str(query.key_expr), exc)
+                query.reply_err(str(exc).encode())
+                return
+            try:
+                if locked:
+                    with self.lock:
+                        reply = handler(request)
+                else:
+                    reply = handler(request)
+            except Exception as exc:
+                log.exception("%s: query handler for %s failed", self.name, query.key_expr)
+                query.reply_err(f"{self.name}: internal error: {exc}".encode())
+                return
+            query.reply(query.key_expr, reply.encode())
+
+        self._entities.append(self.session.declare_queryable(key, on_query))
+
+    def query(self, key: str, request: Message, reply_type: type[R], *, timeout: float = 5.0) -> R:
+        """Send ``request`` to the queryable on ``key`` and return its typed reply.
+
+        Raises:
+            QueryError: nobody answered within ``timeout`` [s], the service replied with
+                an error, or the reply did not decode.
+        """
+        replies = self.session.get(key, payload=request.encode(), timeout=timeout)
+        for reply in replies:
+            if reply.ok is not None:
+                try:
+                    return reply_type.decode(reply.ok.payload.to_bytes())
+                except SchemaError as exc:
+                    raise QueryError(f"{key}: bad reply: {exc}") from exc
+            err = reply.err
+            text = err.payload.to_bytes().decode(errors="replace") if err is not None else "?"
+            raise QueryError(f"{key}: {text}")
+        raise QueryError(f"{key}: no reply within {timeout:g} s (is the service running?)")
+
+    # -- liveliness ----------------------------------------------------------------------
+
+    def alive_services(self, timeout: float = 1.0) -> set[str]:
+        """Names of the services whose liveliness tokens are up now."""
+        names = set()
+        for reply in self.session.liveliness().get(self.keys.alive_all, timeout=timeout):
+            if reply.ok is not None:
+                names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix("alive/"))
+        return names
+
+    def watch_liveliness(self, callback: Callable[[str, bool], None]) -> None:
+        """Call ``callback(service, alive)`` when a service's token appears or vanishes."""
+
+        def handler(sample: zenoh.Sample) -> None:
+            name = self.keys.suffix(str(sample.key_expr)).removeprefix("alive/")
+            with self.lock:
+                callback(name, sample.kind == zenoh.SampleKind.PUT)
+
+        self._entities.append(
+            self.session.liveliness().declare_subscriber(self.keys.alive_all, handler, history=True)
+        )
+
+    # -- housekeeping --------------------------------------------------------------------
+
+    def _bad(self, key: str, exc: Exception) -> None:
+        self.bad_payloads[key] += 1
+        now = time.monotonic()
+        if now - self._last_bad_log.get(key, -10.0) >= 1.0:
+            self._last_bad_log[key] = now
+            log.warning(
+                "%s: bad payload on %s (%d so far): %s", self.name, key, self.bad_payloads[key], exc
+            )
+
+    @property
+    def bad_payload_count(self) -> int:
+        """Bad payloads seen on every key."""
+        return sum(self.bad_payloads.values())
+
+    def close(self) -> None:
+        """Undeclare everything; close the session if the node opened it."""
+        if self._token is not None:
+            self._token.undeclare()
+            self._token = None
+        for entity in reversed(self._entities):
+            try:
+                entity.undeclare()
+            except Exception:  # already closed with the session
+                log.debug("undeclare failed", exc_info=True)
+        self._entities.clear()
+        if self._own_session:
+            self.session.close()
+
+    def __enter__(self) -> Node:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def wait_for_signal(stop: threading.Event | None = None) -> threading.Event:
+    """Install SIGINT/SIGTERM handlers that set and return ``stop`` (main thread only)."""
+    event = stop or threading.Event()
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        event.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return event

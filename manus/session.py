@@ -1,0 +1,187 @@
+"""The one Zenoh session factory every service uses.
+
+Loopback only by default: a service is a ``client`` of a router on
+``tcp/127.0.0.1:7447``, multicast scouting and gossip are off, and a peer or router that
+is given no listen endpoint listens on ``tcp/127.0.0.1:0``. Real deployments override
+the defaults in layers (SPEC 8, STYLE 9):
+
+    defaults < Zenoh config file < environment < keyword arguments (command line)
+
+Environment: ``MANUS_ZENOH_CONFIG`` (a Zenoh JSON5 config file), ``MANUS_ZENOH_MODE``
+(client, peer, router), ``MANUS_ZENOH_CONNECT`` and ``MANUS_ZENOH_LISTEN`` (comma-separated
+endpoints), ``MANUS_ZENOH_LEASE_MS``, ``MANUS_PREFIX``. Scouting stays off whatever the
+config file says unless ``MANUS_ZENOH_SCOUTING=1`` (or ``scouting=True``) asks for it:
+a lab network must never see this stack by accident.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from manus.errors import ConfigError
+
+DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+"""Where services look for the local router unless told otherwise."""
+
+DEFAULT_PREFIX = "manus"
+"""Root of every key expression of one arm."""
+
+MODES = ("client", "peer", "router")
+_PREFIX_RE = re.compile(r"^[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*$")
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    """How a service reaches the bus.
+
+    Attributes:
+        mode: ``client`` (default, needs a router), ``peer`` or ``router``.
+        connect: endpoints to connect to.
+        listen: endpoints to listen on (peers and routers get ``tcp/127.0.0.1:0`` if empty).
+        config_file: a Zenoh JSON5 configuration applied before the fields above.
+        lease_ms: link lease [ms]: how soon a hung peer's liveliness tokens vanish.
+        scouting: allow multicast scouting and gossip (off: loopback and explicit
+            endpoints only).
+        prefix: root of the key expressions (one arm per prefix).
+    """
+
+    mode: str = "client"
+    connect: tuple[str, ...] = (DEFAULT_ROUTER_ENDPOINT,)
+    listen: tuple[str, ...] = ()
+    config_file: str | None = None
+    lease_ms: int = 1000
+    scouting: bool = False
+    prefix: str = DEFAULT_PREFIX
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ConfigError(f"zenoh mode {self.mode!r} is not one of {list(MODES)}")
+        if not 100 <= self.lease_ms <= 600_000:
+            raise ConfigError(f"zenoh lease {self.lease_ms} ms outside 100..600000 ms")
+        if not _PREFIX_RE.match(self.prefix):
+            raise ConfigError(
+                f"key prefix {self.prefix!r} must be '/'-separated words of "
+                "letters, digits, '_' or '-'"
+            )
+        for ep in (*self.connect, *self.listen):
+            if "/" not in ep:
+                raise ConfigError(f"zenoh endpoint {ep!r} must look like 'tcp/127.0.0.1:7447'")
+
+
+def _split(value: str) -> tuple[str, ...]:
+    return tuple(part.strip() for part in value.split(",") if part.strip())
+
+
+def settings_from_env(env: dict[str, str] | None = None, **overrides: Any) -> ZenohSettings:
+    """Defaults < environment < ``overrides`` (keyword arguments that are not None)."""
+    env = dict(os.environ) if env is None else env
+    values: dict[str, Any] = {}
+    if env.get("MANUS_ZENOH_CONFIG"):
+        values["config_file"] = env["MANUS_ZENOH_CONFIG"]
+    if env.get("MANUS_ZENOH_MODE"):
+        values["mode"] = env["MANUS_ZENOH_MODE"]
+    if env.get("MANUS_ZENOH_CONNECT"):
+        values["connect"] = _split(env["MANUS_ZENOH_CONNECT"])
+    if env.get("MANUS_ZENOH_LISTEN"):
+        values["listen"] = _split(env["MANUS_ZENOH_LISTEN"])
+    if env.get("MANUS_ZENOH_LEASE_MS"):
+        try:
+            values["lease_ms"] = int(env["MANUS_ZENOH_LEASE_MS"])
+        except ValueError as exc:
+            raise ConfigError(
+                f"MANUS_ZENOH_LEASE_MS={env['MANUS_ZENOH_LEASE_MS']!r} is not a whole number of ms"
+            ) from exc
+    if env.get("MANUS_ZENOH_SCOUTING"):
+        values["scouting"] = env["MANUS_ZENOH_SCOUTING"].strip().lower() in ("1", "true", "yes")
+    if env.get("MANUS_PREFIX"):
+        values["prefix"] = env["MANUS_PREFIX"]
+    for key, value in overrides.items():
+        if value is not None:
+            values[key] = tuple(value) if key in ("connect", "listen") else value
+    if "connect" not in values and (
+        values.get("mode") in ("peer", "router") or values.get("config_file")
+    ):
+        # A peer or router connects to nobody by default; a config file keeps its own.
+        values["connect"] = ()
+    if values.get("config_file") and "mode" not in values:
+        values["mode"] = _file_mode(Path(values["config_file"]))
+    return ZenohSettings(**values)
+
+
+def _file_mode(path: Path) -> str:
+    """The mode a Zenoh config file sets (``client`` when it sets none)."""
+    try:
+        config = zenoh.Config.from_file(str(path))
+    except Exception as exc:
+        raise ConfigError(f"{path}: not a valid zenoh config: {exc}") from exc
+    mode = json.loads(config.get_json("mode") or '"client"')
+    return str(mode) if mode in MODES else "client"
+
+
+def build_config(settings: ZenohSettings) -> zenoh.Config:
+    """The Zenoh configuration for ``settings`` (see the module docstring for the layers)."""
+    if settings.config_file:
+        path = Path(settings.config_file)
+        if not path.is_file():
+            raise ConfigError(f"{path}: zenoh config file not found")
+        try:
+            config = zenoh.Config.from_file(str(path))
+        except Exception as exc:  # zenoh raises its own ZError with the parser's message
+            raise ConfigError(f"{path}: not a valid zenoh config: {exc}") from exc
+    else:
+        config = zenoh.Config()
+    config.insert_json5("mode", json.dumps(settings.mode))
+    if settings.connect or not settings.config_file:
+        config.insert_json5("connect/endpoints", json.dumps(list(settings.connect)))
+    if settings.mode == "client" and not settings.connect and not settings.config_file:
+        raise ConfigError("a zenoh client needs at least one connect endpoint")
+    listen = list(settings.listen)
+    if not listen and settings.mode != "client" and not settings.config_file:
+        listen = ["tcp/127.0.0.1:0"]
+    if listen or settings.mode == "client":
+        config.insert_json5("listen/endpoints", json.dumps(listen))
+    if not settings.scouting:
+        config.insert_json5("scouting/multicast/enabled", "false")
+        config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("transport/link/tx/lease", str(settings.lease_ms))
+    config.insert_json5("transport/link/tx/keep_alive", "4")
+    for key, value in settings.extra.items():
+        config.insert_json5(key, json.dumps(value))
+    return config
+
+
+def open_session(settings: ZenohSettings | None = None) -> zenoh.Session:
+    """Open a Zenoh session (see :func:`build_config`).
+
+    Raises:
+        ConfigError: the settings are invalid or the session cannot be opened (for a
+            client: no router answers at the connect endpoints).
+    """
+    settings = settings or settings_from_env()
+    config = build_config(settings)
+    try:
+        return zenoh.open(config)
+    except Exception as exc:
+        where = ", ".join(settings.connect) or ", ".join(settings.listen) or "?"
+        raise ConfigError(
+            f"cannot open a zenoh {settings.mode} session ({where}): {exc}; "
+            "is the router running (`manus up` starts one)?"
+        ) from exc
+
+
+def router_settings(endpoint: str = DEFAULT_ROUTER_ENDPOINT, **kwargs: Any) -> ZenohSettings:
+    """Settings of a loopback router listening on ``endpoint``."""
+    return replace(ZenohSettings(mode="router", connect=(), listen=(endpoint,)), **kwargs)
+
+
+def client_settings(endpoint: str = DEFAULT_ROUTER_ENDPOINT, **kwargs: Any) -> ZenohSettings:
+    """Settings of a client of the router at ``endpoint``."""
+    return replace(ZenohSettings(mode="client", connect=(endpoint,)), **kwargs)

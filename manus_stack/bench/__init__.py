@@ -1,0 +1,11 @@
+"""Benchmarks behind ``manus bench``: each module's ``run(quick)`` returns its figures.
+
+Figures are printed as JSON, never asserted in unit tests (speed depends on the machine).
+"""
+
+from __future__ import annotations
+
+BENCHES: dict[str, tuple[str, bool]] = {
+    "kin": ("manus_stack.bench.kin", True),
+}
+"""Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -1,0 +1,61 @@
+"""The ``manus`` command: one subcommand per job, each implemented in its own module.
+
+Each command module defines ``add_arguments(parser)`` and ``run(args) -> int``; it is
+imported only when its subcommand runs, so ``manus kin`` does not pay for Zenoh or
+Pinocchio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from manus.errors import ManusError
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "kin": ("manus_stack.commands.kin", "kinematics: fk, ik, jacobian, urdf"),
+    "bench": ("manus_stack.commands.bench", "benchmarks; prints figures as JSON"),
+}
+"""Subcommand -> (module, one-line help)."""
+
+
+def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
+    """The parser; only ``selected``'s module is imported to declare its arguments."""
+    parser = argparse.ArgumentParser(
+        prog="manus",
+        description="Control stack for the Manus assistive robot arm.",
+    )
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        if name == selected:
+            importlib.import_module(module).add_arguments(p)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``manus`` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    selected = next((a for a in argv if a in COMMANDS), None)
+    parser = build_parser(selected)
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    level = logging.WARNING - 10 * min(args.verbose, 2)
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    module = importlib.import_module(COMMANDS[args.command][0])
+    try:
+        return int(module.run(args))
+    except ManusError as exc:
+        print(f"manus {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""What the stack tells the bridge: velocity commands, e-stop, arm commands."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.base import Message, field
+
+ARM_ACTIONS = ("stop", "fold_in", "fold_out", "clear")
+
+
+@dataclass(frozen=True)
+class JointVelocityCommand(Message):
+    """Joint and gripper velocities for the next sync (the arm applies them for 60 ms).
+
+    The bridge sends the newest command at each 0x37F only if it is fresh: it answers the
+    current joint state (``ref_seq`` equal to the newest ``JointState.seq``, or at most
+    ``command_max_age_cycles`` older), or, with ``ref_seq`` = -1, it arrived within the
+    bridge's command timeout. Otherwise the arm gets zeros.
+
+    With ``counts`` the sender has already quantized (motor increments, coupling applied)
+    and the bridge sends exactly those after a range check; without, the bridge converts
+    ``velocity`` with its own quantizer.
+    """
+
+    TYPE_NAME = "manus/JointVelocityCommand/1"
+
+    stamp_ns: int = field(
+        "time the command was computed (the stamp of the state it answers)", unit="ns"
+    )
+    seq: int = field("sequence number", minimum=0)
+    source: str = field("who sent it (e.g. 'controller')")
+    ref_seq: int = field("seq of the JointState this command answers (-1: none)", minimum=-1)
+    velocity: list[float] = field("DH joint velocities", unit="rad/s", length=6)
+    gripper_velocity: float = field("gripper opening velocity (positive opens)", unit="m/s")
+    counts: list[int] | None = field(
+        "already-quantized increments: lift, motor 1..6 [0.1 deg per 20 ms], gripper "
+        "[0.1 mm per 20 ms]; None: the bridge quantizes `velocity`",
+        default=None,
+        length=8,
+    )
+
+
+@dataclass(frozen=True)
+class EStop(Message):
+    """Emergency stop. ``engaged`` latches it in the bridge; only ``engaged=false`` clears it."""
+
+    TYPE_NAME = "manus/EStop/1"
+
+    stamp_ns: int = field("time it was sent", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    engaged: bool = field("true: stop now and stay stopped; false: clear a latched e-stop")
+    source: str = field("who sent it")
+    reason: str = field("why", default="")
+
+
+@dataclass(frozen=True)
+class ArmCommand(Message):
+    """A request to the bridge: stop (0x370), fold in / out (held until done), clear error."""
+
+    TYPE_NAME = "manus/ArmCommand/1"
+
+    action: str = field("what to do", choices=ARM_ACTIONS)
+    source: str = field("who asks", default="")
+
+
+@dataclass(frozen=True)
+class ArmCommandReply(Message):
+    """The bridge's answer to an ArmCommand."""
+
+    TYPE_NAME = "manus/ArmCommandReply/1"
+
+    ok: bool = field("accepted")
+    phase: str = field("bridge phase after the request")
+    message: str = field("why it was refused, or what happens now")

@@ -1,0 +1,144 @@
+"""Controller goals, feedback and results (in the manner of a ROS 2 action).
+
+A goal is submitted by a query and acknowledged at once (accepted or refused with a
+reason); while it runs the controller publishes feedback every cycle; when it ends it
+publishes exactly one result. A new trajectory goal preempts the running one, or, with
+``replace``, splices into it while the arm moves (continuous position and velocity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.base import Message, field
+from schemas.planning import Trajectory
+
+CONTROL_MODES = ("default", "thesis")
+RESULT_STATUSES = ("succeeded", "aborted", "cancelled", "preempted")
+GOAL_KINDS = ("trajectory", "gripper")
+
+
+@dataclass(frozen=True)
+class TrajectoryGoal(Message):
+    """Follow a joint trajectory."""
+
+    TYPE_NAME = "manus/TrajectoryGoal/1"
+
+    goal_id: str = field("caller-chosen unique id")
+    trajectory: Trajectory = field("what to follow")
+    mode: str = field("control law", default="default", choices=CONTROL_MODES)
+    path_tolerance: list[float] = field(
+        "largest allowed |reference - actual| per joint while moving (0: unchecked)",
+        unit="rad",
+        default_factory=list,
+    )
+    goal_tolerance: list[float] = field(
+        "largest allowed |final - actual| per joint at the end (0: unchecked)",
+        unit="rad",
+        default_factory=list,
+    )
+    goal_time_tolerance: float = field(
+        "time allowed after the trajectory's end to get within tolerance", unit="s", default=5.0
+    )
+    position_tolerance: float = field(
+        "gripper position error at the end under which the goal succeeds", unit="m", default=0.002
+    )
+    start_tolerance: float = field(
+        "largest allowed |first knot - measured| per joint at the start", unit="rad", default=0.05
+    )
+    replace: bool = field(
+        "splice into the running trajectory at the next cycle instead of preempting it",
+        default=False,
+    )
+    speed_scale: float = field(
+        "initial speed scaling (1: as planned)", default=1.0, minimum=0.05, maximum=1.0
+    )
+
+
+@dataclass(frozen=True)
+class GripperGoal(Message):
+    """Drive the gripper to an opening."""
+
+    TYPE_NAME = "manus/GripperGoal/1"
+
+    goal_id: str = field("caller-chosen unique id")
+    opening: float = field("target opening", unit="m", minimum=0.0, maximum=0.09)
+    tolerance: float = field("done when within this of the target", unit="m", default=0.001)
+    timeout: float = field("abort if not reached within this time", unit="s", default=10.0)
+
+
+@dataclass(frozen=True)
+class CancelGoal(Message):
+    """Cancel a goal (decelerate to rest within the arm's limits)."""
+
+    TYPE_NAME = "manus/CancelGoal/1"
+
+    goal_id: str = field("goal to cancel; empty: every active goal", default="")
+
+
+@dataclass(frozen=True)
+class SpeedScale(Message):
+    """Change the speed of the running trajectory (time scaling) from the next cycle."""
+
+    TYPE_NAME = "manus/SpeedScale/1"
+
+    scale: float = field("1: as planned; smaller: slower", minimum=0.05, maximum=1.0)
+
+
+@dataclass(frozen=True)
+class GoalAck(Message):
+    """Immediate answer to a goal, cancel or speed request."""
+
+    TYPE_NAME = "manus/GoalAck/1"
+
+    accepted: bool = field("accepted")
+    goal_id: str = field("the goal concerned")
+    reason: str = field("why it was refused", default="")
+
+
+@dataclass(frozen=True)
+class ControllerFeedback(Message):
+    """One cycle of the controller: reference vs actual."""
+
+    TYPE_NAME = "manus/ControllerFeedback/1"
+
+    stamp_ns: int = field("stamp of the joint state this cycle answers", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    goal_id: str = field("active trajectory goal ('' when idle)")
+    state: str = field("idle, tracking, settling, decelerating, holding")
+    segment: int = field("index of the knot interval being tracked (-1: none)")
+    t: float = field("trajectory time", unit="s")
+    reference: list[float] = field("reference joint angles", unit="rad", length=6)
+    actual: list[float] = field("measured joint angles", unit="rad", length=6)
+    error: list[float] = field("reference - actual", unit="rad", length=6)
+    command: list[float] = field(
+        "commanded joint velocities (after quantization)", unit="rad/s", length=6
+    )
+    reference_xyz: list[float] = field("gripper position of the reference", unit="m", length=3)
+    actual_xyz: list[float] = field("gripper position of the measurement", unit="m", length=3)
+    position_error: float = field("|reference_xyz - actual_xyz|", unit="m")
+    gripper_goal_id: str = field("active gripper goal ('' when none)", default="")
+    gripper_target: float = field("gripper target opening", unit="m", default=0.0)
+    gripper: float = field("measured gripper opening", unit="m", default=0.0)
+    speed_scale: float = field("current speed scaling", default=1.0)
+
+
+@dataclass(frozen=True)
+class GoalResult(Message):
+    """The one result of a goal."""
+
+    TYPE_NAME = "manus/GoalResult/1"
+
+    stamp_ns: int = field("stamp of the joint state at which the goal ended", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    goal_id: str = field("the goal")
+    kind: str = field("trajectory or gripper", choices=GOAL_KINDS)
+    status: str = field("how it ended", choices=RESULT_STATUSES)
+    reason: str = field("why it ended that way, in words")
+    via_errors: list[float] = field(
+        "gripper position error at each knot time, measured (FK of the encoders)",
+        unit="m",
+        default_factory=list,
+    )
+    final_error: float = field("gripper position error at the end", unit="m", default=0.0)
+    duration: float = field("time from start to end", unit="s", default=0.0)

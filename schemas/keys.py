@@ -1,0 +1,169 @@
+"""Every key expression of the stack, defined once, rooted at a configurable prefix.
+
+One arm per prefix (default ``manus``). :class:`Keys` builds the concrete key
+expressions; :data:`CHANNELS` says which message type travels on each, which the
+recorder uses to give every MCAP channel its JSON Schema and the docs use to list them.
+
+| key (after the prefix) | kind       | type                          | publisher  |
+|------------------------|------------|-------------------------------|------------|
+| state/joints           | pub        | JointState                    | can_bridge |
+| state/status           | pub        | ArmStatus                     | can_bridge |
+| state/bridge           | pub        | BridgeState                   | can_bridge |
+| can/rx, can/tx         | pub        | CanFrame                      | can_bridge |
+| cmd/joint_velocity     | pub        | JointVelocityCommand          | controller |
+| estop                  | pub        | EStop                         | anyone     |
+| bridge/command         | queryable  | ArmCommand -> ArmCommandReply | can_bridge |
+| planner/plan           | queryable  | PlanRequest -> PlanReply      | planner    |
+| controller/goal        | queryable  | TrajectoryGoal -> GoalAck     | controller |
+| controller/gripper     | queryable  | GripperGoal -> GoalAck        | controller |
+| controller/cancel      | queryable  | CancelGoal -> GoalAck         | controller |
+| controller/speed_scale | queryable  | SpeedScale -> GoalAck         | controller |
+| controller/feedback    | pub        | ControllerFeedback            | controller |
+| controller/result      | pub        | GoalResult                    | controller |
+| sequencer/...          | (see schemas.sequencing)                   | sequencer  |
+| sim/truth              | pub        | SimTruth                      | simulator  |
+| alive/<service>        | liveliness | (no payload)                  | each one   |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from manus.session import DEFAULT_PREFIX
+from schemas.base import Message
+
+SERVICES = ("simulator", "can_bridge", "planner", "controller", "sequencer", "recorder")
+"""Names used for liveliness tokens (``<prefix>/alive/<name>``)."""
+
+
+@dataclass(frozen=True)
+class Keys:
+    """The key expressions of one arm.
+
+    Attributes:
+        prefix: root of every key (one arm per prefix).
+    """
+
+    prefix: str = DEFAULT_PREFIX
+
+    def __call__(self, suffix: str) -> str:
+        """``<prefix>/<suffix>``."""
+        return f"{self.prefix}/{suffix}"
+
+    @property
+    def all(self) -> str:
+        """Every key of this arm (for recorders)."""
+        return f"{self.prefix}/**"
+
+    @property
+    def joints(self) -> str:
+        return self("state/joints")
+
+    @property
+    def status(self) -> str:
+        return self("state/status")
+
+    @property
+    def bridge_state(self) -> str:
+        return self("state/bridge")
+
+    @property
+    def can_rx(self) -> str:
+        return self("can/rx")
+
+    @property
+    def can_tx(self) -> str:
+        return self("can/tx")
+
+    @property
+    def joint_velocity(self) -> str:
+        return self("cmd/joint_velocity")
+
+    @property
+    def estop(self) -> str:
+        return self("estop")
+
+    @property
+    def bridge_command(self) -> str:
+        return self("bridge/command")
+
+    @property
+    def plan(self) -> str:
+        return self("planner/plan")
+
+    @property
+    def goal(self) -> str:
+        return self("controller/goal")
+
+    @property
+    def gripper_goal(self) -> str:
+        return self("controller/gripper")
+
+    @property
+    def cancel(self) -> str:
+        return self("controller/cancel")
+
+    @property
+    def speed_scale(self) -> str:
+        return self("controller/speed_scale")
+
+    @property
+    def feedback(self) -> str:
+        return self("controller/feedback")
+
+    @property
+    def result(self) -> str:
+        return self("controller/result")
+
+    @property
+    def sim_truth(self) -> str:
+        return self("sim/truth")
+
+    def alive(self, service: str) -> str:
+        """Liveliness token of one service."""
+        return self(f"alive/{service}")
+
+    @property
+    def alive_all(self) -> str:
+        return self("alive/**")
+
+    def suffix(self, key: str) -> str:
+        """The part of ``key`` after the prefix (``key`` itself if it is not under it)."""
+        head = self.prefix + "/"
+        return key[len(head) :] if key.startswith(head) else key
+
+
+def channel_types() -> dict[str, type[Message]]:
+    """Key suffix -> message type of every published (non-query) channel.
+
+    Queryables are listed with their request type under ``<suffix>#request`` and their
+    reply type under ``<suffix>#reply`` so that recorders can store both.
+    """
+    from schemas import commands, control, planning, sequencing, state
+
+    table: dict[str, type[Message]] = {
+        "state/joints": state.JointState,
+        "state/status": state.ArmStatus,
+        "state/bridge": state.BridgeState,
+        "can/rx": state.CanFrame,
+        "can/tx": state.CanFrame,
+        "sim/truth": state.SimTruth,
+        "cmd/joint_velocity": commands.JointVelocityCommand,
+        "estop": commands.EStop,
+        "bridge/command#request": commands.ArmCommand,
+        "bridge/command#reply": commands.ArmCommandReply,
+        "planner/plan#request": planning.PlanRequest,
+        "planner/plan#reply": planning.PlanReply,
+        "controller/goal#request": control.TrajectoryGoal,
+        "controller/goal#reply": control.GoalAck,
+        "controller/gripper#request": control.GripperGoal,
+        "controller/gripper#reply": control.GoalAck,
+        "controller/cancel#request": control.CancelGoal,
+        "controller/cancel#reply": control.GoalAck,
+        "controller/speed_scale#request": control.SpeedScale,
+        "controller/speed_scale#reply": control.GoalAck,
+        "controller/feedback": control.ControllerFeedback,
+        "controller/result": control.GoalResult,
+    }
+    table.update(sequencing.CHANNELS)
+    return table

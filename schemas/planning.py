@@ -1,0 +1,146 @@
+"""Paths of Cartesian via points, plan requests and the joint trajectories that answer them.
+
+A via point travels in SI units (m, rad, s) with the thesis's meaning (SPEC 5.1): ``type``
+0 absolute (base frame), 1 relative to the first via point, 2 relative to the previous
+one; the first via point is replaced by the gripper's pose when the plan is made; only
+the first and last velocities are used; ``time`` is the arrival time since the first
+via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch) Rx(roll).
+
+A trajectory is piecewise Hermite in joint space: positions and velocities at each knot
+(cubic segments), plus accelerations when present (quintic segments). Its time starts at
+0 at the first knot; the controller anchors it when the goal starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.base import Message, field
+
+INTERPOLATIONS = ("cubic", "quintic")
+PLAN_ERROR_REASONS = (
+    "parse",  # the via-point text is malformed
+    "unreachable",  # outside the workspace
+    "singular",  # wrist singularity
+    "joint_limit",  # a joint limit is broken
+    "branch",  # the path would need an IK branch flip
+    "speed_limit",  # a joint speed or acceleration limit is broken (no speed scaling asked)
+    "no_state",  # no start configuration given and no joint state known
+    "invalid",  # the request itself is inconsistent
+)
+
+
+@dataclass(frozen=True)
+class ViaPoint(Message):
+    """One via point (thesis Table 4.3) in SI units."""
+
+    TYPE_NAME = "manus/ViaPoint/1"
+
+    xyz: list[float] = field("gripper position", unit="m", length=3)
+    velocity: list[float] = field("linear velocity (used at the ends only)", unit="m/s", length=3)
+    ypr: list[float] = field("orientation (yaw, pitch, roll)", unit="rad", length=3)
+    angular_velocity: list[float] = field(
+        "(yaw, pitch, roll) rates (used at the ends only)", unit="rad/s", length=3
+    )
+    time: float = field("arrival time since the first via point", unit="s", minimum=0.0)
+    type: int = field(
+        "0 absolute, 1 relative to the first, 2 relative to the previous", minimum=0, maximum=2
+    )
+    line: int = field("line in the source file (0: not from a file)", default=0, minimum=0)
+
+
+@dataclass(frozen=True)
+class Path(Message):
+    """A sequence of via points, in execution order."""
+
+    TYPE_NAME = "manus/Path/1"
+
+    via_points: list[ViaPoint] = field("the via points; the first is replaced by the current pose")
+    source: str = field("where it came from (file name), for error messages", default="")
+
+
+@dataclass(frozen=True)
+class PlanRequest(Message):
+    """Ask the planner for a joint trajectory along a path."""
+
+    TYPE_NAME = "manus/PlanRequest/1"
+
+    path: Path = field("the path")
+    start: list[float] | None = field(
+        "start configuration (DH joint angles); None: the newest joint state",
+        unit="rad",
+        default=None,
+        length=6,
+    )
+    interpolation: str = field(
+        "cubic spline through all via points, or quintic segments",
+        default="cubic",
+        choices=INTERPOLATIONS,
+    )
+    speed_scaling: bool = field(
+        "stretch time to respect joint speed/acceleration limits instead of refusing", default=False
+    )
+
+
+@dataclass(frozen=True)
+class Trajectory(Message):
+    """A joint trajectory: piecewise cubic (or quintic) Hermite through its knots."""
+
+    TYPE_NAME = "manus/Trajectory/1"
+
+    times: list[float] = field("knot times, from 0, strictly increasing", unit="s")
+    positions: list[list[float]] = field(
+        "joint positions at the knots, one row of 6 per knot", unit="rad"
+    )
+    velocities: list[list[float]] = field("joint velocities at the knots", unit="rad/s")
+    accelerations: list[list[float]] = field(
+        "joint accelerations at the knots (empty: cubic segments)",
+        unit="rad/s^2",
+        default_factory=list,
+    )
+    via_xyz: list[list[float]] = field(
+        "Cartesian gripper position of each knot (the via point it reaches)",
+        unit="m",
+        default_factory=list,
+    )
+    via_lines: list[int] = field(
+        "source line of each knot's via point (0: none)", default_factory=list
+    )
+    preview_xyz: list[list[float]] = field(
+        "gripper positions sampled every `preview_dt` along the trajectory, for display",
+        unit="m",
+        default_factory=list,
+    )
+    preview_dt: float = field("sampling step of the preview", unit="s", default=0.0)
+    time_scale: float = field("how much the planner stretched time (1: not at all)", default=1.0)
+    notes: list[str] = field("what the planner wants the user to know", default_factory=list)
+
+
+@dataclass(frozen=True)
+class PlanError(Message):
+    """Why a path cannot be planned, with where."""
+
+    TYPE_NAME = "manus/PlanError/1"
+
+    reason: str = field("kind of failure", choices=PLAN_ERROR_REASONS)
+    message: str = field("one line for a human, naming file, line, via point, joint, value, limit")
+    via_point: int = field("0-based via point index (-1: none)", default=-1)
+    line: int = field("source line (0: none)", default=0)
+    joint: int = field("1-based joint (0: none)", default=0)
+    value: float | None = field("offending value (rad, rad/s, m)", default=None)
+    limit: float | None = field("the limit it broke", default=None)
+
+
+@dataclass(frozen=True)
+class PlanReply(Message):
+    """The planner's answer: a trajectory or an error."""
+
+    TYPE_NAME = "manus/PlanReply/1"
+
+    ok: bool = field("a trajectory was planned")
+    trajectory: Trajectory | None = field("the trajectory (when ok)", default=None)
+    error: PlanError | None = field("the error (when not ok)", default=None)
+    start: list[float] | None = field(
+        "the start configuration used", unit="rad", default=None, length=6
+    )
+    compute_ms: float = field("time spent planning", unit="ms", default=0.0)

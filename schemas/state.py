@@ -1,0 +1,129 @@
+"""What the arm and the bridge report: joint state, arm status, bridge health, raw frames.
+
+All published by ``can_bridge`` (``SimTruth`` by the simulator). SI units; stamps are
+integer nanoseconds of the publishing process's clock (the CAN receive time for
+arm data), and every stream has its own sequence number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.base import Message, field
+
+MODES = ("none", "cartesian", "joint", "fold_out", "fold_in", "unknown")
+MESSAGE_CLASSES = ("none", "warning", "general", "error")
+BRIDGE_PHASES = (
+    "opening",  # bus being opened
+    "waiting_power_up",  # waiting for "gripper ready" / "absolute angles measured"
+    "entering_joint_mode",  # zero 0x374 sent, waiting for joint mode and valid positions
+    "initialising",  # the four small joint 4-6 moves of thesis 4.2.1
+    "running",  # normal cycle: commands from the controller reach the arm
+    "resync",  # frames lost or out of order: zeros until two clean cycles
+    "folding_in",  # 0x376 held until the arm reports it folded
+    "folding_out",  # 0x375 held until the arm reports it unfolded
+    "stopped",  # 0x370 sent, waiting for a command
+    "estopped",  # e-stop latched: zeros then 0x370, until cleared
+    "arm_error",  # the arm reported an error: stopped until cleared
+    "shutdown",  # zeros and 0x370 sent, bus closed
+)
+APPLIED_KINDS = ("none", "joint", "cartesian", "stop", "fold_in", "fold_out")
+
+
+@dataclass(frozen=True)
+class JointState(Message):
+    """Joint positions of the arm, one per 60 ms cycle, published as soon as 0x360 is in."""
+
+    TYPE_NAME = "manus/JointState/1"
+
+    stamp_ns: int = field("CAN receive time of the cycle's 0x360 frame", unit="ns")
+    seq: int = field("cycle sequence number of this stream", minimum=0)
+    position: list[float] = field("DH joint angles q1..q6", unit="rad", length=6)
+    gripper: float = field("gripper opening", unit="m")
+    valid: bool = field("positions are meaningful (a move mode is active, the bridge is running)")
+    mode: str = field("active mode of the arm", choices=MODES)
+    encoder: list[int] = field(
+        "raw position fields: joints 1..6 [0.1 deg, motor angles] and gripper [0.1 mm]",
+        length=7,
+    )
+    applied: list[int] = field(
+        "increments the arm is executing, sent at the previous sync: lift, motor 1..6 "
+        "[0.1 deg per 20 ms], gripper [0.1 mm per 20 ms]",
+        length=8,
+    )
+    applied_kind: str = field("kind of the frame sent at the previous sync", choices=APPLIED_KINDS)
+    applied_seq: int = field(
+        "seq of the velocity command that was sent at the previous sync (-1: none, zeros)"
+    )
+
+
+@dataclass(frozen=True)
+class ArmStatus(Message):
+    """The arm's status byte and message of one cycle (SPEC 3.2), decoded."""
+
+    TYPE_NAME = "manus/ArmStatus/1"
+
+    stamp_ns: int = field("CAN receive time of the 0x350 frame", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    mode: str = field("active mode", choices=MODES)
+    mode_code: int = field("raw low nibble of status byte 0", minimum=0, maximum=15)
+    msg_class: str = field("message class (bits 7-6 of status byte 0)", choices=MESSAGE_CLASSES)
+    msg_code: int = field("message code (byte 1)", minimum=0, maximum=255)
+    text: str = field("meaning of the message, empty when there is none")
+
+
+@dataclass(frozen=True)
+class BridgeState(Message):
+    """Phase and timing health of the bridge, published every cycle and on every change."""
+
+    TYPE_NAME = "manus/BridgeState/1"
+
+    stamp_ns: int = field("time of the event that caused this report", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    phase: str = field("what the bridge is doing", choices=BRIDGE_PHASES)
+    estop: bool = field("e-stop latched")
+    cycles: int = field("complete cycles seen since start", minimum=0)
+    period_ms: float = field("last sync-to-sync period", unit="ms")
+    jitter_ms: float = field("largest |period - 60 ms| since start", unit="ms")
+    reply_latency_ms: float = field("last time from 0x37F receipt to reply sent", unit="ms")
+    reply_latency_max_ms: float = field("largest reply latency since start", unit="ms")
+    missed_windows: int = field("syncs not answered within the 20 ms window", minimum=0)
+    stale_commands: int = field(
+        "syncs answered with zeros because no fresh command was in", minimum=0
+    )
+    resyncs: int = field("times the bridge lost the cycle and resynchronised", minimum=0)
+    dropped_frames: int = field("frames missing from a cycle", minimum=0)
+    duplicate_frames: int = field("frames seen twice in a cycle", minimum=0)
+    garbled_frames: int = field("frames with a wrong length or unknown id", minimum=0)
+    buffered_syncs: int = field("old syncs found in a buffer and not answered", minimum=0)
+    bad_payloads: int = field("bus messages to the bridge that failed to decode", minimum=0)
+    detail: str = field("last notable event, in words")
+
+
+@dataclass(frozen=True)
+class CanFrame(Message):
+    """One raw CAN frame as seen on the bus (``can/rx``: from the arm; ``can/tx``: sent)."""
+
+    TYPE_NAME = "manus/CanFrame/1"
+
+    stamp_ns: int = field("receive or send time", unit="ns")
+    seq: int = field("sequence number of this stream", minimum=0)
+    id: int = field("11-bit identifier", minimum=0, maximum=0x7FF)
+    data: bytes = field("payload (empty for remote frames)")
+    remote: bool = field("remote transmission request")
+    dlc: int = field("data length code", minimum=0, maximum=8)
+
+
+@dataclass(frozen=True)
+class SimTruth(Message):
+    """The simulator's true state, which a real arm never reports (for judging accuracy)."""
+
+    TYPE_NAME = "manus/SimTruth/1"
+
+    stamp_ns: int = field("simulated time", unit="ns")
+    seq: int = field("sequence number", minimum=0)
+    q_true: list[float] = field("true DH joint angles", unit="rad", length=6)
+    q_reported: list[float] = field("DH angles the encoders report", unit="rad", length=6)
+    gripper: float = field("true gripper opening", unit="m")
+    xyz: list[float] = field("true gripper position in the base frame", unit="m", length=3)
+    ypr: list[float] = field("true gripper (yaw, pitch, roll)", unit="rad", length=3)

@@ -1,0 +1,45 @@
+"""Shared fixtures: a loopback Zenoh router, settings for clients, Hypothesis profile."""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Iterator
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+from manus.session import ZenohSettings, client_settings, open_session, router_settings
+
+# Fixed seeds everywhere: the same examples on every run and in CI.
+settings.register_profile(
+    "manus",
+    derandomize=True,
+    deadline=None,
+    max_examples=200,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile("manus")
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def router_endpoint() -> Iterator[str]:
+    """A Zenoh router on a fresh loopback port, for the duration of one test."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    session = open_session(router_settings(endpoint))
+    try:
+        yield endpoint
+    finally:
+        session.close()
+
+
+@pytest.fixture
+def zenoh_settings(router_endpoint: str) -> ZenohSettings:
+    """Client settings for the test's router, with a prefix of its own."""
+    return client_settings(router_endpoint, prefix="test")
