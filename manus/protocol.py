@@ -278,3 +278,52 @@ def decode_move(frame_id: int, data: bytes) -> MoveCommand:
 
 ZERO_JOINT_MOVE = MoveCommand(FrameId.JOINT, 0, (0, 0, 0, 0, 0, 0), 0)
 """The zero 0x374: enters joint mode and holds the arm still."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A CAN frame as the cores see it: no bus object, time inside.
+
+    Attributes:
+        id: 11-bit identifier.
+        data: payload (empty for remote frames and DLC-0 frames).
+        remote: remote transmission request (the 0x37F sync).
+        t_ns: when it was sent (by the simulator) or received (by the bridge) [ns].
+        dlc: data length code; for remote frames the requested length (0 here).
+    """
+
+    id: int
+    data: bytes = b""
+    remote: bool = False
+    t_ns: int = 0
+    dlc: int = -1
+
+    def __post_init__(self) -> None:
+        # Normalise so that equal frames compare equal: plain int id, explicit DLC.
+        object.__setattr__(self, "id", int(self.id))
+        if self.dlc < 0:
+            object.__setattr__(self, "dlc", len(self.data))
+
+    @property
+    def length(self) -> int:
+        """The data length code."""
+        return self.dlc
+
+    def at(self, t_ns: int) -> Frame:
+        """The same frame stamped ``t_ns``."""
+        return Frame(self.id, self.data, self.remote, t_ns, self.dlc)
+
+
+def sync_frame(t_ns: int = 0) -> Frame:
+    """The arm's 0x37F remote frame."""
+    return Frame(FrameId.SYNC, b"", True, t_ns, 0)
+
+
+def move_frame(cmd: MoveCommand, t_ns: int = 0, *, strict: bool = True) -> Frame:
+    """A 0x371/0x374 frame carrying ``cmd``."""
+    return Frame(cmd.frame_id, encode_move(cmd, strict=strict), False, t_ns)
+
+
+def empty_frame(frame_id: FrameId, t_ns: int = 0) -> Frame:
+    """A DLC-0 data frame: 0x370 stop, 0x375 fold out, 0x376 fold in."""
+    return Frame(frame_id, b"", False, t_ns, 0)

@@ -1,0 +1,52 @@
+"""The boundary to python-can: open any interface, convert frames both ways.
+
+The bridge and the simulator talk to ``can.BusABC`` only, never to one interface kind,
+so the same code drives socketcan, pcan, kvaser, slcan or the in-process ``virtual`` bus.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import can
+
+from manus.errors import ConfigError
+from manus.protocol import BITRATE, Frame
+
+
+def open_bus(interface: str, channel: str, bitrate: int = BITRATE, **kwargs: Any) -> can.BusABC:
+    """Open a python-can bus, with an error that names the interface and channel.
+
+    Raises:
+        ConfigError: the interface is unknown or the channel cannot be opened.
+    """
+    try:
+        return can.Bus(interface=interface, channel=channel, bitrate=bitrate, **kwargs)
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise ConfigError(
+            f"cannot open CAN interface {interface!r} channel {channel!r} at {bitrate} bit/s: {exc}"
+        ) from exc
+
+
+def to_can(frame: Frame) -> can.Message:
+    """A python-can message for ``frame`` (standard 11-bit id)."""
+    return can.Message(
+        arbitration_id=frame.id,
+        data=frame.data,
+        is_remote_frame=frame.remote,
+        is_extended_id=False,
+        dlc=frame.length,
+        timestamp=frame.t_ns / 1e9,
+    )
+
+
+def from_can(msg: can.Message, t_ns: int | None = None) -> Frame:
+    """A frame from a python-can message; ``t_ns`` overrides the message's timestamp."""
+    stamp = t_ns if t_ns is not None else int(round(msg.timestamp * 1e9))
+    return Frame(
+        int(msg.arbitration_id),
+        bytes(msg.data) if not msg.is_remote_frame else b"",
+        bool(msg.is_remote_frame),
+        stamp,
+        int(msg.dlc),
+    )
