@@ -42,7 +42,7 @@ def to_can(frame: Frame) -> can.Message:
 
 def from_can(msg: can.Message, t_ns: int | None = None) -> Frame:
     """A frame from a python-can message; ``t_ns`` overrides the message's timestamp."""
-    stamp = t_ns if t_ns is not None else int(round(msg.timestamp * 1e9))
+    stamp = t_ns if t_ns is not None else round(msg.timestamp * 1e9)
     return Frame(
         int(msg.arbitration_id),
         bytes(msg.data) if not msg.is_remote_frame else b"",
