@@ -17,6 +17,7 @@ from manus.errors import ManusError
 COMMANDS: dict[str, tuple[str, str]] = {
     "kin": ("manus_stack.commands.kin", "kinematics: fk, ik, jacobian, urdf"),
     "bench": ("manus_stack.commands.bench", "benchmarks; prints figures as JSON"),
+    "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
 }
 """Subcommand -> (module, one-line help)."""
 

@@ -1,0 +1,239 @@
+"""The simulated arm's mechanics: motors, belts, joints and gripper, one step at a time.
+
+State lives in motor (encoder) space [deg], because that is what the drives integrate and
+what the encoders measure; DH angles come from :mod:`manus.joint_map` (joint 3's DH angle
+moves with motor 2, SPEC 2.2). Per step:
+
+1. target motor speeds (already multiplied by each joint's gain error) through the
+   first-order lag (:func:`~services.simulator.drives.lag_step`), or, in a fold procedure,
+   a constant-speed move toward the fold pose;
+2. stuck motors hold;
+3. joint limits: a joint stops at its limit (warning 3 while it is pushed against it);
+4. work area: a motion that would straighten the elbow further inside the stretched
+   margin (warning 2) or take the gripper deeper into the forbidden area (warning 1) is
+   refused, the arm holds;
+5. gripper (0..max), then the belts: the true joint follows its motor through a dead band,
+   and joint 1 has a scale error.
+
+:meth:`ArmModel.step` is pure, so the core also uses it to evaluate the truth between ticks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder, encoder_to_dh
+from manus.kinematics import fk
+from manus.protocol import WARN_MOTOR_BLOCKED, WARN_STRETCHED, WARN_WRONG_AREA
+from services.simulator.config import SimConfig
+from services.simulator.drives import backlash, lag_step, move_toward
+from services.simulator.workspace import area_violation, stretch_violation
+
+_DQ_DE = np.diag(M_ENCODER_TO_DH).copy()
+"""d q_i / d e_i: how DH joint i moves with its own motor (the diagonal of the map)."""
+_EPS = 1e-9
+
+
+def motor_to_dh_deg(e_deg: np.ndarray) -> np.ndarray:
+    """DH joint angles [deg] from motor angles [deg], shape (6,)."""
+    return np.asarray(np.degrees(encoder_to_dh(np.radians(e_deg))))
+
+
+def dh_to_motor_deg(q_deg: np.ndarray) -> np.ndarray:
+    """Motor angles [deg] from DH joint angles [deg], shape (6,)."""
+    return np.asarray(np.degrees(dh_to_encoder(np.radians(q_deg))))
+
+
+@dataclass(frozen=True)
+class ArmState:
+    """The mechanical state (arrays are never modified in place).
+
+    Attributes:
+        motor_deg: motor (encoder) angles e1..e6, shape (6,) [deg].
+        speed_deg_s: motor speeds, shape (6,) [deg/s].
+        output_deg: belt output side of each motor (after backlash), shape (6,) [deg].
+        gripper_mm: gripper opening [mm].
+        gripper_speed_mm_s: gripper opening speed [mm/s].
+    """
+
+    motor_deg: np.ndarray
+    speed_deg_s: np.ndarray
+    output_deg: np.ndarray
+    gripper_mm: float
+    gripper_speed_mm_s: float
+
+
+@dataclass(frozen=True)
+class Intent:
+    """What the drives are asked to do over one step.
+
+    Attributes:
+        rates_deg_s: target motor speeds (gain error not applied yet), shape (6,)
+            [deg/s]; for a fold, the constant speed magnitude of each motor.
+        gripper_mm_s: target gripper speed [mm/s].
+        fold_target_deg: motor angles a fold procedure drives to (None: no fold).
+        stuck: motors that cannot move, shape (6,) of bool.
+        checks: refuse motion into the stretched elbow or the forbidden area.
+    """
+
+    rates_deg_s: np.ndarray
+    gripper_mm_s: float = 0.0
+    fold_target_deg: np.ndarray | None = None
+    stuck: np.ndarray | None = None
+    checks: bool = True
+
+
+HOLD = Intent(np.zeros(6))
+"""Ask nothing: the motors coast down to rest through the lag."""
+
+
+class StepResult(NamedTuple):
+    """The outcome of one step.
+
+    Attributes:
+        state: the state at the end of the step.
+        warnings: warning codes raised during the step.
+        arrived: a fold procedure reached its target.
+    """
+
+    state: ArmState
+    warnings: frozenset[int]
+    arrived: bool
+
+
+class ArmModel:
+    """The arm's mechanics for one configuration.
+
+    Args:
+        config: the simulator configuration.
+        gains: per-motor speed gains (1 + error), shape (6,) [-].
+    """
+
+    def __init__(self, config: SimConfig, gains: np.ndarray) -> None:
+        self.config = config
+        self.gains = np.asarray(gains, dtype=float)
+        self.tau_s = config.transient_tau_ms / 1000.0
+        self.width = np.asarray(config.backlash_deg, dtype=float)
+        self.lower_deg = np.degrees(config.arm.lower_array)
+        self.upper_deg = np.degrees(config.arm.upper_array)
+        self.gripper_max_mm = config.arm.gripper_max * 1000.0
+        self._area_cache: dict[bytes, float] = {}
+
+    def initial_state(self) -> ArmState:
+        """At rest in the configured start pose, every belt's slack centred."""
+        e = dh_to_motor_deg(np.asarray(self.config.start_q_deg, dtype=float))
+        return ArmState(e, np.zeros(6), e.copy(), self.config.start_gripper_mm, 0.0)
+
+    def q_motor_deg(self, state: ArmState) -> np.ndarray:
+        """DH angles the (unquantised) motor angles stand for [deg], shape (6,)."""
+        return motor_to_dh_deg(state.motor_deg)
+
+    def q_true_deg(self, state: ArmState) -> np.ndarray:
+        """True DH joint angles [deg]: belt outputs, with joint 1's scale error."""
+        q = motor_to_dh_deg(state.output_deg)
+        q[0] *= 1.0 + self.config.joint1_scale_error
+        return q
+
+    def gripper_xyz_mm(self, q_deg: np.ndarray) -> np.ndarray:
+        """Gripper position in the base frame [mm] for DH angles [deg], shape (3,)."""
+        return np.asarray(fk(np.radians(q_deg), self.config.arm)[:3, 3] * 1000.0)
+
+    def step(self, state: ArmState, intent: Intent, dt_s: float) -> StepResult:
+        """Advance the mechanics by ``dt_s`` [s] (pure)."""
+        warnings: set[int] = set()
+        x0 = state.motor_deg
+        if intent.fold_target_deg is not None:
+            target = intent.fold_target_deg
+            x, v = move_toward(x0, target, intent.rates_deg_s, dt_s)
+            pushing = np.abs(target - x0) > _EPS
+        else:
+            u = intent.rates_deg_s * self.gains
+            x, v = lag_step(x0, state.speed_deg_s, u, dt_s, self.tau_s)
+            pushing = np.abs(u) > 0.0
+        if intent.stuck is not None and intent.stuck.any():
+            if np.any(pushing & intent.stuck):
+                warnings.add(WARN_MOTOR_BLOCKED)
+            x = np.where(intent.stuck, x0, x)
+            v = np.where(intent.stuck, 0.0, v)
+        x, v, blocked = self._limit(x, v)
+        if blocked:
+            warnings.add(WARN_MOTOR_BLOCKED)
+        if intent.checks and not np.array_equal(x, x0):
+            refused = self._refusal(x0, x)
+            if refused is not None:
+                warnings.add(refused)
+                x, v = x0, np.zeros(6)
+        g, gv = self._gripper(state, intent.gripper_mm_s, dt_s)
+        out = backlash(state.output_deg, x, self.width)
+        arrived = intent.fold_target_deg is not None and bool(
+            np.all(np.abs(intent.fold_target_deg - x) <= _EPS)
+        )
+        return StepResult(ArmState(x, v, out, g, gv), frozenset(warnings), arrived)
+
+    def _limit(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        # Each DH joint i is set by its own motor i (joint 3 relative to motor 2), so clamp
+        # in joint order with motor i; q3 is recomputed once motor 2 is final.
+        q = motor_to_dh_deg(x)
+        if np.all((q >= self.lower_deg) & (q <= self.upper_deg)):
+            return x, v, False
+        x, v = x.copy(), v.copy()
+        blocked = False
+        for i in range(6):
+            if i == 2:
+                q = motor_to_dh_deg(x)
+            excess = max(q[i] - self.upper_deg[i], 0.0) + min(q[i] - self.lower_deg[i], 0.0)
+            if excess != 0.0:
+                x[i] -= excess * _DQ_DE[i]
+                v[i] = 0.0
+                blocked = blocked or abs(excess) > _EPS
+        return x, v, blocked
+
+    def _refusal(self, x0: np.ndarray, x: np.ndarray) -> int | None:
+        q0, q1 = motor_to_dh_deg(x0), motor_to_dh_deg(x)
+        margin = self.config.stretched_margin_deg
+        if stretch_violation(q1, margin) > stretch_violation(q0, margin) + _EPS:
+            return WARN_STRETCHED
+        if self._area(x, q1) > self._area(x0, q0) + _EPS:
+            return WARN_WRONG_AREA
+        return None
+
+    def _area(self, x: np.ndarray, q_deg: np.ndarray) -> float:
+        # One forward kinematics per tick: the start of a step is the end of the last one.
+        key = x.tobytes()
+        cached = self._area_cache.get(key)
+        if cached is None:
+            cfg = self.config
+            cached = area_violation(self.gripper_xyz_mm(q_deg), cfg.floor_z_mm, cfg.base_radius_mm)
+            if len(self._area_cache) >= 4:
+                self._area_cache.clear()
+            self._area_cache[key] = cached
+        return cached
+
+    def _gripper(self, state: ArmState, rate_mm_s: float, dt_s: float) -> tuple[float, float]:
+        gx, gv = lag_step(
+            np.array([state.gripper_mm]),
+            np.array([state.gripper_speed_mm_s]),
+            np.array([rate_mm_s]),
+            dt_s,
+            self.tau_s,
+        )
+        g, speed = float(gx[0]), float(gv[0])
+        if g <= 0.0 or g >= self.gripper_max_mm:
+            return min(max(g, 0.0), self.gripper_max_mm), 0.0
+        return g, speed
+
+
+def fold_rates(x0: np.ndarray, target: np.ndarray, speed_deg_s: float) -> np.ndarray:
+    """Constant motor speeds [deg/s] so that every motor reaches ``target`` together.
+
+    The motor with the longest way moves at ``speed_deg_s``; shape (6,).
+    """
+    way = np.abs(target - x0)
+    longest = float(way.max())
+    if longest <= 0.0 or not math.isfinite(longest):
+        return np.zeros(6)
+    return np.asarray(way * (speed_deg_s / longest))

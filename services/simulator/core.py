@@ -1,0 +1,427 @@
+"""The simulated Manus electronics: a deterministic core driven by a simulated clock.
+
+The timeline (docs/architecture.md, Time): cycle k starts at T = 60 k ms; at T+20 one
+snapshot of every position is taken and 0x350 sent, at T+40 0x360 from the same
+snapshot, at T+60 the 0x37F sync (remote, DLC 0). The first reply received in
+[T+60, T+80) is latched and becomes active at the tick T+80; later replies of the same
+window and frames outside any window are ignored and counted. A move stays active until
+another reply replaces it (a late or missing reply repeats the last command); a fold
+(0x375/0x376) advances only in the cycles after a sync that it answered.
+
+Every 20 ms tick integrates the active command over the tick that ends there
+(:mod:`services.simulator.arm`). Events at the same instant run in this order: the
+tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
+or sync), frames leaving, then frames from the PC.
+
+The core never reads a clock and draws every random number from generators seeded by
+``config.seed``: same configuration and inputs, same frames, bit for bit.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from manus.errors import ManusError
+from manus.protocol import (
+    GEN_ANGLES_MEASURED,
+    GEN_FOLDED,
+    GEN_GRIPPER_READY,
+    GEN_UNFOLDED,
+    GRIPPER_UNIT_MM,
+    JOINT_UNIT_DEG,
+    TICK_S,
+    Frame,
+    FrameId,
+    Mode,
+    MoveCommand,
+    sync_frame,
+)
+from schemas.state import SimTruth
+from services.simulator.arm import ArmModel, ArmState, Intent, dh_to_motor_deg, fold_rates
+from services.simulator.cartesian import cartesian_fields, cartesian_motor_rates
+from services.simulator.config import SimConfig
+from services.simulator.counters import SimCounters
+from services.simulator.faults import (
+    Fault,
+    FrameFault,
+    FrameFaulter,
+    InjectedMessage,
+    Silence,
+    StuckJoint,
+)
+from services.simulator.messages import MessageBoard
+from services.simulator.replies import WARN_CLAMPED, Reply, classify
+from services.simulator.report import (
+    Snapshot,
+    garbage_fields,
+    gripper_field,
+    joint_fields,
+)
+from services.simulator.truth import make_truth
+
+MS = 1_000_000
+"""One millisecond [ns]."""
+TICK_NS = 20 * MS
+WINDOW_NS = 20 * MS
+_FOLD_MODE = {FrameId.FOLD_IN: Mode.FOLD_IN, FrameId.FOLD_OUT: Mode.FOLD_OUT}
+_FOLD_DONE = {FrameId.FOLD_IN: GEN_FOLDED, FrameId.FOLD_OUT: GEN_UNFOLDED}
+
+
+class SimError(ManusError, ValueError):
+    """The simulator core was driven against its contract (time going backwards...)."""
+
+
+@dataclass
+class FoldProcedure:
+    """A running fold in (0x376) or fold out (0x375).
+
+    Attributes:
+        kind: :attr:`FrameId.FOLD_IN` or :attr:`FrameId.FOLD_OUT`.
+        target_deg: motor angles of the fold pose, shape (6,) [deg].
+        rates_deg_s: constant motor speeds toward it, shape (6,) [deg/s].
+        held: the PC answered the last sync with this fold frame (else the fold pauses).
+        done: the pose has been reached (and the general message queued).
+    """
+
+    kind: FrameId
+    target_deg: np.ndarray
+    rates_deg_s: np.ndarray
+    held: bool = True
+    done: bool = False
+
+
+class SimCore:
+    """The Manus electronics, stepped by :meth:`advance`; see the module docstring.
+
+    Args:
+        config: the simulator configuration (faults included).
+    """
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        self.config = config or SimConfig()
+        cfg = self.config
+        model_rng, fault_rng, self._garbage_rng = np.random.default_rng(cfg.seed).spawn(3)
+        gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
+        self.model = ArmModel(cfg, gains)
+        self.counters = SimCounters()
+        self._faulter = FrameFaulter(fault_rng, self.counters)
+        self._board = MessageBoard()
+        self._board.post_general(round(cfg.gripper_ready_ms * MS), GEN_GRIPPER_READY)
+        self._board.post_general(round(cfg.angles_measured_ms * MS), GEN_ANGLES_MEASURED)
+        self._ready_ns = round(cfg.angles_measured_ms * MS)
+        self._state: ArmState = self.model.initial_state()
+        self._now = 0
+        self._next_tick = TICK_NS
+        self._order = itertools.count()
+        self._outbox: list[tuple[int, int, Frame]] = []
+        self._inbox: list[tuple[int, int, Frame]] = []
+        self.mode = Mode.NONE
+        """The mode nibble the arm reports."""
+        self.positions_valid = False
+        """A move mode has been active since power-up (position fields mean something)."""
+        self.active: MoveCommand | None = None
+        """The latched move being executed (None: stopped, or a fold)."""
+        self._active_clamped = False
+        self.fold: FoldProcedure | None = None
+        """The fold procedure in progress or completed, if any."""
+        self._pending: Reply | None = None
+        self._window: tuple[int, int] | None = None
+        self._window_used = False
+        self.drives_on_ns: int | None = None
+        """When the drives started obeying (first motion + delay), None before."""
+        self.stale_until_ns: int | None = None
+        """When joints 4-6 stop reporting stale values, None before their first move."""
+        self.snapshot: Snapshot | None = None
+        """The last cycle's report."""
+        self._errors: list[InjectedMessage] = []
+        self._warnings: list[InjectedMessage] = []
+        self._stuck: list[StuckJoint] = []
+        for fault in cfg.faults.all:
+            self.add_fault(fault)
+
+    # -- the harness interface -----------------------------------------------------------
+
+    @property
+    def time_ns(self) -> int:
+        """Simulated time reached by the last :meth:`advance` [ns]."""
+        return self._now
+
+    def next_event_ns(self) -> int:
+        """Time of the next thing the core does: a tick or a frame leaving [ns]."""
+        if self._outbox:
+            return min(self._next_tick, self._outbox[0][0])
+        return self._next_tick
+
+    def advance(self, t_ns: int) -> list[Frame]:
+        """Run every tick and frame up to and including ``t_ns``.
+
+        Returns:
+            the frames sent, in time order, each stamped with its send time.
+
+        Raises:
+            SimError: ``t_ns`` is before the current time.
+        """
+        if t_ns < self._now:
+            raise SimError(f"advance to {t_ns} ns: time is already {self._now} ns")
+        sent: list[Frame] = []
+        while True:
+            t_out = self._outbox[0][0] if self._outbox else None
+            t_in = self._inbox[0][0] if self._inbox else None
+            t = min(x for x in (self._next_tick, t_out, t_in) if x is not None)
+            if t > t_ns:
+                break
+            self._now = t
+            if t == self._next_tick:
+                self._tick(t)
+                self._next_tick += TICK_NS
+            elif t == t_out:
+                sent.append(heapq.heappop(self._outbox)[2])
+            else:
+                self._handle(heapq.heappop(self._inbox)[2])
+        self._now = t_ns
+        self.counters.frames_sent += len(sent)
+        return sent
+
+    def receive(self, frame: Frame) -> None:
+        """A frame from the PC; ``frame.t_ns`` is its arrival time.
+
+        Raises:
+            SimError: the frame arrived before the current time.
+        """
+        if frame.t_ns < self._now:
+            raise SimError(
+                f"frame 0x{frame.id:03X} arrives at {frame.t_ns} ns, before the current "
+                f"time {self._now} ns"
+            )
+        if frame.t_ns == self._now:
+            self._handle(frame)
+        else:
+            heapq.heappush(self._inbox, (frame.t_ns, next(self._order), frame))
+
+    def truth(self, t_ns: int | None = None) -> SimTruth:
+        """The true state at ``t_ns`` (default: now), between the last tick and the next.
+
+        Raises:
+            SimError: ``t_ns`` is outside [last tick, next tick].
+        """
+        t = self._now if t_ns is None else t_ns
+        return make_truth(self.model, self.state_at(t), t, t // TICK_NS)
+
+    def state_at(self, t_ns: int) -> ArmState:
+        """The mechanical state at ``t_ns`` in [last tick, next tick] (exact, not stored)."""
+        last = self._next_tick - TICK_NS
+        if not last <= t_ns <= self._next_tick:
+            raise SimError(f"state at {t_ns} ns: only [{last}, {self._next_tick}] ns is known now")
+        if t_ns == last:
+            return self._state
+        return self.model.step(self._state, self._intent(last), (t_ns - last) / 1e9).state
+
+    # -- run-time controls and readings -----------------------------------------------------
+
+    def add_fault(self, fault: Fault) -> None:
+        """Switch a fault on now (its own times still apply)."""
+        if isinstance(fault, FrameFault | Silence):
+            self._faulter.add(fault)
+        elif isinstance(fault, InjectedMessage):
+            (self._errors if fault.msg_class == "error" else self._warnings).append(fault)
+        else:
+            self._stuck.append(fault)
+
+    def clear_faults(self) -> None:
+        """Switch every fault off (a latched error stays until a 0x370)."""
+        self._faulter.clear()
+        self._errors.clear()
+        self._warnings.clear()
+        self._stuck.clear()
+
+    @property
+    def state(self) -> ArmState:
+        """The mechanical state at the last tick."""
+        return self._state
+
+    @property
+    def error(self) -> int | None:
+        """The latched error code, if any."""
+        return self._board.error
+
+    def encoder_counts(self) -> tuple[int, ...]:
+        """What the encoders read at the last tick: motors 1..6 [0.1 deg], gripper [0.1 mm].
+
+        These are the real readings, before the report's garbage or stale substitutions.
+        """
+        return (*joint_fields(self._state.motor_deg, None), gripper_field(self._state.gripper_mm))
+
+    # -- the timeline --------------------------------------------------------------------
+
+    def _tick(self, t: int) -> None:
+        result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
+        self._state = result.state
+        self._board.raise_warnings(result.warnings)
+        if self._active_clamped:
+            self._board.raise_warnings({WARN_CLAMPED})
+        fold = self.fold
+        if result.arrived and fold is not None and not fold.done:
+            fold.done = True
+            self._board.post_general(t, _FOLD_DONE[fold.kind])
+        self._timed_faults(t)
+        phase = (t // TICK_NS) % 3
+        if phase == 1:
+            self._window = None
+            self._activate(t)
+            self._take_snapshot(t)
+            assert self.snapshot is not None
+            self._emit(self.snapshot.status_frame())
+        elif phase == 2 and self.snapshot is not None:
+            self._emit(self.snapshot.position_frame(t))
+        elif phase == 0:
+            self._emit(sync_frame(t))
+            self._window = (t, t + WINDOW_NS)
+            self._window_used = False
+
+    def _timed_faults(self, t: int) -> None:
+        for m in [m for m in self._errors if t >= round(m.at_ms * MS)]:
+            self._errors.remove(m)
+            self._board.latch_error(m.code)
+            self.active = None
+            if self.fold is not None:
+                self.fold.held = False
+        for m in self._warnings:
+            start = round(m.at_ms * MS)
+            if start <= t < start + round(m.duration_ms * MS):
+                self._board.raise_warnings({m.code})
+
+    def _emit(self, frame: Frame) -> None:
+        for out in self._faulter.apply(frame):
+            heapq.heappush(self._outbox, (out.t_ns, next(self._order), out))
+
+    def _handle(self, frame: Frame) -> None:
+        kind = classify(frame.id, frame.data, frame.remote, frame.dlc)
+        if kind == "ack":
+            self.counters.ack_frames += 1
+            return
+        if kind == "bad":
+            self.counters.bad_frames += 1
+            return
+        if kind == "unknown":
+            self.counters.unknown_frames += 1
+            return
+        assert isinstance(kind, Reply)
+        window = self._window
+        if window is None or not window[0] <= frame.t_ns < window[1]:
+            self.counters.outside_window += 1
+            return
+        if self._window_used:
+            self.counters.extra_replies += 1
+            return
+        if kind.kind != FrameId.STOP and frame.t_ns < self._ready_ns:
+            self.counters.not_ready += 1
+            return
+        self._window_used = True
+        self._pending = kind
+        self.counters.replies_latched += 1
+        if kind.clamped:
+            self.counters.clamped += 1
+            self._board.raise_warnings({WARN_CLAMPED})
+
+    # -- commands ------------------------------------------------------------------------
+
+    def _activate(self, t: int) -> None:
+        reply, self._pending = self._pending, None
+        if reply is None:
+            if self.fold is not None:
+                self.fold.held = False
+            return
+        if reply.kind == FrameId.STOP:
+            self.active, self.fold, self._active_clamped = None, None, False
+            self._board.clear_error()
+            return
+        if self._board.error is not None:
+            self.counters.ignored_in_error += 1
+            if self.fold is not None:
+                self.fold.held = False
+            return
+        if reply.move is not None:
+            self.fold = None
+            self.active, self._active_clamped = reply.move, reply.clamped
+            self.mode = Mode.JOINT if reply.kind == FrameId.JOINT else Mode.CARTESIAN
+            self.positions_valid = True
+            moving = not reply.move.is_zero
+            rates = self._move_rates(reply.move)
+            wrist = bool(np.any(rates[3:] != 0.0))
+        else:
+            self._hold_fold(reply.kind)
+            assert self.fold is not None
+            moving = not self.fold.done
+            wrist = bool(np.any(self.fold.rates_deg_s[3:] != 0.0))
+        if moving and self.drives_on_ns is None:
+            self.drives_on_ns = t + round(self.config.first_motion_delay_ms * MS)
+        if wrist and self.stale_until_ns is None:
+            self.stale_until_ns = t + round(self.config.stale_duration_ms * MS)
+
+    def _hold_fold(self, kind: FrameId) -> None:
+        cfg = self.config
+        pose = cfg.folded_q_deg if kind == FrameId.FOLD_IN else cfg.unfolded_q_deg
+        fold = self.fold
+        if fold is None or fold.kind != kind:
+            target = dh_to_motor_deg(np.asarray(pose, dtype=float))
+            fold = FoldProcedure(kind, target, np.zeros(6), held=False)
+            self.fold = fold
+        self.active, self._active_clamped = None, False
+        self.mode = _FOLD_MODE[kind]
+        if not fold.held and not fold.done:
+            fold.rates_deg_s = fold_rates(
+                self._state.motor_deg, fold.target_deg, cfg.fold_speed_deg_s
+            )
+        fold.held = True
+
+    def _move_rates(self, cmd: MoveCommand) -> np.ndarray:
+        if cmd.frame_id == FrameId.JOINT:
+            return np.asarray(cmd.axes, dtype=float) * (JOINT_UNIT_DEG / TICK_S)
+        return cartesian_motor_rates(self._state.motor_deg, cmd, self.config.arm)
+
+    def _intent(self, t0: int) -> Intent:
+        """What the drives do over the tick starting at ``t0``."""
+        stuck = np.zeros(6, dtype=bool)
+        for s in self._stuck:
+            if s.active(t0):
+                stuck[s.joint - 1] = True
+        gate_open = self.drives_on_ns is not None and t0 >= self.drives_on_ns
+        if not gate_open or self._board.error is not None:
+            return Intent(np.zeros(6), stuck=stuck)
+        fold = self.fold
+        if fold is not None:
+            if fold.done or not fold.held:
+                return Intent(np.zeros(6), stuck=stuck, checks=False)
+            return Intent(
+                fold.rates_deg_s, fold_target_deg=fold.target_deg, stuck=stuck, checks=False
+            )
+        if self.active is None:
+            return Intent(np.zeros(6), stuck=stuck)
+        grip = self.active.gripper * (GRIPPER_UNIT_MM / TICK_S)
+        return Intent(self._move_rates(self.active), grip, stuck=stuck)
+
+    # -- the report ----------------------------------------------------------------------
+
+    def _take_snapshot(self, t: int) -> None:
+        msg_class, code = self._board.take(t)
+        state = self._state
+        if not self.positions_valid:
+            values = garbage_fields(self._garbage_rng, self.config.garbage)
+            fields, gripper = values[:6], values[6]
+        else:
+            gripper = gripper_field(state.gripper_mm)
+            if self.mode == Mode.CARTESIAN:
+                fields = cartesian_fields(state.motor_deg, self.config.arm)
+            else:
+                stale = self.stale_until_ns is None or t < self.stale_until_ns
+                fields = joint_fields(
+                    state.motor_deg, self.config.stale_encoders_deg if stale else None
+                )
+        f1, f2, f3, f4, f5, f6 = fields
+        self.snapshot = Snapshot(
+            t, int(self.mode), msg_class, code, (f1, f2, f3, f4, f5, f6), gripper
+        )

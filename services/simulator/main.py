@@ -1,0 +1,133 @@
+"""``manus sim``: the Manus simulator as a process, a python-can peer on any interface.
+
+    manus sim                                  # slcan on a new pty; prints "device: /dev/pts/N"
+    manus sim --device-file /tmp/manus.dev     # ... and writes the device path there
+    manus sim --can-interface slcan-pty --can-channel /tmp/manus-can   # ... plus a symlink
+    manus sim --can-interface virtual --can-channel manus   # any python-can interface
+    manus sim --step-response fig51.png        # thesis Figure 5.1 in lock-step, then exit
+
+Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
+(live timing and counters). With Zenoh (default; skipped with a warning when no router
+answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import threading
+from pathlib import Path
+
+import can
+
+from manus.canbus import open_bus
+from manus.node import Node, wait_for_signal
+from manus.protocol import BITRATE
+from manus.session import settings_from_env
+from services.simulator.config import load_sim_config
+from services.simulator.core import SimCore
+from services.simulator.live import LiveSim
+from services.simulator.shell import TruthPublisher, open_node
+from services.simulator.slcan import SlcanPtyBus
+
+log = logging.getLogger("manus.sim")
+
+PTY_INTERFACE = "slcan-pty"
+"""The interface name of the built-in slcan adapter on a pseudo-terminal."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``manus sim``."""
+    parser.add_argument(
+        "--can-interface",
+        default=PTY_INTERFACE,
+        help=f"python-can interface, or {PTY_INTERFACE!r} (default): act as an slcan "
+        "adapter on a new pseudo-terminal for another process to open",
+    )
+    parser.add_argument(
+        "--can-channel",
+        default="",
+        help=f"channel; with {PTY_INTERFACE} an optional symlink path to the pty device",
+    )
+    parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
+    parser.add_argument("--device-file", help=f"write the pty device path here ({PTY_INTERFACE})")
+    parser.add_argument("--config", help="simulator config JSON (default $MANUS_SIM_CONFIG)")
+    parser.add_argument("--seed", type=int, help="random seed (overrides the config)")
+    parser.add_argument(
+        "--zenoh",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="publish the truth on <prefix>/sim/truth (skipped if no router answers)",
+    )
+    parser.add_argument("--zenoh-connect", action="append", help="router endpoint(s)")
+    parser.add_argument("--prefix", help="key prefix (default $MANUS_PREFIX or 'manus')")
+    parser.add_argument(
+        "--wait-client",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help=f"{PTY_INTERFACE}: power the arm up only when a client opens the channel, so "
+        "that it sees the power-up messages (default: yes)",
+    )
+    parser.add_argument("--duration", type=float, help="stop after this many seconds")
+    parser.add_argument(
+        "--step-response",
+        metavar="PNG",
+        help="write the joint 2 step-response plot (thesis Figure 5.1) and exit",
+    )
+
+
+def open_sim_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
+    """The bus the simulator speaks on (its own slcan pty, or any python-can interface)."""
+    if interface == PTY_INTERFACE:
+        return SlcanPtyBus(channel or None, bitrate=bitrate)
+    return open_bus(interface, channel, bitrate)
+
+
+def wait_for_client(bus: SlcanPtyBus, stop: threading.Event) -> None:
+    """Block until a client opens the slcan channel (frames before that are discarded)."""
+    while not bus.is_open and not stop.is_set():
+        bus.recv(timeout=0.1)
+    log.info("slcan client opened %s: powering the arm up", bus.device)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the simulator (or write the step-response plot)."""
+    config = load_sim_config(args.config, seed=args.seed)
+    if args.step_response:
+        from services.simulator.stepresponse import plot_step_response
+
+        print(f"plot: {plot_step_response(args.step_response, config)}")
+        return 0
+    bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate)
+    node: Node | None = None
+    try:
+        if isinstance(bus, SlcanPtyBus):
+            print(f"device: {bus.device}", flush=True)
+            if args.device_file:
+                tmp = Path(args.device_file + ".tmp")
+                tmp.write_text(bus.device + "\n")
+                tmp.replace(args.device_file)
+        if args.zenoh:
+            node = open_node(settings_from_env(connect=args.zenoh_connect, prefix=args.prefix))
+        live = LiveSim(SimCore(config), bus, on_snapshot=TruthPublisher(node) if node else None)
+        stop = wait_for_signal()
+        if isinstance(bus, SlcanPtyBus) and args.wait_client:
+            wait_for_client(bus, stop)
+        live.start()
+        stop.wait(args.duration)
+        live.stop()
+        stats = {
+            "sim_time_s": round(live.sim_time_ns() / 1e9, 3),
+            "late_max_ms": round(live.stats.late_max_ms, 3),
+            "late_mean_ms": round(live.stats.late_mean_ms, 3),
+            "received": live.stats.received,
+            **live.core.counters.as_dict(),
+        }
+        print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
+        return 0
+    finally:
+        if node is not None:
+            node.close()
+        bus.shutdown()
