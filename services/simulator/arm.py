@@ -75,7 +75,9 @@ class Intent:
         rates_deg_s: target motor speeds (gain error not applied yet), shape (6,)
             [deg/s]; for a fold, the constant speed magnitude of each motor.
         gripper_mm_s: target gripper speed [mm/s].
-        fold_target_deg: motor angles a fold procedure drives to (None: no fold).
+        fold_target_deg: motor angles a fold procedure drives to (None: no fold). A fold
+            moves at exactly ``rates_deg_s`` (no lag) and stops dead on arrival or when its
+            rates are zero (paused).
         stuck: motors that cannot move, shape (6,) of bool.
         checks: refuse motion into the stretched elbow or the forbidden area.
     """
@@ -122,6 +124,9 @@ class ArmModel:
         self.upper_deg = np.degrees(config.arm.upper_array)
         self.gripper_max_mm = config.arm.gripper_max * 1000.0
         self._area_cache: dict[bytes, float] = {}
+        # The power-up measurement of absolute angles is right; the scale error of joint 1's
+        # transmission accumulates with its motion from there.
+        self._q1_start = float(config.start_q_deg[0])
 
     def initial_state(self) -> ArmState:
         """At rest in the configured start pose, every belt's slack centred."""
@@ -133,9 +138,10 @@ class ArmModel:
         return motor_to_dh_deg(state.motor_deg)
 
     def q_true_deg(self, state: ArmState) -> np.ndarray:
-        """True DH joint angles [deg]: belt outputs, with joint 1's scale error."""
+        """True DH joint angles [deg]: belt outputs; joint 1 moves (1 + scale error) times
+        its motor's motion from the start pose."""
         q = motor_to_dh_deg(state.output_deg)
-        q[0] *= 1.0 + self.config.joint1_scale_error
+        q[0] = self._q1_start + (q[0] - self._q1_start) * (1.0 + self.config.joint1_scale_error)
         return q
 
     def gripper_xyz_mm(self, q_deg: np.ndarray) -> np.ndarray:
@@ -149,7 +155,8 @@ class ArmModel:
         if intent.fold_target_deg is not None:
             target = intent.fold_target_deg
             x, v = move_toward(x0, target, intent.rates_deg_s, dt_s)
-            pushing = np.abs(target - x0) > _EPS
+            v = np.where(np.abs(target - x) <= _EPS, 0.0, v)  # arrived: stopped
+            pushing = (np.abs(target - x0) > _EPS) & (intent.rates_deg_s > 0.0)
         else:
             u = intent.rates_deg_s * self.gains
             x, v = lag_step(x0, state.speed_deg_s, u, dt_s, self.tau_s)

@@ -394,8 +394,10 @@ class SimCore:
             return Intent(np.zeros(6), stuck=stuck)
         fold = self.fold
         if fold is not None:
-            if fold.done or not fold.held:
-                return Intent(np.zeros(6), stuck=stuck, checks=False)
+            if fold.done or not fold.held:  # paused or finished: the procedure holds
+                return Intent(
+                    np.zeros(6), fold_target_deg=fold.target_deg, stuck=stuck, checks=False
+                )
             return Intent(
                 fold.rates_deg_s, fold_target_deg=fold.target_deg, stuck=stuck, checks=False
             )
