@@ -26,6 +26,8 @@ from services.simulator.faults import FaultConfig
 
 TICK_MS = 20.0
 """Motion integration step and frame spacing [ms] (:data:`manus.protocol.TICK_S`)."""
+MS = 1_000_000
+"""One millisecond [ns] (simulator time is in integer nanoseconds)."""
 
 START_POSES = ("folded", "unfolded")
 GARBAGE_KINDS = ("noise", "max")

@@ -21,18 +21,13 @@ from __future__ import annotations
 
 import heapq
 import itertools
-from dataclasses import dataclass
 
 import numpy as np
 
 from manus.errors import ManusError
 from manus.protocol import (
     GEN_ANGLES_MEASURED,
-    GEN_FOLDED,
     GEN_GRIPPER_READY,
-    GEN_UNFOLDED,
-    GRIPPER_UNIT_MM,
-    JOINT_UNIT_DEG,
     TICK_S,
     Frame,
     FrameId,
@@ -41,17 +36,17 @@ from manus.protocol import (
     sync_frame,
 )
 from schemas.state import SimTruth
-from services.simulator.arm import ArmModel, ArmState, Intent, dh_to_motor_deg, fold_rates
-from services.simulator.cartesian import cartesian_fields, cartesian_motor_rates
-from services.simulator.config import SimConfig
+from services.simulator.arm import ArmModel, ArmState, Intent
+from services.simulator.arm_faults import ArmFaults
+from services.simulator.cartesian import cartesian_fields
+from services.simulator.config import MS, SimConfig
+from services.simulator.controller import ArmController, FoldProcedure
 from services.simulator.counters import SimCounters
 from services.simulator.faults import (
     Fault,
     FrameFault,
     FrameFaulter,
-    InjectedMessage,
     Silence,
-    StuckJoint,
 )
 from services.simulator.messages import MessageBoard
 from services.simulator.replies import WARN_CLAMPED, Reply, classify
@@ -63,35 +58,16 @@ from services.simulator.report import (
 )
 from services.simulator.truth import make_truth
 
-MS = 1_000_000
-"""One millisecond [ns]."""
 TICK_NS = 20 * MS
+"""The 20 ms tick [ns]."""
 WINDOW_NS = 20 * MS
-_FOLD_MODE = {FrameId.FOLD_IN: Mode.FOLD_IN, FrameId.FOLD_OUT: Mode.FOLD_OUT}
-_FOLD_DONE = {FrameId.FOLD_IN: GEN_FOLDED, FrameId.FOLD_OUT: GEN_UNFOLDED}
+"""Length of the reply window after each sync [ns]."""
+
+__all__ = ["MS", "TICK_NS", "WINDOW_NS", "SimCore", "SimError"]
 
 
 class SimError(ManusError, ValueError):
     """The simulator core was driven against its contract (time going backwards...)."""
-
-
-@dataclass
-class FoldProcedure:
-    """A running fold in (0x376) or fold out (0x375).
-
-    Attributes:
-        kind: :attr:`FrameId.FOLD_IN` or :attr:`FrameId.FOLD_OUT`.
-        target_deg: motor angles of the fold pose, shape (6,) [deg].
-        rates_deg_s: constant motor speeds toward it, shape (6,) [deg/s].
-        held: the PC answered the last sync with this fold frame (else the fold pauses).
-        done: the pose has been reached (and the general message queued).
-    """
-
-    kind: FrameId
-    target_deg: np.ndarray
-    rates_deg_s: np.ndarray
-    held: bool = True
-    done: bool = False
 
 
 class SimCore:
@@ -119,27 +95,14 @@ class SimCore:
         self._order = itertools.count()
         self._outbox: list[tuple[int, int, Frame]] = []
         self._inbox: list[tuple[int, int, Frame]] = []
-        self.mode = Mode.NONE
-        """The mode nibble the arm reports."""
-        self.positions_valid = False
-        """A move mode has been active since power-up (position fields mean something)."""
-        self.active: MoveCommand | None = None
-        """The latched move being executed (None: stopped, or a fold)."""
-        self._active_clamped = False
-        self.fold: FoldProcedure | None = None
-        """The fold procedure in progress or completed, if any."""
+        self.controller = ArmController(cfg)
+        """Mode, active command, fold procedure (:mod:`services.simulator.controller`)."""
         self._pending: Reply | None = None
         self._window: tuple[int, int] | None = None
         self._window_used = False
-        self.drives_on_ns: int | None = None
-        """When the drives started obeying (first motion + delay), None before."""
-        self.stale_until_ns: int | None = None
-        """When joints 4-6 stop reporting stale values, None before their first move."""
         self.snapshot: Snapshot | None = None
         """The last cycle's report."""
-        self._errors: list[InjectedMessage] = []
-        self._warnings: list[InjectedMessage] = []
-        self._stuck: list[StuckJoint] = []
+        self._arm_faults = ArmFaults()
         for fault in cfg.faults.all:
             self.add_fault(fault)
 
@@ -226,17 +189,28 @@ class SimCore:
         """Switch a fault on now (its own times still apply)."""
         if isinstance(fault, FrameFault | Silence):
             self._faulter.add(fault)
-        elif isinstance(fault, InjectedMessage):
-            (self._errors if fault.msg_class == "error" else self._warnings).append(fault)
         else:
-            self._stuck.append(fault)
+            self._arm_faults.add(fault)
 
     def clear_faults(self) -> None:
         """Switch every fault off (a latched error stays until a 0x370)."""
         self._faulter.clear()
-        self._errors.clear()
-        self._warnings.clear()
-        self._stuck.clear()
+        self._arm_faults.clear()
+
+    @property
+    def mode(self) -> Mode:
+        """The mode nibble the arm reports."""
+        return self.controller.mode
+
+    @property
+    def active(self) -> MoveCommand | None:
+        """The latched move being executed (None: stopped, or a fold)."""
+        return self.controller.active
+
+    @property
+    def fold(self) -> FoldProcedure | None:
+        """The fold procedure in progress or completed, if any."""
+        return self.controller.fold
 
     @property
     def state(self) -> ArmState:
@@ -261,12 +235,13 @@ class SimCore:
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
         self._board.raise_warnings(result.warnings)
-        if self._active_clamped:
+        ctl = self.controller
+        if ctl.active is not None and ctl.active_clamped:
             self._board.raise_warnings({WARN_CLAMPED})
-        fold = self.fold
+        fold = ctl.fold
         if result.arrived and fold is not None and not fold.done:
             fold.done = True
-            self._board.post_general(t, _FOLD_DONE[fold.kind])
+            self._board.post_general(t, fold.done_message)
         self._timed_faults(t)
         phase = (t // TICK_NS) % 3
         if phase == 1:
@@ -283,16 +258,10 @@ class SimCore:
             self._window_used = False
 
     def _timed_faults(self, t: int) -> None:
-        for m in [m for m in self._errors if t >= round(m.at_ms * MS)]:
-            self._errors.remove(m)
-            self._board.latch_error(m.code)
-            self.active = None
-            if self.fold is not None:
-                self.fold.held = False
-        for m in self._warnings:
-            start = round(m.at_ms * MS)
-            if start <= t < start + round(m.duration_ms * MS):
-                self._board.raise_warnings({m.code})
+        for code in self._arm_faults.errors_due(t):
+            self._board.latch_error(code)
+            self.controller.halt()
+        self._board.raise_warnings(self._arm_faults.warnings_at(t))
 
     def _emit(self, frame: Frame) -> None:
         for out in self._faulter.apply(frame):
@@ -327,103 +296,40 @@ class SimCore:
             self.counters.clamped += 1
             self._board.raise_warnings({WARN_CLAMPED})
 
-    # -- commands ------------------------------------------------------------------------
-
     def _activate(self, t: int) -> None:
         reply, self._pending = self._pending, None
-        if reply is None:
-            if self.fold is not None:
-                self.fold.held = False
-            return
-        if reply.kind == FrameId.STOP:
-            self.active, self.fold, self._active_clamped = None, None, False
+        error = self._board.error is not None
+        outcome = self.controller.activate(reply, t, self._state.motor_deg, error=error)
+        if outcome == "stop":
             self._board.clear_error()
-            return
-        if self._board.error is not None:
+        elif outcome == "ignored":
             self.counters.ignored_in_error += 1
-            if self.fold is not None:
-                self.fold.held = False
-            return
-        if reply.move is not None:
-            self.fold = None
-            self.active, self._active_clamped = reply.move, reply.clamped
-            self.mode = Mode.JOINT if reply.kind == FrameId.JOINT else Mode.CARTESIAN
-            self.positions_valid = True
-            moving = not reply.move.is_zero
-            rates = self._move_rates(reply.move)
-            wrist = bool(np.any(rates[3:] != 0.0))
-        else:
-            self._hold_fold(reply.kind)
-            assert self.fold is not None
-            moving = not self.fold.done
-            wrist = bool(np.any(self.fold.rates_deg_s[3:] != 0.0))
-        if moving and self.drives_on_ns is None:
-            self.drives_on_ns = t + round(self.config.first_motion_delay_ms * MS)
-        if wrist and self.stale_until_ns is None:
-            self.stale_until_ns = t + round(self.config.stale_duration_ms * MS)
-
-    def _hold_fold(self, kind: FrameId) -> None:
-        cfg = self.config
-        pose = cfg.folded_q_deg if kind == FrameId.FOLD_IN else cfg.unfolded_q_deg
-        fold = self.fold
-        if fold is None or fold.kind != kind:
-            target = dh_to_motor_deg(np.asarray(pose, dtype=float))
-            fold = FoldProcedure(kind, target, np.zeros(6), held=False)
-            self.fold = fold
-        self.active, self._active_clamped = None, False
-        self.mode = _FOLD_MODE[kind]
-        if not fold.held and not fold.done:
-            fold.rates_deg_s = fold_rates(
-                self._state.motor_deg, fold.target_deg, cfg.fold_speed_deg_s
-            )
-        fold.held = True
-
-    def _move_rates(self, cmd: MoveCommand) -> np.ndarray:
-        if cmd.frame_id == FrameId.JOINT:
-            return np.asarray(cmd.axes, dtype=float) * (JOINT_UNIT_DEG / TICK_S)
-        return cartesian_motor_rates(self._state.motor_deg, cmd, self.config.arm)
 
     def _intent(self, t0: int) -> Intent:
         """What the drives do over the tick starting at ``t0``."""
-        stuck = np.zeros(6, dtype=bool)
-        for s in self._stuck:
-            if s.active(t0):
-                stuck[s.joint - 1] = True
-        gate_open = self.drives_on_ns is not None and t0 >= self.drives_on_ns
-        if not gate_open or self._board.error is not None:
-            return Intent(np.zeros(6), stuck=stuck)
-        fold = self.fold
-        if fold is not None:
-            if fold.done or not fold.held:  # paused or finished: the procedure holds
-                return Intent(
-                    np.zeros(6), fold_target_deg=fold.target_deg, stuck=stuck, checks=False
-                )
-            return Intent(
-                fold.rates_deg_s, fold_target_deg=fold.target_deg, stuck=stuck, checks=False
-            )
-        if self.active is None:
-            return Intent(np.zeros(6), stuck=stuck)
-        grip = self.active.gripper * (GRIPPER_UNIT_MM / TICK_S)
-        return Intent(self._move_rates(self.active), grip, stuck=stuck)
+        stuck = self._arm_faults.stuck_at(t0)
+        error = self._board.error is not None
+        return self.controller.intent(t0, self._state.motor_deg, stuck, error=error)
 
     # -- the report ----------------------------------------------------------------------
 
     def _take_snapshot(self, t: int) -> None:
         msg_class, code = self._board.take(t)
         state = self._state
-        if not self.positions_valid:
+        ctl = self.controller
+        if not ctl.positions_valid:
             values = garbage_fields(self._garbage_rng, self.config.garbage)
             fields, gripper = values[:6], values[6]
         else:
             gripper = gripper_field(state.gripper_mm)
-            if self.mode == Mode.CARTESIAN:
+            if ctl.mode == Mode.CARTESIAN:
                 fields = cartesian_fields(state.motor_deg, self.config.arm)
             else:
-                stale = self.stale_until_ns is None or t < self.stale_until_ns
+                stale = ctl.stale_until_ns is None or t < ctl.stale_until_ns
                 fields = joint_fields(
                     state.motor_deg, self.config.stale_encoders_deg if stale else None
                 )
         f1, f2, f3, f4, f5, f6 = fields
         self.snapshot = Snapshot(
-            t, int(self.mode), msg_class, code, (f1, f2, f3, f4, f5, f6), gripper
+            t, int(ctl.mode), msg_class, code, (f1, f2, f3, f4, f5, f6), gripper
         )
