@@ -37,6 +37,7 @@ class LiveStats:
         received: frames received from the bus.
         late_max_ms: largest delay from a frame's scheduled time to its send [ms].
         late_sum_ms: sum of those delays [ms] (mean = late_sum_ms / frames).
+        late_over_5ms: frames sent more than 5 ms after their scheduled time.
     """
 
     frames: int = 0
@@ -44,6 +45,7 @@ class LiveStats:
     received: int = 0
     late_max_ms: float = 0.0
     late_sum_ms: float = 0.0
+    late_over_5ms: int = 0
 
     @property
     def late_mean_ms(self) -> float:
@@ -156,3 +158,4 @@ class LiveSim:
         self.stats.frames += 1
         self.stats.late_max_ms = max(self.stats.late_max_ms, late_ms)
         self.stats.late_sum_ms += late_ms
+        self.stats.late_over_5ms += late_ms > 5.0

@@ -18,6 +18,7 @@ import json
 import logging
 import sys
 import threading
+import time
 from pathlib import Path
 
 import can
@@ -70,7 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"{PTY_INTERFACE}: power the arm up only when a client opens the channel, so "
         "that it sees the power-up messages (default: yes)",
     )
-    parser.add_argument("--duration", type=float, help="stop after this many seconds")
+    parser.add_argument(
+        "--duration", type=float, help="stop this many seconds after start (waiting included)"
+    )
     parser.add_argument(
         "--step-response",
         metavar="PNG",
@@ -85,9 +88,13 @@ def open_sim_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
     return open_bus(interface, channel, bitrate)
 
 
-def wait_for_client(bus: SlcanPtyBus, stop: threading.Event) -> None:
-    """Block until a client opens the slcan channel (frames before that are discarded)."""
+def wait_for_client(bus: SlcanPtyBus, stop: threading.Event, deadline: float | None) -> None:
+    """Block until a client opens the slcan channel, ``stop`` is set or the monotonic
+    ``deadline`` [s] passes (frames the client sends meanwhile are discarded)."""
     while not bus.is_open and not stop.is_set():
+        if deadline is not None and time.monotonic() >= deadline:
+            stop.set()
+            return
         bus.recv(timeout=0.1)
     log.info("slcan client opened %s: powering the arm up", bus.device)
 
@@ -100,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
 
         print(f"plot: {plot_step_response(args.step_response, config)}")
         return 0
+    stop = wait_for_signal()
+    deadline = None if args.duration is None else time.monotonic() + args.duration
     bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate)
     node: Node | None = None
     try:
@@ -107,21 +116,22 @@ def run(args: argparse.Namespace) -> int:
             print(f"device: {bus.device}", flush=True)
             if args.device_file:
                 tmp = Path(args.device_file + ".tmp")
-                tmp.write_text(bus.device + "\n")
+                tmp.write_text(bus.device)
                 tmp.replace(args.device_file)
         if args.zenoh:
             node = open_node(settings_from_env(connect=args.zenoh_connect, prefix=args.prefix))
         live = LiveSim(SimCore(config), bus, on_snapshot=TruthPublisher(node) if node else None)
-        stop = wait_for_signal()
         if isinstance(bus, SlcanPtyBus) and args.wait_client:
-            wait_for_client(bus, stop)
-        live.start()
-        stop.wait(args.duration)
-        live.stop()
+            wait_for_client(bus, stop, deadline)
+        if not stop.is_set():
+            live.start()
+            stop.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
+            live.stop()
         stats = {
             "sim_time_s": round(live.sim_time_ns() / 1e9, 3),
             "late_max_ms": round(live.stats.late_max_ms, 3),
             "late_mean_ms": round(live.stats.late_mean_ms, 3),
+            "late_over_5ms": live.stats.late_over_5ms,
             "received": live.stats.received,
             **live.core.counters.as_dict(),
         }
