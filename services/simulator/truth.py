@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from manus.kinematics import fk
@@ -34,7 +32,3 @@ def make_truth(model: ArmModel, state: ArmState, t_ns: int, seq: int) -> SimTrut
         ypr=[float(v) for v in matrix_to_ypr(T[:3, :3])],
     )
 
-
-def degrees_list(values: list[float]) -> list[float]:
-    """Radians to degrees, element-wise (for printing truths)."""
-    return [math.degrees(v) for v in values]
