@@ -64,7 +64,8 @@ class SimConfig:
         first_motion_delay_ms: the first motion after power-up starts this late; a
             multiple of the 20 ms tick [ms].
         backlash_deg: full dead band of each joint's belt, joints 1..6 [deg].
-        joint1_scale_error: true joint 1 angle = motor angle * (1 + this) [-].
+        joint1_scale_error: joint 1 turns (1 + this) times its motor's motion from the
+            power-up pose (where the absolute angles are right) [-].
         stale_encoders_deg: what the joint 4-6 fields report until ``stale_duration_ms``
             after the first command moving joints 4-6 (thesis Table 4.1) [deg].
         stale_duration_ms: see ``stale_encoders_deg`` [ms].
