@@ -116,8 +116,15 @@ def _plain(value: Any) -> Any:
     return value
 
 
+_HINTS: dict[type, dict[str, Any]] = {}
+
+
 def _hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
+    # Resolving string annotations dominated decoding time; a class's hints never change.
+    hints = _HINTS.get(cls)
+    if hints is None:
+        hints = _HINTS[cls] = typing.get_type_hints(cls)
+    return hints
 
 
 def _build(cls: type[M], data: Any, path: str) -> M:
@@ -186,6 +193,17 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
             raise SchemaError(f"{path}: expected bytes, got {type(value).__name__}")
         return bytes(value)
     raise SchemaError(f"{path}: unsupported field type {tp!r}")  # pragma: no cover
+
+
+def _finite_floats_in_range(values: list[Any] | tuple[Any, ...], meta: Any) -> bool:
+    """True when every item is a finite ``float`` within the field's range (no error to
+    report, so the per-item checks can be skipped: long numeric rows decode fast)."""
+    if not values or not all(type(v) is float for v in values):
+        return False
+    if not math.isfinite(sum(values)):  # any inf or nan makes the sum non-finite
+        return False
+    lo, hi = (meta.get("minimum"), meta.get("maximum")) if meta else (None, None)
+    return (lo is None or min(values) >= lo) and (hi is None or max(values) <= hi)
 
 
 def _range(path: str, value: float, meta: Any) -> None:

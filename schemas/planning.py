@@ -80,6 +80,14 @@ class PlanRequest(Message):
     speed_scaling: bool = field(
         "stretch time to respect joint speed/acceleration limits instead of refusing", default=False
     )
+    preview_dt: float = field(
+        "sampling step of the Cartesian preview in the reply (0: no preview; the planner "
+        "coarsens it for very long trajectories)",
+        unit="s",
+        default=0.06,
+        minimum=0.0,
+        maximum=10.0,
+    )
 
 
 @dataclass(frozen=True)
