@@ -41,7 +41,10 @@ UNITS = ("mm",) * 3 + ("mm/s",) * 3 + ("deg",) * 3 + ("deg/s",) * 3 + ("s", "")
 
 # Largest magnitudes accepted, in file units: far beyond any arm, small enough that a
 # typo (a missing decimal point, a value in the wrong column) is caught here.
-MAX_ABS = (10_000.0,) * 3 + (10_000.0,) * 3 + (3600.0,) * 3 + (3600.0,) * 3 + (86_400.0, 2.0)
+MAX_TIME_S = 86_400.0
+"""Longest path accepted [s] (one day)."""
+
+MAX_ABS = (10_000.0,) * 3 + (10_000.0,) * 3 + (3600.0,) * 3 + (3600.0,) * 3 + (MAX_TIME_S, 2.0)
 """Per column: |X..Z| <= 10 m, |Vx..Vz| <= 10 m/s, |angle| <= 10 turns, |rate| <= 10
 turns/s, time <= 1 day."""
 
@@ -147,11 +150,22 @@ def path_from_rows(
             time order, fewer than two via points).
     """
     lines = list(lines) if lines is not None else [0] * len(rows)
+    checked = _checked_rows(rows, source, lines)
+    return Path(
+        via_points=[_via_point(v, line) for v, line in zip(checked, lines, strict=True)],
+        source=source,
+    )
+
+
+def _checked_rows(
+    rows: Sequence[Sequence[float]], source: str, lines: list[int]
+) -> list[list[float]]:
+    """``rows`` as floats, after every rule of :func:`path_from_rows`."""
     if len(lines) != len(rows):
         raise ViaPointError(source=source, rule=f"{len(rows)} rows but {len(lines)} line numbers")
     if not rows:
         raise ViaPointError(source=source, rule="no via points (empty file or only comments)")
-    via_points = []
+    checked = []
     previous_time = -math.inf
     for index, (row, line) in enumerate(zip(rows, lines, strict=True)):
         if len(row) != len(COLUMNS):
@@ -185,14 +199,14 @@ def path_from_rows(
                 "(times are arrival times since the first via point, strictly increasing)",
             )
         previous_time = time
-        via_points.append(_via_point(values, line))
-    if len(via_points) < 2:
+        checked.append(values)
+    if len(checked) < 2:
         raise ViaPointError(
             source=source,
             line=lines[0],
             rule="a path needs at least two via points (the first stands for the start pose)",
         )
-    return Path(via_points=via_points, source=source)
+    return checked
 
 
 def path_to_rows(path: Path) -> list[list[float]]:
@@ -237,9 +251,7 @@ def validate_path(path: Path) -> None:
     Raises:
         ViaPointError: naming the via point, its line (when it has one) and the column.
     """
-    path_from_rows(
-        path_to_rows(path), source=path.source, lines=[vp.line for vp in path.via_points]
-    )
+    _checked_rows(path_to_rows(path), path.source, [vp.line for vp in path.via_points])
 
 
 def _number(token: str, source: str, line: int, index: int, col: int) -> float:

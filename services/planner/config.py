@@ -1,0 +1,47 @@
+"""Planner settings: the arm model and the margins the planner applies to it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from manus.config import DEFAULT_ARM, ArmConfig
+from manus.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """How the planner judges a path.
+
+    Attributes:
+        arm: geometry, joint limits, speed and acceleration limits.
+        max_knot_jump: largest move of any joint between two consecutive via points
+            [rad]; a bigger one means the IK left the start's branch in effect (default
+            90 deg).
+        wrist_margin: closest the wrist (joint 5) may come to its singularity (q5 = 0 or
+            pi) anywhere along the trajectory [rad] (default 2 deg).
+        check_samples: samples per segment for the checks that have no closed form
+            (the shoulder branch) [-].
+        max_preview_points: most points in the Cartesian preview; longer trajectories
+            (or finer steps asked for) get a coarser step [-].
+    """
+
+    arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
+    max_knot_jump: float = math.radians(90.0)
+    wrist_margin: float = math.radians(2.0)
+    check_samples: int = 32
+    max_preview_points: int = 2000
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.max_knot_jump <= 2.0 * math.pi:
+            raise ConfigError(
+                f"`max_knot_jump` must be in (0, 2 pi] rad, got {self.max_knot_jump!r}"
+            )
+        if not 0.0 <= self.wrist_margin < math.pi / 2:
+            raise ConfigError(f"`wrist_margin` must be in [0, pi/2) rad, got {self.wrist_margin!r}")
+        if not 2 <= self.check_samples <= 10_000:
+            raise ConfigError(f"`check_samples` must be in [2, 10000], got {self.check_samples!r}")
+        if not 2 <= self.max_preview_points <= 1_000_000:
+            raise ConfigError(
+                f"`max_preview_points` must be in [2, 1000000], got {self.max_preview_points!r}"
+            )
