@@ -1,17 +1,20 @@
-"""``manus planner``: run the planner service until SIGINT/SIGTERM."""
+"""``manus planner``: run the planner service until SIGINT/SIGTERM.
+
+Prints ``planner: serving <prefix>/planner/plan`` when ready and one ``stats:`` JSON line
+(plans, refusals, bad payloads) on exit, both on standard error.
+"""
 
 from __future__ import annotations
 
 import argparse
-import logging
+import json
+import sys
 
 from manus.config import load_arm_config
 from manus.node import wait_for_signal
 from manus.session import settings_from_env
 from services.planner.config import PlannerConfig
 from services.planner.shell import PlannerShell
-
-log = logging.getLogger("manus.planner")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +31,12 @@ def run(args: argparse.Namespace) -> int:
     config = PlannerConfig(arm=load_arm_config(args.arm_config))
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:
-        log.warning("planner: serving %s", shell.node.keys.plan)
+        print(f"planner: serving {shell.node.keys.plan}", file=sys.stderr, flush=True)
         stop.wait()
+        stats = {
+            "plans": shell.plans,
+            "refusals": shell.refusals,
+            "bad_payloads": shell.node.bad_payload_count,
+        }
+    print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
     return 0
