@@ -7,5 +7,6 @@ from __future__ import annotations
 
 BENCHES: dict[str, tuple[str, bool]] = {
     "kin": ("manus_stack.bench.kin", True),
+    "plan": ("manus_stack.bench.plan", True),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

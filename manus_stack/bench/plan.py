@@ -1,0 +1,132 @@
+"""Planner speed: the thesis circle planned in-process, and the query round trip over Zenoh.
+
+In-process: the whole :meth:`PlannerCore.plan` (validation, IK of the 19 via points,
+clamped cubic spline, checks along the trajectory, preview), plus its IK and spline
+steps alone. Over Zenoh: a loopback router, the planner shell and a client node, all in
+this process, each on its own session; the client sends the same request many times
+(MessagePack both ways, the reply carrying the trajectory and its preview).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import socket
+import time
+from pathlib import Path as FilePath
+from typing import Any
+
+import numpy as np
+
+from manus.config import UNFOLDED_Q_DEG
+from manus.kinematics import ik_batch
+from manus.node import Node, QueryError
+from manus.session import client_settings, open_session, router_settings
+from manus.viapoints import load_path
+from schemas.planning import PlanReply, PlanRequest
+from services.planner.core import PlannerCore
+from services.planner.resolve import resolve_path
+from services.planner.shell import PlannerShell
+from services.planner.spline import PiecewisePolynomial, clamped_cubic_velocities
+
+CIRCLE = FilePath(__file__).resolve().parents[2] / "paths" / "thesis_circle.txt"
+
+
+def _stats_ms(samples: list[float]) -> dict[str, float]:
+    a = np.asarray(samples) * 1e3
+    return {
+        "p50_ms": round(float(np.percentile(a, 50)), 4),
+        "p99_ms": round(float(np.percentile(a, 99)), 4),
+        "max_ms": round(float(a.max()), 4),
+        "runs": len(samples),
+    }
+
+
+def _timed(fn: Any, runs: int) -> list[float]:
+    out = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - started)
+    return out
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
+    core = PlannerCore()
+    q0 = np.asarray(request.start, dtype=float)
+    reply = core.plan(request)
+    assert reply.ok, reply.error
+    resolved = resolve_path(request.path, q0, core.config.arm)
+    times = np.array([vp.time for vp in request.path.via_points])
+    knots = np.asarray(reply.trajectory.positions if reply.trajectory else [])
+    zero = np.zeros(6)
+
+    def spline() -> None:
+        v = clamped_cubic_velocities(times, knots, zero, zero)
+        PiecewisePolynomial.hermite(times, knots, v)
+
+    for _ in range(20):  # warm up
+        core.plan(request)
+    return {
+        "full_plan": _stats_ms(_timed(lambda: core.plan(request), runs)),
+        "ik_batch_only": _stats_ms(_timed(lambda: ik_batch(resolved.poses[1:]), runs)),
+        "spline_only": _stats_ms(_timed(spline, runs)),
+    }
+
+
+def _over_zenoh(request: PlanRequest, runs: int) -> dict[str, Any]:
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    router = open_session(router_settings(endpoint))
+    try:
+        settings = client_settings(endpoint, prefix="bench")
+        with (
+            PlannerShell(settings) as shell,
+            Node("bench_client", settings, liveliness=False) as client,
+        ):
+            key = shell.node.keys.plan
+            deadline = time.monotonic() + 10.0
+            while True:  # the queryable takes a moment to propagate through the router
+                try:
+                    reply = client.query(key, request, PlanReply, timeout=1.0)
+                    break
+                except QueryError:
+                    if time.monotonic() > deadline:
+                        raise
+            assert reply.ok, reply.error
+            for _ in range(20):
+                client.query(key, request, PlanReply)
+            compute: list[float] = []
+
+            def query() -> None:
+                compute.append(client.query(key, request, PlanReply).compute_ms / 1e3)
+
+            samples = _timed(query, runs)
+            return {
+                **_stats_ms(samples),
+                "request_bytes": len(request.encode()),
+                "reply_bytes": len(reply.encode()),
+                "planner_compute": _stats_ms(compute),
+            }
+    finally:
+        router.close()
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    """Figures: in-process plan of the 19-point circle and the Zenoh query round trip."""
+    request = PlanRequest(path=load_path(CIRCLE), start=list(np.radians(UNFOLDED_Q_DEG)))
+    bare = dataclasses.replace(request, preview_dt=0.0)
+    runs = 300 if quick else 2000
+    return {
+        "path": f"{CIRCLE.name} ({len(request.path.via_points)} via points, cubic)",
+        "in_process": _in_process(request, 200 if quick else 2000),
+        "zenoh_round_trip": _over_zenoh(request, runs),
+        "zenoh_round_trip_no_preview": _over_zenoh(bare, runs),
+        "target": "in-process plan <= 5 ms; Zenoh round trip p99 <= 10 ms",
+        "note": "the default reply carries a 60 ms Cartesian preview (421 points for this "
+        "path); `no_preview` asks for preview_dt = 0, as an executing client would",
+    }
