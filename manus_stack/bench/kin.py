@@ -118,5 +118,14 @@ def run(quick: bool = False) -> dict[str, Any]:
             k: (round(v, 3) if isinstance(v, float) else v) for k, v in rtb_fig.items()
         },
         "speedup_batched_vs_fastest_numerical": round(fastest_numeric / batched, 1),
-        "target": "batched <= 10 us per pose and >= 100x faster than numerical",
+        "speedup_batched_vs_rtb_ikine_LM": (
+            round(rtb_fig["us_per_pose"] / batched, 1) if "us_per_pose" in rtb_fig else None
+        ),
+        # The closed form returns all 8 branches per call; a numerical solver one.
+        "speedup_per_solution_vs_fastest_numerical": round(
+            fastest_numeric / (batched / max(branches, 1.0)), 1
+        ),
+        "target": "batched <= 10 us per pose and >= 100x faster than numerical "
+        "(the issue names roboticstoolbox's ikine_LM; pinocchio_clik is our own tuned "
+        "Gauss-Newton loop seeded near the answer, a harder baseline)",
     }
