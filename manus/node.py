@@ -7,6 +7,12 @@ key), never raised into the core: one bad publisher must not take a service down
 
 Callbacks run on Zenoh's threads. Services serialise them into their core with
 :attr:`Node.lock` (one lock per node), so the core itself needs no locking.
+
+Queries are invisible to subscribers, so every :meth:`Node.queryable` mirrors by default
+each request that decodes and each reply it sends on ``<prefix>/trace/<suffix>/request``
+and ``<prefix>/trace/<suffix>/reply`` (``schemas.keys.Keys.trace``), both with the same
+attachment: the query's receive time [ns] as 8 bytes little-endian, which pairs a reply
+with its request (the recorder stores it as the MCAP publish time).
 """
 
 from __future__ import annotations
@@ -152,14 +158,31 @@ class Node:
         handler: Callable[[M], Message],
         *,
         locked: bool = True,
+        mirror: bool = True,
     ) -> None:
         """Answer queries on ``key``: decode the request, reply with ``handler(request)``.
 
         A request that fails to decode is counted and answered with a Zenoh error reply
         naming the problem.
+
+        Args:
+            key: the queryable's key expression (under the prefix).
+            request_type: the type every request must decode to.
+            handler: computes the reply; runs under :attr:`lock` when ``locked``.
+            locked: serialise with the other locked callbacks of this node.
+            mirror: publish each decoded request (before ``handler`` runs) and each reply
+                on ``<prefix>/trace/<suffix>/request|reply`` so that recorders see them.
         """
+        trace: tuple[zenoh.Publisher, zenoh.Publisher] | None = None
+        if mirror:
+            suffix = self.keys.suffix(key)
+            trace = (
+                self._raw_publisher(self.keys.trace(suffix, "request")),
+                self._raw_publisher(self.keys.trace(suffix, "reply")),
+            )
 
         def on_query(query: zenoh.Query) -> None:
+            rx = now_ns()
             payload = query.payload.to_bytes() if query.payload is not None else b""
             try:
                 request = request_type.decode(payload)
@@ -167,6 +190,9 @@ class Node:
                 self._bad(str(query.key_expr), exc)
                 query.reply_err(str(exc).encode())
                 return
+            stamp = rx.to_bytes(8, "little")
+            if trace is not None:
+                trace[0].put(payload, attachment=stamp)
             try:
                 if locked:
                     with self.lock:
@@ -177,9 +203,21 @@ class Node:
                 log.exception("%s: query handler for %s failed", self.name, query.key_expr)
                 query.reply_err(f"{self.name}: internal error: {exc}".encode())
                 return
-            query.reply(query.key_expr, reply.encode())
+            encoded = reply.encode()
+            query.reply(query.key_expr, encoded)
+            if trace is not None:
+                trace[1].put(encoded, attachment=stamp)
 
         self._entities.append(self.session.declare_queryable(key, on_query))
+
+    def _raw_publisher(self, key: str) -> zenoh.Publisher:
+        pub = self.session.declare_publisher(
+            key,
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            reliability=zenoh.Reliability.RELIABLE,
+        )
+        self._entities.append(pub)
+        return pub
 
     def query(self, key: str, request: Message, reply_type: type[R], *, timeout: float = 5.0) -> R:
         """Send ``request`` to the queryable on ``key`` and return its typed reply.

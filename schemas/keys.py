@@ -23,6 +23,15 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | sequencer/...          | (see schemas.sequencing)                   | sequencer  |
 | sim/truth              | pub        | SimTruth                      | simulator  |
 | alive/<service>        | liveliness | (no payload)                  | each one   |
+| trace/<q>/request      | pub        | request type of queryable <q> | its server |
+| trace/<q>/reply        | pub        | reply type of queryable <q>   | its server |
+
+Queries are invisible to subscribers, so :meth:`manus.node.Node.queryable` mirrors each
+decoded request and each reply of queryable ``<q>`` (e.g. ``planner/plan``) on
+``trace/<q>/request`` and ``trace/<q>/reply`` (on by default). Both samples carry the
+same attachment, the query's receive time [ns] as 8 bytes little-endian, so a reply
+pairs with its request. :func:`channel_type` maps these keys to the ``<q>#request`` and
+``<q>#reply`` entries of :func:`channel_types`.
 """
 
 from __future__ import annotations
@@ -127,6 +136,13 @@ class Keys:
     def alive_all(self) -> str:
         return self("alive/**")
 
+    def trace(self, suffix: str, part: str) -> str:
+        """Mirror of queryable ``suffix`` (e.g. ``planner/plan``); ``part`` is ``request``
+        or ``reply``: ``<prefix>/trace/<suffix>/<part>``."""
+        if part not in ("request", "reply"):
+            raise ValueError(f"trace part {part!r} is not 'request' or 'reply'")
+        return self(f"trace/{suffix}/{part}")
+
     def suffix(self, key: str) -> str:
         """The part of ``key`` after the prefix (``key`` itself if it is not under it)."""
         head = self.prefix + "/"
@@ -137,7 +153,8 @@ def channel_types() -> dict[str, type[Message]]:
     """Key suffix -> message type of every published (non-query) channel.
 
     Queryables are listed with their request type under ``<suffix>#request`` and their
-    reply type under ``<suffix>#reply`` so that recorders can store both.
+    reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
+    travel as ``trace/<suffix>/request|reply`` (:func:`channel_type` maps the keys).
     """
     from schemas import commands, control, planning, sequencing, state
 
@@ -167,3 +184,28 @@ def channel_types() -> dict[str, type[Message]]:
     }
     table.update(sequencing.CHANNELS)
     return table
+
+
+TRACE_ROOT = "trace/"
+"""Key suffixes under this root mirror queries (see the module docstring)."""
+
+
+def channel_name(suffix: str) -> str:
+    """The :func:`channel_types` name of a key suffix: ``trace/<q>/request`` ->
+    ``<q>#request`` (likewise ``reply``); any other suffix is its own name."""
+    if suffix.startswith(TRACE_ROOT):
+        head, _, part = suffix[len(TRACE_ROOT) :].rpartition("/")
+        if head and part in ("request", "reply"):
+            return f"{head}#{part}"
+    return suffix
+
+
+def channel_type(suffix: str) -> type[Message] | None:
+    """Message type carried on key ``<prefix>/<suffix>`` (trace keys included); None when
+    the key is not in the table."""
+    if not _TABLE:  # built on first use: channel_types() imports every schema module
+        _TABLE.update(channel_types())
+    return _TABLE.get(channel_name(suffix))
+
+
+_TABLE: dict[str, type[Message]] = {}
