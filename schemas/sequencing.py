@@ -45,9 +45,23 @@ class TaskStep(Message):
     kind: str = field("what the step does", choices=STEP_KINDS)
     path: Path | None = field("for move: the path", default=None)
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
-    duration: float = field("for wait: how long", unit="s", default=0.0)
+    duration: float = field(
+        "for wait: how long; for pose: the shortest time of the move (the planner may "
+        "stretch it)",
+        unit="s",
+        default=0.0,
+    )
     pose: str = field("for pose: a named pose (home, folded, unfolded)", default="")
     where: str = field("where the step was written (file:line), for errors", default="")
+    interpolation: str = field(
+        "for move and pose: cubic spline or quintic segments",
+        default="cubic",
+        choices=("cubic", "quintic"),
+    )
+    speed_scaling: bool = field(
+        "for move: stretch time to respect joint limits instead of refusing (pose: always)",
+        default=False,
+    )
 
 
 @dataclass(frozen=True)
