@@ -1,0 +1,399 @@
+"""The controller's deterministic core: joint states and goals in, velocity commands out.
+
+Contract (docs/architecture.md, Time; the team brief's contract 4):
+
+- Every valid joint state is answered with exactly one ``cmd/joint_velocity`` command
+  (``ref_seq`` = the state's ``seq``, ``counts`` already quantized): the active goal's
+  command, zeros when idle. While a goal runs, one ``controller/feedback`` per cycle.
+- A trajectory goal starts at the next joint state; each accepted goal (trajectory or
+  gripper) ends with exactly one ``controller/result``.
+- Stops: an error reported by the arm aborts every goal with the arm's message; a gap in
+  the joint states (a ``seq`` jump or a stamp gap over ``max_stamp_gap_ms``), an invalid
+  state or a mode other than joint mode aborts them and commands zeros (no
+  extrapolation). A cancel decelerates at ``cancel_decel`` to rest, then reports.
+- Time comes only from the messages' stamps; no clock, no randomness: replaying the same
+  messages gives the same commands, bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from manus.joint_map import dh_to_encoder
+from manus.kinematics import fk_position
+from manus.quantize import COUNT_RAD_S, counts_to_joint_rates
+from manus.trajectory import TrajectoryError
+from schemas.base import Message
+from schemas.commands import JointVelocityCommand
+from schemas.control import (
+    CancelGoal,
+    ControllerFeedback,
+    GoalAck,
+    GoalResult,
+    GripperGoal,
+    SpeedScale,
+    TrajectoryGoal,
+)
+from schemas.state import ArmStatus, JointState
+from services.controller.config import ControllerConfig
+from services.controller.estimator import DriveEstimator
+from services.controller.goals import (
+    GoalRefusedError,
+    check_goal,
+    check_start,
+    tolerances,
+    trajectory_error,
+)
+from services.controller.gripper import GripperRun, gripper_command, gripper_speed
+from services.controller.reference import Reference
+from services.controller.tracking import Step, TrajectoryRun
+
+Output = list[tuple[str, Message]]
+"""(key suffix, message) pairs to publish, in order."""
+
+GRIPPER_UNIT_M = 1e-4
+"""Resolution of the gripper reading [m] (0.1 mm)."""
+
+
+class ControllerCore:
+    """Tracking loop, gripper loop and goal handling (see the module docstring).
+
+    Args:
+        config: controller settings.
+    """
+
+    def __init__(self, config: ControllerConfig | None = None) -> None:
+        self.config = config or ControllerConfig()
+        cfg = self.config
+        tau = cfg.drive_tau_ms / 1000.0
+        half = math.radians(cfg.encoder_unit_deg) / 2.0 if cfg.observer else 0.0
+        self.joints = DriveEstimator(tau, half, 6)
+        """Estimated motor angles [rad] and speeds."""
+        self.grip = DriveEstimator(tau, GRIPPER_UNIT_M / 2.0, 1)
+        """Estimated gripper opening [m] and speed."""
+        self.last_js: JointState | None = None
+        self.arm_error: str | None = None
+        """The arm's error message while it reports one."""
+        self.run: TrajectoryRun | None = None
+        self.pending: TrajectoryGoal | None = None
+        self.gripper: GripperRun | None = None
+        self.last_counts = np.zeros(6, dtype=np.int64)
+        """Motor increments of the last command sent, shape (6,)."""
+        self._queued: list[GoalResult] = []
+        self._cmd_seq = 0
+        self._fb_seq = 0
+        self._res_seq = 0
+
+    # -- requests --------------------------------------------------------------------------
+
+    def submit(self, goal: TrajectoryGoal) -> GoalAck:
+        """Accept (start at the next joint state) or refuse a trajectory goal."""
+        try:
+            check_goal(goal)
+            tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
+            ref = Reference(goal.trajectory, arm=self.config.arm)
+            if self.arm_error is not None:
+                raise GoalRefusedError(f"the arm reports an error: {self.arm_error}")
+            js = self.last_js
+            if js is None or not js.valid:
+                raise GoalRefusedError("no valid joint state yet (is the bridge running?)")
+            check_start(goal, np.asarray(js.position, dtype=float))
+        except TrajectoryError as exc:
+            reason = str(trajectory_error(goal, exc))
+            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=reason)
+        except GoalRefusedError as exc:
+            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=str(exc))
+        del tols, ref  # built again when the goal starts; here only to validate
+        if self.pending is not None:
+            self._queue(self.pending.goal_id, "preempted", f"replaced by {goal.goal_id!r}")
+        if self.run is not None and not goal.replace:
+            self._end_run(self.run, "preempted", f"preempted by {goal.goal_id!r}")
+        self.pending = goal
+        return GoalAck(accepted=True, goal_id=goal.goal_id)
+
+    def submit_gripper(self, goal: GripperGoal) -> GoalAck:
+        """Accept or refuse a gripper goal (it runs beside any trajectory goal)."""
+        if not goal.goal_id:
+            return GoalAck(accepted=False, goal_id="", reason="`goal_id` is empty")
+        if self.arm_error is not None:
+            reason = f"the arm reports an error: {self.arm_error}"
+            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=reason)
+        if not (math.isfinite(goal.tolerance) and goal.tolerance > 0 and goal.timeout > 0):
+            reason = f"tolerance {goal.tolerance!r} m and timeout {goal.timeout!r} s must be > 0"
+            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=reason)
+        if self.gripper is not None:
+            old = self.gripper.goal.goal_id
+            self._queue(old, "preempted", f"preempted by {goal.goal_id!r}", kind="gripper")
+        self.gripper = GripperRun(goal)
+        return GoalAck(accepted=True, goal_id=goal.goal_id)
+
+    def cancel(self, req: CancelGoal) -> GoalAck:
+        """Cancel one goal (or every goal with an empty id): decelerate, then report."""
+        found = False
+        every = not req.goal_id
+        if self.pending is not None and (every or self.pending.goal_id == req.goal_id):
+            self._queue(self.pending.goal_id, "cancelled", "cancelled before it started")
+            self.pending, found = None, True
+        if self.run is not None and (every or self.run.goal.goal_id == req.goal_id):
+            self.run.cancelling, found = True, True
+        if self.gripper is not None and (every or self.gripper.goal.goal_id == req.goal_id):
+            self.gripper.cancelled, found = True, True
+        if not found and not every:
+            reason = f"no active goal {req.goal_id!r}"
+            return GoalAck(accepted=False, goal_id=req.goal_id, reason=reason)
+        return GoalAck(accepted=True, goal_id=req.goal_id)
+
+    def set_speed_scale(self, req: SpeedScale) -> GoalAck:
+        """Scale the running trajectory's time from the next cycle (ramped)."""
+        if not 0.05 <= req.scale <= 1.0:
+            reason = f"scale {req.scale!r} outside [0.05, 1]"
+            return GoalAck(accepted=False, goal_id="", reason=reason)
+        if self.run is not None:
+            self.run.scale_target = req.scale
+            return GoalAck(accepted=True, goal_id=self.run.goal.goal_id)
+        if self.pending is not None:
+            self.pending = _with_scale(self.pending, req.scale)
+            return GoalAck(accepted=True, goal_id=self.pending.goal_id)
+        return GoalAck(accepted=False, goal_id="", reason="no trajectory goal is running")
+
+    # -- the arm ---------------------------------------------------------------------------
+
+    def on_status(self, st: ArmStatus) -> Output:
+        """An error from the arm aborts every goal (the commands drop to zero)."""
+        if st.msg_class != "error":
+            self.arm_error = None
+            return []
+        first = self.arm_error is None
+        self.arm_error = st.text or f"arm error code {st.msg_code}"
+        if first:
+            self._abort_all(f"arm error: {self.arm_error}")
+        return self._flush(st.stamp_ns)
+
+    def on_joint_state(self, js: JointState) -> Output:
+        """One cycle: the command for this joint state, feedback and any results."""
+        last = self.last_js
+        if last is not None and js.seq <= last.seq:
+            return []  # a duplicate or an old state: already answered
+        cfg = self.config
+        gap = last is not None and (
+            js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
+        )
+        self.last_js = js
+        usable = js.valid and js.mode == "joint"
+        if gap or not usable:
+            self.joints.reset()
+            self.grip.reset()
+            if gap and last is not None:
+                self._abort_all(
+                    f"joint states interrupted: seq {js.seq} after {last.seq}, "
+                    f"{(js.stamp_ns - last.stamp_ns) / 1e6:.0f} ms apart (stopped)"
+                )
+            if not usable:
+                self._abort_all(f"joint state not usable (valid={js.valid}, mode {js.mode})")
+        if not usable:
+            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
+        dt = 0.0 if last is None or gap else (js.stamp_ns - last.stamp_ns) / 1e9
+        applied = np.asarray(js.applied, dtype=float)
+        if js.applied_kind != "joint":
+            applied = np.zeros(8)
+        self.joints.update(_motor_angles(js), applied[1:7] * COUNT_RAD_S, dt)
+        self.grip.update(np.array([js.gripper]), applied[7:8] * 0.005, dt)
+        if self.arm_error is not None:
+            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
+        snap = js.stamp_ns - cfg.snapshot_age_ns
+        q = np.asarray(js.position, dtype=float)
+        self._start_pending(snap, q)
+        step: Step | None = None
+        run = self.run
+        if run is not None:
+            step = run.step(snap, q, self.joints, self.last_counts)
+            if step.ended is not None:
+                self._end_run(run, *step.ended)
+        had_gripper = self.gripper is not None
+        grip = self._gripper_cycle(js, snap)
+        counts = step.counts if step is not None else np.zeros(6, dtype=np.int64)
+        return self._answer(js, counts, grip, step, run, had_gripper)
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _start_pending(self, snap: int, q: np.ndarray) -> None:
+        goal, self.pending = self.pending, None
+        if goal is None:
+            return
+        cfg = self.config
+        tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
+        old = self.run
+        if goal.replace and old is not None and not old.cancelling:
+            ref_old, tau = old.current_reference()
+            new_duration = Reference(goal.trajectory, arm=cfg.arm).duration
+            blend = max(cfg.cycle_s, min(cfg.splice_blend_s, new_duration or cfg.splice_blend_s))
+            ref = ref_old.spliced(goal.trajectory, tau, blend)
+            self._end_run(old, "preempted", f"replaced by {goal.goal_id!r} (spliced)")
+            scale = old.scale
+        else:
+            if old is not None:
+                self._end_run(old, "preempted", f"preempted by {goal.goal_id!r}")
+            ref = Reference(goal.trajectory, arm=cfg.arm)
+            scale = goal.speed_scale
+        self.run = TrajectoryRun.start(goal, ref, cfg, tols, snap, scale)
+
+    def _gripper_cycle(self, js: JointState, snap: int) -> int:
+        run = self.gripper
+        if run is None:
+            return 0
+        if run.start_ns is None:
+            run.start_ns = snap
+        goal = run.goal
+        error = goal.opening - js.gripper
+        counts = gripper_command(self.config, self.grip, goal.opening, run.cancelled)
+        result: tuple[str, str] | None = None
+        if run.cancelled:
+            result = ("cancelled", "cancelled")
+        elif abs(error) <= goal.tolerance and counts == 0:
+            result = ("succeeded", f"opening {js.gripper * 1000:.1f} mm reached")
+        elif (snap - run.start_ns) / 1e9 > goal.timeout:
+            result = (
+                "aborted",
+                f"gripper at {js.gripper * 1000:.1f} mm, target {goal.opening * 1000:.1f} mm "
+                f"not reached within the timeout {goal.timeout:g} s",
+            )
+        if result is not None:
+            self._queue(goal.goal_id, *result, kind="gripper", final_error=abs(error))
+            self.gripper = None
+            return 0
+        return counts
+
+    def _abort_all(self, reason: str) -> None:
+        if self.pending is not None:
+            self._queue(self.pending.goal_id, "aborted", reason)
+            self.pending = None
+        if self.run is not None:
+            self._end_run(self.run, "aborted", reason)
+        if self.gripper is not None:
+            self._queue(self.gripper.goal.goal_id, "aborted", reason, kind="gripper")
+            self.gripper = None
+
+    def _end_run(self, run: TrajectoryRun, status: str, reason: str) -> None:
+        end = self.last_js.stamp_ns - self.config.snapshot_age_ns if self.last_js else 0
+        self._queue(
+            run.goal.goal_id,
+            status,
+            reason,
+            via_errors=list(run.via_errors),
+            final_error=run.final_error,
+            duration=max(0.0, (end - run.start_ns) / 1e9),
+        )
+        if self.run is run:
+            self.run = None
+
+    def _queue(
+        self,
+        goal_id: str,
+        status: str,
+        reason: str,
+        *,
+        kind: str = "trajectory",
+        via_errors: list[float] | None = None,
+        final_error: float = 0.0,
+        duration: float = 0.0,
+    ) -> None:
+        self._queued.append(
+            GoalResult(
+                stamp_ns=0,
+                seq=0,
+                goal_id=goal_id,
+                kind=kind,
+                status=status,
+                reason=reason,
+                via_errors=via_errors or [],
+                final_error=final_error,
+                duration=duration,
+            )
+        )
+
+    def _flush(self, stamp_ns: int) -> Output:
+        out: Output = []
+        for r in self._queued:
+            out.append(("controller/result", _restamp(r, stamp_ns, self._res_seq)))
+            self._res_seq += 1
+        self._queued.clear()
+        return out
+
+    def _answer(
+        self,
+        js: JointState,
+        counts: np.ndarray,
+        grip: int,
+        step: Step | None,
+        run: TrajectoryRun | None,
+        had_gripper: bool,
+    ) -> Output:
+        """The command, the feedback (while a goal ran this cycle) and queued results."""
+        counts = np.asarray(counts, dtype=np.int64)
+        self.last_counts = counts
+        velocity = counts_to_joint_rates(counts.astype(float))
+        cmd = JointVelocityCommand(
+            stamp_ns=js.stamp_ns,
+            seq=self._cmd_seq,
+            source="controller",
+            ref_seq=js.seq,
+            velocity=[float(v) for v in velocity],
+            gripper_velocity=gripper_speed(grip),
+            counts=[0, *(int(c) for c in counts), int(grip)],
+        )
+        self._cmd_seq += 1
+        out: Output = [("cmd/joint_velocity", cmd)]
+        if step is not None or had_gripper:
+            out.append(("controller/feedback", self._feedback(js, step, run, velocity)))
+        return out + self._flush(js.stamp_ns)
+
+    def _feedback(
+        self,
+        js: JointState,
+        step: Step | None,
+        run: TrajectoryRun | None,
+        velocity: np.ndarray,
+    ) -> ControllerFeedback:
+        q = np.asarray(js.position, dtype=float)
+        ref = step.reference.q if step is not None else q
+        goal_id = run.goal.goal_id if run is not None else ""
+        ref_xyz = fk_position(ref, self.config.arm)
+        act_xyz = fk_position(q, self.config.arm)
+        grip = self.gripper
+        fb = ControllerFeedback(
+            stamp_ns=js.stamp_ns,
+            seq=self._fb_seq,
+            goal_id=goal_id,
+            state=step.state if step is not None else "idle",
+            segment=step.segment if step is not None else -1,
+            t=run.tau if run is not None else 0.0,
+            reference=[float(v) for v in ref],
+            actual=[float(v) for v in q],
+            error=[float(v) for v in ref - q],
+            command=[float(v) for v in velocity],
+            reference_xyz=[float(v) for v in ref_xyz],
+            actual_xyz=[float(v) for v in act_xyz],
+            position_error=float(np.linalg.norm(ref_xyz - act_xyz)),
+            gripper_goal_id=grip.goal.goal_id if grip is not None else "",
+            gripper_target=grip.goal.opening if grip is not None else 0.0,
+            gripper=js.gripper,
+            speed_scale=run.scale if run is not None else 1.0,
+        )
+        self._fb_seq += 1
+        return fb
+
+
+def _motor_angles(js: JointState) -> np.ndarray:
+    """Motor angles [rad] of a joint state's DH angles (the map of SPEC 2.2), shape (6,)."""
+    return dh_to_encoder(np.asarray(js.position, dtype=float))
+
+
+def _restamp(r: GoalResult, stamp_ns: int, seq: int) -> GoalResult:
+    return dataclasses.replace(r, stamp_ns=stamp_ns, seq=seq)
+
+
+def _with_scale(goal: TrajectoryGoal, scale: float) -> TrajectoryGoal:
+    return dataclasses.replace(goal, speed_scale=scale)

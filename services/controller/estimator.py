@@ -1,0 +1,111 @@
+"""The arm's drives as the controller models them: motor angles, speeds and the commands in flight.
+
+The arm integrates motor increments through a first-order speed lag (SPEC 3.1: the new
+speed is reached after a ~60 ms transient) and reports motor angles rounded to 0.1 deg.
+:class:`DriveEstimator` keeps, per motor, an estimate of the true angle and speed at the
+last snapshot: it predicts the motion from the increments the bridge reports as applied
+(``JointState.applied``), then keeps the prediction inside the reading's quantization
+cell (a set-membership observer), so the estimate is finer than the encoder whenever the
+model is right and never further from the reading than half a unit when it is not.
+
+All angles here are motor (encoder) angles in rad, speeds in rad/s, and arrays have
+shape (n,) (6 motors, or 1 for the gripper in m and m/s).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def lag_factor(tau_s: float, horizon_s: float) -> float:
+    """tau (1 - e^(-h/tau)) [s]: how far a speed change lags the position over ``horizon_s``."""
+    if tau_s <= 0.0:
+        return 0.0
+    return tau_s * (1.0 - math.exp(-horizon_s / tau_s))
+
+
+def lag_advance(
+    x: np.ndarray, v: np.ndarray, u: np.ndarray, dt_s: float, tau_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Position and speed after ``dt_s`` [s] at target speed ``u`` through the lag.
+
+    Args:
+        x: positions now, shape (n,).
+        v: speeds now, shape (n,).
+        u: target speeds held over the interval, shape (n,).
+        dt_s: interval [s], >= 0.
+        tau_s: time constant [s] (0: the speed jumps at once).
+    """
+    c = lag_factor(tau_s, dt_s)
+    decay = math.exp(-dt_s / tau_s) if tau_s > 0.0 else 0.0
+    return x + u * dt_s + (v - u) * c, u + (v - u) * decay
+
+
+def deadbeat_speed(
+    x: np.ndarray, v: np.ndarray, target: np.ndarray, dt_s: float, tau_s: float
+) -> np.ndarray:
+    """The constant target speed that brings the lagged drive from (x, v) to ``target`` in ``dt_s``.
+
+    Inverts :func:`lag_advance` for ``u``.
+    """
+    c = lag_factor(tau_s, dt_s)
+    return np.asarray((target - x - v * c) / (dt_s - c))
+
+
+class DriveEstimator:
+    """Estimated true positions and speeds at the last snapshot (see the module docstring).
+
+    Args:
+        tau_s: the drives' time constant [s].
+        half_cell: half the reading's resolution [rad or m] (0: trust the reading).
+        n: number of axes.
+    """
+
+    def __init__(self, tau_s: float, half_cell: float, n: int) -> None:
+        self.tau_s = tau_s
+        self.half_cell = half_cell
+        self.n = n
+        self.x: np.ndarray | None = None
+        """Estimated positions at the last snapshot, shape (n,) (None: no reading yet)."""
+        self.v = np.zeros(n)
+        """Estimated speeds at the last snapshot, shape (n,)."""
+        self.u = np.zeros(n)
+        """Target speeds acting from the last snapshot on (the applied command), shape (n,)."""
+
+    def reset(self) -> None:
+        """Forget everything (after a gap in the readings)."""
+        self.x = None
+        self.v = np.zeros(self.n)
+        self.u = np.zeros(self.n)
+
+    def update(self, reading: np.ndarray, applied: np.ndarray, dt_s: float) -> np.ndarray:
+        """Take a new snapshot ``dt_s`` [s] after the last one.
+
+        Args:
+            reading: the reported positions, shape (n,).
+            applied: target speeds acting from this snapshot on, shape (n,).
+            dt_s: time since the previous snapshot [s].
+
+        Returns:
+            The estimated positions at this snapshot, shape (n,).
+        """
+        reading = np.asarray(reading, dtype=float)
+        if self.x is None:
+            x, v = reading.copy(), np.asarray(applied, dtype=float).copy()
+        else:
+            x, v = lag_advance(self.x, self.v, self.u, dt_s, self.tau_s)
+            x = np.clip(x, reading - self.half_cell, reading + self.half_cell)
+        self.x, self.v, self.u = x, v, np.asarray(applied, dtype=float).copy()
+        return x
+
+    def predict(self, horizon_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and speeds ``horizon_s`` [s] after the last snapshot under the applied command.
+
+        Raises:
+            RuntimeError: no reading has been taken.
+        """
+        if self.x is None:
+            raise RuntimeError("DriveEstimator.predict before the first update")
+        return lag_advance(self.x, self.v, self.u, horizon_s, self.tau_s)

@@ -1,0 +1,312 @@
+"""One trajectory goal being executed: time base, control law, via-point errors, verdicts.
+
+Two control laws (``TrajectoryGoal.mode``):
+
+- ``default``, built for the arm's interface. One global time base: trajectory time 0 is
+  the moment the first command acts (the start snapshot + ``command_delay_ms``). The
+  command computed from the snapshot at s acts during [s+60, s+120) ms, while the one
+  sent before it (``JointState.applied``) acts during [s, s+60): so the motor angles at
+  s+60 are predicted from the estimate at s and the increments in flight, through the
+  drives' speed lag, and the command is the constant speed that brings them onto the
+  reference at s+120 (a dead-beat law in motor space). Its rounding error is not lost:
+  the next cycle predicts from the increments actually applied, so the mean speed is
+  exact and there is no limit cycle wider than one rounding step.
+- ``thesis``, the loop of thesis 4.2.3.4 with its sign corrected: qdot = qdot_ref +
+  K (q_ref - q) from the snapshot, uniform saturation, rounding; per-segment timing (a
+  segment ends when the gripper is within ``thesis_via_threshold_m`` of its via point or
+  its time is over, and the next one restarts from its first knot); after the last via
+  point, local rest-to-rest quintics from the measured angles to the last knot until the
+  position error is under ``position_tolerance`` (the thesis re-planned; the core cannot
+  call the planner, so it re-plans in joint space itself).
+
+Via-point errors (``GoalResult.via_errors``) are measured as the thesis did: the distance
+between the forward kinematics of the measured (encoder) angles and the knot's via point,
+at the knot's time: in the default mode the measurement is interpolated between the two
+snapshots around the knot time, in the thesis mode it is the one at which the segment
+ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from manus.joint_map import dh_to_encoder
+from manus.kinematics import fk_position
+from manus.quantize import (
+    COUNT_RAD_S,
+    JOINT_COUNT_MAX,
+    ErrorFeedbackQuantizer,
+    Quantizer,
+    RoundingQuantizer,
+    joint_rates_to_counts,
+    saturate,
+)
+from manus.trajectory import Sample
+from schemas.control import TrajectoryGoal
+from services.controller.config import ControllerConfig
+from services.controller.estimator import DriveEstimator, deadbeat_speed
+from services.controller.goals import violation
+from services.controller.reference import Reference, rest_to_rest
+
+
+@dataclass
+class Step:
+    """The outcome of one cycle of a goal.
+
+    Attributes:
+        counts: motor increments to send, shape (6,) int.
+        reference: the reference at the snapshot.
+        segment: knot interval being tracked (-1: none).
+        state: tracking, settling, decelerating or holding.
+        ended: (status, reason) when the goal ended this cycle, else None.
+    """
+
+    counts: np.ndarray
+    reference: Sample
+    segment: int
+    state: str
+    ended: tuple[str, str] | None = None
+
+
+def make_quantizer(name: str) -> Quantizer:
+    """The quantizer called ``name`` (``rounding`` or ``error_feedback``)."""
+    return ErrorFeedbackQuantizer() if name == "error_feedback" else RoundingQuantizer()
+
+
+@dataclass
+class TrajectoryRun:
+    """State of one running trajectory goal (see the module docstring).
+
+    Attributes:
+        goal: the goal.
+        ref: what it follows (a splice's blend included).
+        config: controller settings.
+        path_tol: per-joint path tolerance [rad] (0: unchecked), shape (6,).
+        goal_tol: per-joint goal tolerance [rad] (0: unchecked), shape (6,).
+        start_ns: snapshot time of its first cycle [ns].
+        scale: speed scale in use.
+        scale_target: speed scale asked for (reached at ``speed_scale_rate``).
+        tau: trajectory time at the last snapshot [s].
+    """
+
+    goal: TrajectoryGoal
+    ref: Reference
+    config: ControllerConfig
+    path_tol: np.ndarray
+    goal_tol: np.ndarray
+    start_ns: int
+    scale: float
+    scale_target: float
+    quantizer: Quantizer
+    tau: float = 0.0
+    last_ns: int = 0
+    segment: int = 0
+    via_errors: list[float] = field(default_factory=list)
+    via_stamps: list[int] = field(default_factory=list)
+    prev: tuple[float, np.ndarray, int] | None = None
+    end_ns: int | None = None
+    settle: Reference | None = None
+    settle_tau: float = 0.0
+    settles: int = 0
+    cancelling: bool = False
+    final_error: float = 0.0
+
+    @classmethod
+    def start(
+        cls,
+        goal: TrajectoryGoal,
+        ref: Reference,
+        config: ControllerConfig,
+        tols: tuple[np.ndarray, np.ndarray],
+        snap_ns: int,
+        scale: float,
+    ) -> TrajectoryRun:
+        """A run whose first cycle is the snapshot at ``snap_ns`` [ns]."""
+        quantizer = make_quantizer(config.default_quantizer)
+        run = cls(goal, ref, config, tols[0], tols[1], snap_ns, scale, goal.speed_scale, quantizer)
+        run.last_ns = snap_ns
+        if goal.mode == "default":
+            run.tau = -scale * config.command_delay_ms / 1000.0
+        return run
+
+    @property
+    def thesis(self) -> bool:
+        """The goal runs the thesis's law."""
+        return self.goal.mode == "thesis"
+
+    def tau_at_command(self) -> float:
+        """Trajectory time when the command computed now starts acting [s]."""
+        if self.thesis:
+            return self.tau
+        return self.tau + self.scale * self.config.command_delay_ms / 1000.0
+
+    def current_reference(self) -> tuple[Reference, float]:
+        """The reference being followed now and its time when the next command acts."""
+        if self.settle is not None:
+            return self.settle, self.settle_tau
+        return self.ref, self.tau_at_command()
+
+    # -- one cycle -----------------------------------------------------------------------
+
+    def step(
+        self, snap_ns: int, q: np.ndarray, est: DriveEstimator, last_counts: np.ndarray
+    ) -> Step:
+        """Advance to the snapshot at ``snap_ns`` with measured DH angles ``q`` [rad]."""
+        dt = (snap_ns - self.last_ns) / 1e9
+        self.last_ns = snap_ns
+        self.tau += self.scale * dt
+        if self.settle is not None:
+            self.settle_tau += self.scale * dt
+        rate = self.config.speed_scale_rate * dt
+        self.scale += float(np.clip(self.scale_target - self.scale, -rate, rate))
+        if self.cancelling:
+            return self._decelerate(last_counts)
+        xyz = fk_position(q, self.config.arm)
+        if self.thesis:
+            self._thesis_segments(snap_ns, xyz)
+        else:
+            self._default_vias(snap_ns, q)
+        ref = self.ref.sample(self.tau)
+        moving = self.end_ns is None
+        if moving:
+            broken = violation(ref.q - q, self.path_tol, "path")
+            if broken is not None:
+                return self._abort(ref, f"{broken} at t = {self.tau:.2f} s")
+            if self.tau >= self._end_tau():
+                self.end_ns = snap_ns
+        if self.thesis:
+            verdict = self._judge(snap_ns, q, xyz, True) if self.end_ns is not None else None
+            counts = self._thesis_law(q)
+        else:
+            counts = self._default_law(q, est)
+            at_rest = not np.any(counts) and not np.any(est.u)
+            verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
+        if verdict is not None:
+            zero = np.zeros(6, dtype=np.int64)
+            return Step(zero, ref, self._segment(), "holding", verdict)
+        state = "settling" if self.end_ns is not None else "tracking"
+        return Step(counts, ref, self._segment(), state)
+
+    def _end_tau(self) -> float:
+        return self.ref.duration if not self.thesis else float(self.ref.times[-1])
+
+    def _segment(self) -> int:
+        return self.segment if self.thesis else self.ref.traj.segment(self.tau)
+
+    # -- laws ----------------------------------------------------------------------------
+
+    def _default_law(self, q: np.ndarray, est: DriveEstimator) -> np.ndarray:
+        cfg = self.config
+        period = cfg.cycle_s
+        tau_s = cfg.drive_tau_ms / 1000.0
+        ref, tau = self.current_reference()
+        if cfg.delay_compensation and est.x is not None:
+            x1, v1 = est.predict(cfg.command_delay_ms / 1000.0)
+            target = dh_to_encoder(ref.sample(tau + self.scale * period).q)
+            u = deadbeat_speed(x1, v1, target, period, tau_s)
+        else:
+            target = dh_to_encoder(ref.sample(self.tau + self.scale * period).q)
+            u = (target - dh_to_encoder(q)) / period
+        return self.quantizer(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
+
+    def _thesis_law(self, q: np.ndarray) -> np.ndarray:
+        ref, tau = self.current_reference()
+        s = ref.sample(tau)
+        qdot = s.qd * self.scale + self.config.thesis_gain * (s.q - q)
+        return RoundingQuantizer()(saturate(joint_rates_to_counts(qdot)))
+
+    def _decelerate(self, last: np.ndarray) -> Step:
+        step = self.config.cancel_decel * self.config.cycle_s / COUNT_RAD_S
+        peak = float(np.max(np.abs(last)))
+        ref = self.ref.sample(self.tau)
+        if peak <= step:
+            zero = np.zeros(6, dtype=np.int64)
+            return Step(zero, ref, self._segment(), "decelerating", ("cancelled", "cancelled"))
+        wanted = np.abs(last) * ((peak - step) / peak)
+        mag = np.minimum(np.abs(last), np.floor(wanted + 0.5))
+        return Step(np.asarray(np.sign(last) * mag, dtype=np.int64), ref, -1, "decelerating")
+
+    def _abort(self, ref: Sample, reason: str) -> Step:
+        zero = np.zeros(6, dtype=np.int64)
+        return Step(zero, ref, self._segment(), "holding", ("aborted", reason))
+
+    # -- via points and verdicts ---------------------------------------------------------
+
+    def _record(self, error: float, stamp_ns: int) -> None:
+        self.via_errors.append(error)
+        self.via_stamps.append(stamp_ns)
+
+    def _default_vias(self, snap_ns: int, q: np.ndarray) -> None:
+        times = self.ref.times
+        while len(self.via_errors) < len(times) and times[len(self.via_errors)] <= self.tau:
+            i = len(self.via_errors)
+            prev = self.prev
+            if prev is None or self.tau <= prev[0]:
+                q_i, stamp = q, snap_ns
+            else:
+                frac = min(1.0, max(0.0, (times[i] - prev[0]) / (self.tau - prev[0])))
+                q_i = prev[1] + frac * (q - prev[1])
+                stamp = prev[2] + round(frac * (snap_ns - prev[2]))
+            xyz = fk_position(q_i, self.config.arm)
+            self._record(float(np.linalg.norm(xyz - self.ref.via_xyz[i])), stamp)
+        self.prev = (self.tau, q.copy(), snap_ns)
+
+    def _thesis_segments(self, snap_ns: int, xyz: np.ndarray) -> None:
+        ref = self.ref
+        if not self.via_errors:
+            self._record(float(np.linalg.norm(xyz - ref.via_xyz[0])), snap_ns)
+        last = len(ref.times) - 1
+        if self.segment >= last:
+            return
+        nxt = self.segment + 1
+        distance = float(np.linalg.norm(xyz - ref.via_xyz[nxt]))
+        if distance < self.config.thesis_via_threshold_m or self.tau >= ref.times[nxt]:
+            self._record(distance, snap_ns)
+            self.segment = nxt
+            self.tau = float(ref.times[nxt])  # per-segment timing: restart at the knot
+
+    def _judge(
+        self,
+        snap_ns: int,
+        q: np.ndarray,
+        xyz: np.ndarray,
+        at_rest: bool,
+    ) -> tuple[str, str] | None:
+        """Success, abort, or None (keep going), once the reference has ended.
+
+        ``at_rest``: nothing is in flight and this cycle's command is zero.
+        """
+        goal, end = self.goal, self.ref.end
+        self.final_error = float(np.linalg.norm(xyz - self.ref.via_xyz[-1]))
+        joints = violation(end - q, self.goal_tol, "goal")
+        close = self.final_error <= goal.position_tolerance and joints is None
+        if close and at_rest:
+            return "succeeded", (
+                f"reached the end within {self.final_error * 1000:.2f} mm "
+                f"(position_tolerance {goal.position_tolerance * 1000:.2f} mm)"
+            )
+        late = (snap_ns - (self.end_ns or snap_ns)) / 1e9
+        if late > goal.goal_time_tolerance:
+            what = joints or (
+                f"final position error {self.final_error * 1000:.2f} mm exceeds "
+                f"position_tolerance {goal.position_tolerance * 1000:.2f} mm"
+            )
+            return "aborted", f"{what} {late:.2f} s after the end (goal_time_tolerance)"
+        if self.thesis and (self.settle is None or self.settle_tau >= self.settle.duration):
+            if self.settles >= self.config.max_settles:
+                return "aborted", (
+                    f"final position error {self.final_error * 1000:.2f} mm still above "
+                    f"{goal.position_tolerance * 1000:.2f} mm after {self.settles} re-plans"
+                )
+            self._replan(q)
+        return None
+
+    def _replan(self, q: np.ndarray) -> None:
+        cfg = self.config
+        way = float(np.max(np.abs(self.ref.end - q)))
+        duration = max(cfg.settle_min_s, way / cfg.settle_speed)
+        self.settle = Reference(rest_to_rest(q, self.ref.end, duration, cfg.arm), arm=cfg.arm)
+        self.settle_tau = 0.0
+        self.settles += 1
