@@ -16,7 +16,7 @@ from manus.errors import ConfigError
 
 MS = 1_000_000
 """One millisecond [ns]."""
-QUANTIZERS = ("rounding", "error_feedback")
+QUANTIZERS = ("rounding", "error_feedback", "cartesian")
 """Quantizers of the default mode (:mod:`manus.quantize`)."""
 
 
@@ -63,7 +63,10 @@ class ControllerConfig:
         observer: default mode: keep a sub-unit estimate of the motor angles inside the
             encoder's quantization cell; off: use the readings as they are.
         default_quantizer: default mode: ``rounding`` (the residual is fed back through
-            the position prediction) or ``error_feedback`` (sigma-delta on the rates).
+            the position prediction), ``error_feedback`` (sigma-delta on the rates) or
+            ``cartesian`` (round each joint up or down so that the gripper lands nearest).
+        rounding_rotation_m: weight of the gripper's orientation error against its
+            position error in the ``cartesian`` rounding [m/rad].
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -84,7 +87,8 @@ class ControllerConfig:
     gripper_gain: float = 1.0 / 0.06
     delay_compensation: bool = True
     observer: bool = True
-    default_quantizer: str = "rounding"
+    default_quantizer: str = "cartesian"
+    rounding_rotation_m: float = 0.05
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)
@@ -102,6 +106,7 @@ class ControllerConfig:
         _check("splice_blend_s", self.splice_blend_s, 0.0, 60.0)
         _check("max_stamp_gap_ms", self.max_stamp_gap_ms, self.cycle_ms, 10_000.0)
         _check("gripper_gain", self.gripper_gain, 0.0, 1000.0)
+        _check("rounding_rotation_m", self.rounding_rotation_m, 0.0, 10.0)
         if self.default_quantizer not in QUANTIZERS:
             raise ConfigError(
                 f"`default_quantizer` {self.default_quantizer!r} must be one of {QUANTIZERS}"

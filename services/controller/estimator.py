@@ -4,9 +4,11 @@ The arm integrates motor increments through a first-order speed lag (SPEC 3.1: t
 speed is reached after a ~60 ms transient) and reports motor angles rounded to 0.1 deg.
 :class:`DriveEstimator` keeps, per motor, an estimate of the true angle and speed at the
 last snapshot: it predicts the motion from the increments the bridge reports as applied
-(``JointState.applied``), then keeps the prediction inside the reading's quantization
-cell (a set-membership observer), so the estimate is finer than the encoder whenever the
-model is right and never further from the reading than half a unit when it is not.
+(``JointState.applied``) and intersects the interval of positions consistent with every
+earlier reading (moved by the predicted motion, widened by the drives' speed gain
+error) with the new reading's quantization cell (a set-membership observer). The
+estimate is the middle of that interval: finer than the encoder once a few readings have
+crossed cell boundaries, and never further than half a unit from the reading.
 
 All angles here are motor (encoder) angles in rad, speeds in rad/s, and arrays have
 shape (n,) (6 motors, or 1 for the gripper in m and m/s).
@@ -63,10 +65,15 @@ class DriveEstimator:
         n: number of axes.
     """
 
-    def __init__(self, tau_s: float, half_cell: float, n: int) -> None:
+    def __init__(self, tau_s: float, half_cell: float, n: int, gain_error: float = 0.02) -> None:
         self.tau_s = tau_s
         self.half_cell = half_cell
+        self.gain_error = gain_error
         self.n = n
+        self.lo = np.zeros(n)
+        """Smallest position consistent with every reading so far, shape (n,)."""
+        self.hi = np.zeros(n)
+        """Largest position consistent with every reading so far, shape (n,)."""
         self.x: np.ndarray | None = None
         """Estimated positions at the last snapshot, shape (n,) (None: no reading yet)."""
         self.v = np.zeros(n)
@@ -92,13 +99,21 @@ class DriveEstimator:
             The estimated positions at this snapshot, shape (n,).
         """
         reading = np.asarray(reading, dtype=float)
+        lo, hi = reading - self.half_cell, reading + self.half_cell
         if self.x is None:
-            x, v = reading.copy(), np.asarray(applied, dtype=float).copy()
+            v = np.asarray(applied, dtype=float).copy()
         else:
             x, v = lag_advance(self.x, self.v, self.u, dt_s, self.tau_s)
-            x = np.clip(x, reading - self.half_cell, reading + self.half_cell)
-        self.x, self.v, self.u = x, v, np.asarray(applied, dtype=float).copy()
-        return x
+            moved = x - self.x
+            # The model's own uncertainty: the drives' speed gain error on the motion.
+            slack = self.gain_error * np.abs(moved) + 1e-9
+            lo_m, hi_m = self.lo + moved - slack, self.hi + moved + slack
+            consistent = (lo_m <= hi) & (hi_m >= lo)
+            lo = np.where(consistent, np.maximum(lo, lo_m), lo)
+            hi = np.where(consistent, np.minimum(hi, hi_m), hi)
+        self.lo, self.hi = lo, hi
+        self.x, self.v, self.u = (lo + hi) / 2.0, v, np.asarray(applied, dtype=float).copy()
+        return self.x
 
     def predict(self, horizon_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions and speeds ``horizon_s`` [s] after the last snapshot under the applied command.

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from manus.joint_map import dh_to_encoder
-from manus.kinematics import fk_position
+from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder
+from manus.kinematics import fk_position, jacobian
 from manus.quantize import (
     COUNT_RAD_S,
     JOINT_COUNT_MAX,
@@ -46,7 +46,7 @@ from manus.quantize import (
 from manus.trajectory import Sample
 from schemas.control import TrajectoryGoal
 from services.controller.config import ControllerConfig
-from services.controller.estimator import DriveEstimator, deadbeat_speed
+from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.goals import violation
 from services.controller.reference import Reference, rest_to_rest
 
@@ -68,6 +68,40 @@ class Step:
     segment: int
     state: str
     ended: tuple[str, str] | None = None
+
+
+_CORNERS = np.array([[(k >> j) & 1 for j in range(6)] for k in range(64)], dtype=float)
+"""Every floor/ceil choice of six joints, shape (64, 6)."""
+
+
+def cartesian_rounding(
+    wanted: np.ndarray,
+    miss: np.ndarray,
+    gain: float,
+    q_target: np.ndarray,
+    config: ControllerConfig,
+) -> np.ndarray:
+    """Round each joint up or down so that the gripper, not each joint, lands nearest.
+
+    Of the 64 floor/ceil choices, take the one whose predicted motor error at the end of
+    the command's cycle, mapped to the gripper through the Jacobian at the target, is
+    smallest (position in m, orientation weighted by ``rounding_rotation_m`` [m/rad]).
+
+    Args:
+        wanted: ideal float counts, shape (6,), within the range.
+        miss: predicted motor error at the cycle's end with zero counts [rad], shape (6,).
+        gain: motor angle one count adds by the cycle's end [rad].
+        q_target: DH target angles [rad], shape (6,).
+        config: controller settings.
+    """
+    lo = np.floor(wanted)
+    cand = np.clip(lo + _CORNERS, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
+    err_motor = miss + gain * cand  # (64, 6)
+    err_dh = err_motor @ M_ENCODER_TO_DH.T
+    J = jacobian(q_target, config.arm)
+    J[3:] *= config.rounding_rotation_m
+    cost = np.sum((err_dh @ J.T) ** 2, axis=1)
+    return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)
 
 
 def make_quantizer(name: str) -> Quantizer:
@@ -204,8 +238,14 @@ class TrajectoryRun:
         ref, tau = self.current_reference()
         if cfg.delay_compensation and est.x is not None:
             x1, v1 = est.predict(cfg.command_delay_ms / 1000.0)
-            target = dh_to_encoder(ref.sample(tau + self.scale * period).q)
+            q_target = ref.sample(tau + self.scale * period).q
+            target = dh_to_encoder(q_target)
             u = deadbeat_speed(x1, v1, target, period, tau_s)
+            if cfg.default_quantizer == "cartesian":
+                wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
+                gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
+                miss = x1 + v1 * lag_factor(tau_s, period) - target  # at zero counts
+                return cartesian_rounding(wanted, miss, gain, q_target, cfg)
         else:
             target = dh_to_encoder(ref.sample(self.tau + self.scale * period).q)
             u = (target - dh_to_encoder(q)) / period
