@@ -20,6 +20,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
     "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
+    "sequencer": ("services.sequencer.main", "the sequencer service: tasks, the supervisor API"),
+    "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),
+    "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
 }
 """Subcommand -> (module, one-line help)."""
 

@@ -1,0 +1,151 @@
+"""An example supervisor: plain Zenoh + MessagePack, as a client in another language would.
+
+It imports nothing from this project: the messages are MessagePack maps whose fields are
+described in ``schemas/supervisor.schema.json`` (JSON Schema; SI units, so openings and
+positions in metres). It
+
+1. checks the services' liveliness tokens (``<prefix>/alive/*``),
+2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
+   the reply is a SubmitReply: a task id, or every validation error),
+3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
+   pause it after a while and resume it (``<prefix>/sequencer/control``).
+
+    python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
+    python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
+
+Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it
+was refused. Via-point files are read here (14 columns in mm, deg, s; SPEC 5.1) and
+sent in SI units.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import queue
+import sys
+import time
+from typing import Any
+
+import msgpack
+import zenoh
+
+MM, DEG = 1e-3, math.pi / 180.0
+
+
+def via_points(file: str) -> list[dict[str, Any]]:
+    """A via-point file as a list of ViaPoint maps (SI units)."""
+    out = []
+    with open(file, encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            cols = line.split("#", 1)[0].split()
+            if not cols:
+                continue
+            v = [float(c) for c in cols]
+            out.append({
+                "xyz": [v[0] * MM, v[1] * MM, v[2] * MM],
+                "velocity": [v[3] * MM, v[4] * MM, v[5] * MM],
+                # file order yaw, roll, pitch -> message order yaw, pitch, roll
+                "ypr": [v[6] * DEG, v[8] * DEG, v[7] * DEG],
+                "angular_velocity": [v[9] * DEG, v[11] * DEG, v[10] * DEG],
+                "time": v[12], "type": int(v[13]), "line": number,
+            })  # fmt: skip
+    return out
+
+
+def task_from_words(words: list[str]) -> dict[str, Any]:
+    """The thesis form (files and openings in mm, alternating) as a Task map."""
+    steps: list[dict[str, Any]] = []
+    for word in words:
+        try:
+            opening_mm = float(word)
+        except ValueError:
+            path = {"via_points": via_points(word), "source": word}
+            steps.append({"kind": "move", "path": path, "where": word})
+        else:
+            steps.append({"kind": "gripper", "opening": opening_mm * MM, "where": word})
+    return {"steps": steps, "name": "supervisor example: " + " ".join(words)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("task", nargs="+", help="via-point files and openings [mm]")
+    parser.add_argument("--connect", default="tcp/127.0.0.1:7447", help="router endpoint")
+    parser.add_argument("--prefix", default="manus", help="key prefix of the arm")
+    parser.add_argument("--pause-after", type=float, default=None, metavar="S",
+                        help="pause the task this long after it starts [s]")  # fmt: skip
+    parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
+                        help="resume this long after the pause [s]")  # fmt: skip
+    parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
+    args = parser.parse_args()
+    p = args.prefix
+
+    # A client of the local router, loopback only: no scouting.
+    config = zenoh.Config()
+    config.insert_json5("mode", '"client"')
+    config.insert_json5("connect/endpoints", json.dumps([args.connect]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(config)
+    try:
+        alive = set()
+        for reply in session.liveliness().get(f"{p}/alive/**", timeout=2.0):
+            if reply.ok is not None:
+                alive.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        print(f"alive: {', '.join(sorted(alive)) or 'nothing'}", flush=True)
+
+        events: queue.Queue[dict[str, Any]] = queue.Queue()
+        session.declare_subscriber(
+            f"{p}/sequencer/events",
+            lambda s: events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
+        )
+
+        def ask(key: str, request: dict[str, Any], timeout: float = 60.0) -> dict[str, Any]:
+            payload = msgpack.packb(request, use_bin_type=True)
+            for reply in session.get(f"{p}/{key}", payload=payload, timeout=timeout):
+                if reply.ok is None:
+                    err = reply.err.payload.to_bytes().decode() if reply.err is not None else "?"
+                    raise RuntimeError(f"{key}: {err}")
+                answer: dict[str, Any] = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
+                return answer
+            raise RuntimeError(f"{key}: no reply (is the sequencer running?)")
+
+        submitted = ask("sequencer/submit", task_from_words(args.task))
+        if not submitted["accepted"]:
+            print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)
+            return 2
+        task_id = submitted["task_id"]
+        print(f"accepted: task {task_id}", flush=True)
+
+        start = time.monotonic()
+        paused_at: float | None = None
+        while time.monotonic() - start < args.timeout:
+            now = time.monotonic() - start
+            if args.pause_after is not None and paused_at is None and now >= args.pause_after:
+                status = ask("sequencer/control", {"action": "pause", "task_id": task_id})
+                print(f"pause -> {status['state']} ok={status['ok']}", flush=True)
+                paused_at = now
+            if paused_at is not None and paused_at >= 0 and now >= paused_at + args.resume_after:
+                status = ask("sequencer/control", {"action": "resume", "task_id": task_id})
+                print(f"resume -> {status['state']} ok={status['ok']}", flush=True)
+                paused_at = -1.0  # done
+            try:
+                event = events.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if event["task_id"] != task_id or event["event"] == "step_progress":
+                continue
+            reason = f": {event['reason']}" if event["reason"] else ""
+            print(f"event: {event['event']} step {event['step']}/{event['total']}{reason}",
+                  flush=True)  # fmt: skip
+            if event["event"] in ("succeeded", "failed", "cancelled"):
+                return 0 if event["event"] == "succeeded" else 1
+        print("timeout: cancelling", flush=True)
+        ask("sequencer/control", {"action": "cancel", "task_id": task_id})
+        return 1
+    finally:
+        session.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""A supervisor client of the sequencer over Zenoh (used by ``manus run`` and ``manus demo``).
+
+Submits a task, follows its events until it ends, and can cancel, pause or resume it.
+A supervisor in another language does the same with plain Zenoh and MessagePack (see
+``examples/supervisor.py`` and the JSON Schema in ``schemas/supervisor.schema.json``).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable, Iterable
+
+from manus.node import Node
+from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
+
+FINAL_EVENTS = ("succeeded", "failed", "cancelled")
+"""Events that end a task."""
+
+
+class TaskClient:
+    """Talks to ``<prefix>/sequencer/*`` through ``node``.
+
+    Args:
+        node: an open node (``liveliness=False`` for a plain client).
+    """
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self._events: queue.Queue[TaskEvent] = queue.Queue()
+        node.subscribe(node.keys("sequencer/events"), TaskEvent, self._on_event, locked=False)
+
+    def _on_event(self, event: TaskEvent, rx_ns: int) -> None:
+        self._events.put(event)
+
+    def wait_for_services(self, names: Iterable[str], timeout: float) -> list[str]:
+        """Wait up to ``timeout`` [s] for the liveliness tokens of ``names``; the missing."""
+        wanted = set(names)
+        deadline = time.monotonic() + timeout
+        while True:
+            missing = sorted(wanted - self.node.alive_services(timeout=0.5))
+            if not missing or time.monotonic() >= deadline:
+                return missing
+            time.sleep(0.1)
+
+    def submit(self, task: Task, timeout: float = 60.0) -> SubmitReply:
+        """Submit ``task`` (the sequencer validates it whole before answering).
+
+        Raises:
+            manus.node.QueryError: no sequencer answered within ``timeout`` [s].
+        """
+        return self.node.query(self.node.keys("sequencer/submit"), task, SubmitReply,
+                               timeout=timeout)  # fmt: skip
+
+    def control(self, action: str, task_id: str = "", timeout: float = 5.0) -> TaskStatus:
+        """Cancel, pause, resume (or status of) a task."""
+        request = TaskControl(action=action, task_id=task_id)
+        key = "sequencer/status" if action == "status" else "sequencer/control"
+        return self.node.query(self.node.keys(key), request, TaskStatus, timeout=timeout)
+
+    def follow(
+        self,
+        task_id: str,
+        on_event: Callable[[TaskEvent], None],
+        *,
+        stop: threading.Event | None = None,
+        timeout: float | None = None,
+    ) -> TaskEvent | None:
+        """Pass each event of ``task_id`` to ``on_event`` until the task ends.
+
+        Returns:
+            The final event, or None when ``stop`` was set or ``timeout`` [s] passed.
+        """
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            if stop is not None and stop.is_set():
+                return None
+            if deadline is not None and time.monotonic() >= deadline:
+                return None
+            try:
+                event = self._events.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if event.task_id != task_id:
+                continue
+            on_event(event)
+            if event.event in FINAL_EVENTS:
+                return event

@@ -1,0 +1,43 @@
+"""``manus sequencer``: run the sequencer service (the supervisor API) until SIGINT/SIGTERM.
+
+Prints ``sequencer: serving <prefix>/sequencer/submit`` when ready and one ``stats:``
+JSON line (tasks started, refused, bad payloads) on exit, both on standard error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from manus.config import load_arm_config
+from manus.node import wait_for_signal
+from manus.session import settings_from_env
+from services.sequencer.config import SequencerConfig
+from services.sequencer.shell import SequencerShell
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Bus settings (over the ``MANUS_ZENOH_*`` environment) and the arm config."""
+    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
+    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
+    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve tasks until interrupted."""
+    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    config = SequencerConfig(arm=load_arm_config(args.arm_config))
+    stop = wait_for_signal()
+    with SequencerShell(settings, config) as shell:
+        print(f"sequencer: serving {shell.node.keys('sequencer/submit')}", file=sys.stderr,
+              flush=True)  # fmt: skip
+        stop.wait()
+        stats = {
+            "tasks": shell.submitted,
+            "refused": shell.refused,
+            "bad_payloads": shell.node.bad_payload_count,
+        }
+    print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
+    return 0

@@ -1,0 +1,122 @@
+"""``manus run``: run a task, in the thesis form or from a TOML task file.
+
+    manus run paths/thesis_square.txt 40 paths/thesis_circle.txt 0
+    manus run task.toml
+
+Submits the task to the running sequencer (or, when none is up, runs one in this
+process), shows a progress bar for the task and one for the current step, and exits 0
+when the task succeeds; 1 with the failure reason when it fails or is cancelled; 2 when
+it is refused (every validation problem is printed, with its location). Ctrl-C cancels
+the task (the arm decelerates and stops) and exits 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import time
+
+from manus.node import Node, QueryError, wait_for_signal
+from manus.session import settings_from_env
+from schemas.sequencing import Task
+from services.sequencer.client import TaskClient
+from services.sequencer.config import REQUIRED_SERVICES
+from services.sequencer.progress import ProgressView
+from services.sequencer.shell import SequencerShell
+from services.sequencer.taskfile import TaskFileError, load_task_file, task_from_args
+
+
+def _out(text: str) -> None:
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def _err(text: str) -> None:
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
+def _wait_for_arm(shell: SequencerShell, timeout: float) -> None:
+    """Give a fresh sequencer up to ``timeout`` [s] to hear the bridge and the arm."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with shell.node.lock:
+            if shell.core.bridge_phase and shell.core.latest is not None:
+                return
+        time.sleep(0.05)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The task and the bus settings."""
+    parser.add_argument(
+        "task",
+        nargs="+",
+        metavar="ITEM",
+        help="a .toml task file, or via-point files and gripper openings [mm], alternating",
+    )
+    parser.add_argument("--mode", dest="control_mode", choices=("default", "thesis"),
+                        help="controller mode of the move steps (default: default)")  # fmt: skip
+    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
+    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
+                        help="how long to wait for the services to come up [s]")  # fmt: skip
+    parser.add_argument("--timeout", type=float, default=None, metavar="S",
+                        help="give up (and cancel) after this long [s]")  # fmt: skip
+    parser.add_argument("--plain", action="store_true",
+                        help="one line per event instead of redrawn progress bars")  # fmt: skip
+
+
+def load_task(items: list[str], mode: str | None) -> Task:
+    """The task of the command line: one ``.toml`` file, or the thesis form."""
+    if len(items) == 1 and items[0].endswith(".toml"):
+        task = load_task_file(items[0])
+        if mode is not None:
+            task = Task(steps=task.steps, name=task.name, mode=mode)
+        return task
+    return task_from_args(items, mode=mode or "default")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the task; see the module docstring for exit codes."""
+    try:
+        task = load_task(args.task, args.control_mode)
+    except TaskFileError as exc:
+        _err("manus run: task refused:\n  " + "\n  ".join(exc.errors))
+        return 2
+    settings = settings_from_env(connect=args.connect, prefix=args.prefix)
+    stop = wait_for_signal()
+    with contextlib.ExitStack() as stack:
+        node = stack.enter_context(Node("run", settings, liveliness=False))
+        client = TaskClient(node)
+        if "sequencer" not in node.alive_services(timeout=1.0):
+            _err("manus run: no sequencer is running: running one in this process")  # fmt: skip
+            shell = stack.enter_context(SequencerShell(settings, session=node.session))
+            _wait_for_arm(shell, args.wait)
+        missing = client.wait_for_services((*REQUIRED_SERVICES, "sequencer"), args.wait)
+        if missing:
+            _err(f"manus run: waited {args.wait:g} s; still missing: {', '.join(missing)} "
+                  "(start them, e.g. with `manus up`)")  # fmt: skip
+        try:
+            reply = client.submit(task)
+        except QueryError as exc:
+            _err(f"manus run: {exc}")
+            return 1
+        if not reply.accepted:
+            _err("manus run: task refused:\n  " + "\n  ".join(reply.errors))
+            return 2
+        _out(f"task {reply.task_id}: {task.name} ({len(task.steps)} steps)")
+        view = ProgressView(task, sys.stdout, live=sys.stdout.isatty() and not args.plain)
+        final = client.follow(reply.task_id, view.show, stop=stop, timeout=args.timeout)
+        if final is None:
+            why = "interrupted" if stop.is_set() else f"no end within {args.timeout:g} s"
+            _err(f"manus run: {why}: cancelling task {reply.task_id}")
+            with contextlib.suppress(QueryError):
+                client.control("cancel", reply.task_id)
+            client.follow(reply.task_id, view.show, timeout=10.0)
+            return 130 if stop.is_set() else 1
+        if final.event != "succeeded":
+            _err(f"manus run: task {final.event}: {final.reason}")
+            return 1
+        _out(f"task {reply.task_id}: succeeded")
+        return 0

@@ -1,0 +1,193 @@
+"""The sequencer's live shell: the supervisor API on Zenoh around :class:`SequencerCore`.
+
+Queryables (``schemas.sequencing``): ``<prefix>/sequencer/submit`` (Task -> SubmitReply:
+validates the whole task, asking the planner for every move, before anything moves),
+``<prefix>/sequencer/control`` (TaskControl -> TaskStatus: cancel, pause, resume,
+status) and ``<prefix>/sequencer/status``. Publishes ``<prefix>/sequencer/events``
+(TaskEvent). Follows ``state/joints``, ``state/bridge``, ``controller/feedback``,
+``controller/result``, ``estop`` and the liveliness tokens.
+
+The core's queries run one at a time, in order, on a worker thread (never under the node
+lock, so the callbacks that carry results keep flowing); a ticker feeds the core the
+time every 50 ms (waits, timeouts).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import uuid
+
+import zenoh
+
+from manus.node import Node, QueryError, now_ns
+from manus.session import ZenohSettings
+from schemas.commands import EStop
+from schemas.control import ControllerFeedback, GoalResult
+from schemas.planning import PlanReply
+from schemas.sequencing import SubmitReply, Task, TaskControl, TaskStatus
+from schemas.state import BridgeState, JointState
+from services.sequencer.config import SequencerConfig
+from services.sequencer.core import Action, Publish, Query, SequencerCore
+from services.sequencer.validate import Validator
+
+log = logging.getLogger("manus.sequencer")
+
+TICK_S = 0.05
+"""Period of the core's clock tick [s]."""
+
+
+class SequencerShell:
+    """The sequencer on the bus (liveliness token ``<prefix>/alive/sequencer``).
+
+    Args:
+        settings: how to reach the bus (its prefix roots the keys).
+        config: sequencer settings.
+        session: an open session to share (not closed by :meth:`close`).
+        query_timeout: how long to wait for each service's answer [s].
+    """
+
+    def __init__(
+        self,
+        settings: ZenohSettings,
+        config: SequencerConfig | None = None,
+        *,
+        session: zenoh.Session | None = None,
+        query_timeout: float = 5.0,
+    ) -> None:
+        self.core = SequencerCore(config)
+        self.node = Node("sequencer", settings, session=session)
+        self.query_timeout = query_timeout
+        self.submitted = 0
+        self.refused = 0
+        keys = self.node.keys
+        self._events = self.node.publisher(keys("sequencer/events"))
+        self._queries: queue.Queue[Query | None] = queue.Queue()
+        self._stop = threading.Event()
+        self.node.subscribe(keys.joints, JointState, self._on_joints)
+        self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
+        self.node.subscribe(keys.feedback, ControllerFeedback, self._on_feedback)
+        self.node.subscribe(keys.result, GoalResult, self._on_result)
+        self.node.subscribe(keys.estop, EStop, self._on_estop)
+        self.node.watch_liveliness(self._on_alive)
+        self.node.queryable(keys("sequencer/submit"), Task, self._on_submit, locked=False)
+        self.node.queryable(keys("sequencer/control"), TaskControl, self._on_control)
+        self.node.queryable(keys("sequencer/status"), TaskControl, self._on_status)
+        self._worker = threading.Thread(target=self._work, name="sequencer-queries", daemon=True)
+        self._ticker = threading.Thread(target=self._tick, name="sequencer-tick", daemon=True)
+        self._worker.start()
+        self._ticker.start()
+
+    # -- bus inputs (under the node lock) --------------------------------------------------
+
+    def _on_joints(self, js: JointState, rx_ns: int) -> None:
+        self._do(self.core.on_joint_state(js, rx_ns))
+
+    def _on_bridge(self, bs: BridgeState, rx_ns: int) -> None:
+        self._do(self.core.on_bridge_state(bs, rx_ns))
+
+    def _on_feedback(self, fb: ControllerFeedback, rx_ns: int) -> None:
+        self._do(self.core.on_feedback(fb, rx_ns))
+
+    def _on_result(self, res: GoalResult, rx_ns: int) -> None:
+        self._do(self.core.on_result(res, rx_ns))
+
+    def _on_estop(self, msg: EStop, rx_ns: int) -> None:
+        self._do(self.core.on_estop(msg, rx_ns))
+
+    def _on_alive(self, service: str, alive: bool) -> None:
+        self._do(self.core.on_liveliness(service, alive, now_ns()))
+
+    def _on_control(self, req: TaskControl) -> TaskStatus:
+        status, actions = self.core.control(req, now_ns())
+        self._do(actions)
+        return status
+
+    def _on_status(self, req: TaskControl) -> TaskStatus:
+        return self.core.status()
+
+    # -- submit: validate the whole task, then start it --------------------------------------
+
+    def _on_submit(self, task: Task) -> SubmitReply:
+        with self.node.lock:
+            refused = self.core.refuse(task)
+            start = self.core.start_configuration()
+        if refused is not None:
+            return self._refuse(refused)
+        validator = Validator(task, start)
+        while (request := validator.next_request()) is not None:
+            try:
+                reply = self.node.query(
+                    self.node.keys.plan, request, PlanReply, timeout=self.query_timeout
+                )
+            except QueryError as exc:
+                validator.on_reply(None, str(exc))
+            else:
+                validator.on_reply(reply)
+        if validator.errors:
+            return self._refuse(SubmitReply(accepted=False, task_id="", errors=validator.errors))
+        with self.node.lock:
+            refused = self.core.refuse(task)  # things may have changed while planning
+            if refused is not None:
+                return self._refuse(refused)
+            task_id = uuid.uuid4().hex[:8]
+            self.submitted += 1
+            log.info("task %s (%s): %d steps", task_id, task.name, len(task.steps))
+            self._do(self.core.start(task_id, task, now_ns()))
+        return SubmitReply(accepted=True, task_id=task_id)
+
+    def _refuse(self, reply: SubmitReply) -> SubmitReply:
+        with self.node.lock:
+            self.refused += 1
+        log.info("refused a task: %s", "; ".join(reply.errors))
+        return reply
+
+    # -- outputs -----------------------------------------------------------------------------
+
+    def _do(self, actions: list[Action]) -> None:
+        for action in actions:
+            if isinstance(action, Publish):
+                self._events.put(action.message)
+            else:
+                self._queries.put(action)
+
+    def _work(self) -> None:
+        while True:
+            item = self._queries.get()
+            if item is None:
+                return
+            key = self.node.keys(item.suffix)
+            try:
+                reply = self.node.query(
+                    key, item.request, item.reply_type, timeout=self.query_timeout
+                )
+            except QueryError as exc:
+                with self.node.lock:
+                    self._do(self.core.on_reply(item.token, None, str(exc), now_ns()))
+            else:
+                with self.node.lock:
+                    self._do(self.core.on_reply(item.token, reply, "", now_ns()))
+
+    def _tick(self) -> None:
+        while not self._stop.wait(TICK_S):
+            with self.node.lock:
+                self._do(self.core.on_tick(now_ns()))
+
+    def close(self) -> None:
+        """Stop the threads and leave the bus (a running task's goal is cancelled first)."""
+        with self.node.lock:
+            if self.core.busy:
+                _, actions = self.core.control(TaskControl(action="cancel"), now_ns())
+                self._do(actions)
+        self._stop.set()
+        self._queries.put(None)
+        self._worker.join(timeout=self.query_timeout + 1.0)
+        self._ticker.join(timeout=1.0)
+        self.node.close()
+
+    def __enter__(self) -> SequencerShell:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
