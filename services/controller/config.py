@@ -78,7 +78,7 @@ class ControllerConfig:
     thesis_gain: float = 2.5
     thesis_via_threshold_m: float = 0.003
     settle_speed: float = math.radians(5.0)
-    settle_min_s: float = 0.5
+    settle_min_s: float = 0.12
     max_settles: int = 5
     cancel_decel: float = math.radians(100.0)
     speed_scale_rate: float = 2.0

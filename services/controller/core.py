@@ -227,7 +227,7 @@ class ControllerCore:
         tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
         old = self.run
         if goal.replace and old is not None and not old.cancelling:
-            ref_old, tau = old.current_reference()
+            ref_old, tau = old.reference_at(snap)
             new_duration = Reference(goal.trajectory, arm=cfg.arm).duration
             blend = max(cfg.cycle_s, min(cfg.splice_blend_s, new_duration or cfg.splice_blend_s))
             ref = ref_old.spliced(goal.trajectory, tau, blend)

@@ -66,8 +66,13 @@ class Reference:
     def sample(self, tau: float) -> Sample:
         """Reference at trajectory time ``tau`` [s] (blend included)."""
         s = self.traj.sample(tau)
-        if self.blend is None or not 0.0 <= tau < self.blend_s:
+        if self.blend is None or tau >= self.blend_s:
             return s
+        if tau < 0.0:
+            # Just before the splice (the cycle that decided it): the new trajectory's
+            # first-order extension, so that the blend sum continues the old reference.
+            s0 = self.traj.sample(0.0)
+            s = Sample(s0.q + s0.qd * tau, s0.qd, s0.qdd, -1)
         c = self.blend
         q = c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
         qd = c[1] + tau * (2 * c[2] + tau * (3 * c[3] + tau * (4 * c[4] + tau * 5 * c[5])))

@@ -182,6 +182,12 @@ class TrajectoryRun:
             return self.settle, self.settle_tau
         return self.ref, self.tau_at_command()
 
+    def reference_at(self, snap_ns: int) -> tuple[Reference, float]:
+        """Like :meth:`current_reference` for the command answering the snapshot at
+        ``snap_ns`` [ns], before this run has stepped to it (a splice decides there)."""
+        ref, tau = self.current_reference()
+        return ref, tau + self.scale * (snap_ns - self.last_ns) / 1e9
+
     # -- one cycle -----------------------------------------------------------------------
 
     def step(
@@ -241,7 +247,7 @@ class TrajectoryRun:
             q_target = ref.sample(tau + self.scale * period).q
             target = dh_to_encoder(q_target)
             u = deadbeat_speed(x1, v1, target, period, tau_s)
-            if cfg.default_quantizer == "cartesian":
+            if cfg.default_quantizer == "cartesian" and self.end_ns is None:
                 wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
                 gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
                 miss = x1 + v1 * lag_factor(tau_s, period) - target  # at zero counts
@@ -330,7 +336,9 @@ class TrajectoryRun:
         late = (snap_ns - (self.end_ns or snap_ns)) / 1e9
         if late > goal.goal_time_tolerance:
             what = joints or (
-                f"final position error {self.final_error * 1000:.2f} mm exceeds "
+                "the arm did not come to rest"
+                if close
+                else f"final position error {self.final_error * 1000:.2f} mm exceeds "
                 f"position_tolerance {goal.position_tolerance * 1000:.2f} mm"
             )
             return "aborted", f"{what} {late:.2f} s after the end (goal_time_tolerance)"
