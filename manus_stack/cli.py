@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
     "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
+    "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),
     "sequencer": ("services.sequencer.main", "the sequencer service: tasks, the supervisor API"),
     "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),

@@ -1,0 +1,52 @@
+"""``manus controller``: run the controller service until SIGINT/SIGTERM.
+
+Prints ``controller: serving <prefix>/controller/goal`` when ready and one ``stats:``
+JSON line (messages sent per key, bad payloads) on exit, both on standard error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from manus.config import load_arm_config
+from manus.node import wait_for_signal
+from manus.session import settings_from_env
+from services.controller.config import QUANTIZERS, ControllerConfig
+from services.controller.shell import ControllerShell
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Bus settings (over the ``MANUS_ZENOH_*`` environment), arm config, loop options."""
+    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
+    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
+    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
+    parser.add_argument(
+        "--quantizer",
+        choices=QUANTIZERS,
+        default="cartesian",
+        help="rounding of the default mode (default: cartesian)",
+    )
+    parser.add_argument(
+        "--thesis-gain", type=float, default=2.5, help="K of the thesis mode [1/s] (default 2.5)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve goals until interrupted."""
+    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    config = ControllerConfig(
+        arm=load_arm_config(args.arm_config),
+        default_quantizer=args.quantizer,
+        thesis_gain=args.thesis_gain,
+    )
+    stop = wait_for_signal()
+    with ControllerShell(settings, config) as shell:
+        print(f"controller: serving {shell.node.keys.goal}", file=sys.stderr, flush=True)
+        stop.wait()
+        with shell.node.lock:
+            stats = {"sent": dict(shell.sent), "bad_payloads": shell.node.bad_payload_count}
+    print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
+    return 0

@@ -1,0 +1,88 @@
+"""The controller's live shell: :class:`ControllerCore` on Zenoh.
+
+Subscribes ``<prefix>/state/joints`` and ``<prefix>/state/status``; answers the
+queryables ``controller/goal`` (TrajectoryGoal), ``controller/gripper`` (GripperGoal),
+``controller/cancel`` (CancelGoal) and ``controller/speed_scale`` (SpeedScale), each with
+a GoalAck; publishes what the core returns on ``cmd/joint_velocity``,
+``controller/feedback`` and ``controller/result``. Everything runs under the node lock,
+so the core sees one message at a time, in arrival order.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+
+import zenoh
+
+from manus.node import Node, Publisher
+from manus.session import ZenohSettings
+from schemas.base import Message
+from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
+from schemas.state import ArmStatus, JointState
+from services.controller.config import ControllerConfig
+from services.controller.core import ControllerCore, Output
+
+log = logging.getLogger("manus.controller")
+
+PUBLISHED = ("cmd/joint_velocity", "controller/feedback", "controller/result")
+"""Key suffixes the controller publishes on."""
+
+
+class ControllerShell:
+    """The controller on the bus (liveliness token ``<prefix>/alive/controller``).
+
+    Args:
+        settings: how to reach the bus (its prefix roots the keys).
+        config: controller settings.
+        session: an open session to share (not closed by :meth:`close`).
+
+    Attributes:
+        sent: messages published per key suffix.
+    """
+
+    def __init__(
+        self,
+        settings: ZenohSettings,
+        config: ControllerConfig | None = None,
+        *,
+        session: zenoh.Session | None = None,
+    ) -> None:
+        self.core = ControllerCore(config)
+        self.node = Node("controller", settings, session=session)
+        self.sent: Counter[str] = Counter()
+        keys = self.node.keys
+        self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in PUBLISHED}
+        self.node.subscribe(keys.joints, JointState, self._on_joint_state)
+        self.node.subscribe(keys.status, ArmStatus, self._on_status)
+        self.node.queryable(keys.goal, TrajectoryGoal, self._on_goal)
+        self.node.queryable(keys.gripper_goal, GripperGoal, self.core.submit_gripper)
+        self.node.queryable(keys.cancel, CancelGoal, self.core.cancel)
+        self.node.queryable(keys.speed_scale, SpeedScale, self.core.set_speed_scale)
+
+    def _publish(self, out: Output) -> None:
+        for suffix, msg in out:
+            self._pubs[suffix].put(msg)
+            self.sent[suffix] += 1
+
+    def _on_joint_state(self, js: JointState, rx_ns: int) -> None:
+        self._publish(self.core.on_joint_state(js))
+
+    def _on_status(self, st: ArmStatus, rx_ns: int) -> None:
+        self._publish(self.core.on_status(st))
+
+    def _on_goal(self, goal: TrajectoryGoal) -> Message:
+        ack = self.core.submit(goal)
+        if not ack.accepted:
+            log.info("refused goal %s: %s", goal.goal_id, ack.reason)
+        return ack
+
+    def close(self) -> None:
+        """Leave the bus."""
+        self.node.close()
+
+    def __enter__(self) -> ControllerShell:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
