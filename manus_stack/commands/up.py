@@ -1,0 +1,102 @@
+"""``manus up``: the whole stack on this machine, each service its own process.
+
+    manus up                                   # simulator on a pty, everything else, recorder
+    manus up --can-interface socketcan --can-channel can0    # a real arm instead
+    manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
+
+Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
+planner, controller, sequencer and recorder (``manus_stack.up``), waits until each one's
+liveliness token is up, prints where things are, and runs until Ctrl-C (or
+``--duration``), then stops every process it started, newest first, by pid. Exits 1 if
+something did not come up or died meanwhile (naming it and its log).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+from manus.node import wait_for_signal
+from manus_stack.up import LocalStack, StackOptions
+
+
+def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options shared by ``manus up`` and ``manus demo``."""
+    parser.add_argument(
+        "--endpoint",
+        default="tcp/127.0.0.1:7447",
+        help="loopback endpoint of the router (default tcp/127.0.0.1:7447)",
+    )
+    parser.add_argument("--prefix", default="manus", help="key prefix of the arm")
+    parser.add_argument("--run-dir", help="logs, recording (default runs/<UTC time>)")
+    parser.add_argument(
+        "--can-interface",
+        default="",
+        help="python-can interface of a real arm (default: the simulator)",
+    )
+    parser.add_argument("--can-channel", default="", help="its channel (e.g. can0)")
+    parser.add_argument(
+        "--no-record", dest="record", action="store_false", help="do not start the recorder"
+    )
+    parser.add_argument(
+        "--start-timeout",
+        type=float,
+        default=60.0,
+        metavar="S",
+        help="how long to wait for every service [s]",
+    )
+
+
+def stack_options(args: argparse.Namespace) -> StackOptions:
+    """:class:`StackOptions` of the shared arguments."""
+    stamp = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
+    run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / stamp
+    return StackOptions(
+        run_dir=run_dir.resolve(),
+        endpoint=args.endpoint,
+        prefix=args.prefix,
+        can_interface=args.can_interface,
+        can_channel=args.can_channel,
+        record=args.record,
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Stack options and how long to run."""
+    add_stack_arguments(parser)
+    parser.add_argument(
+        "--duration", type=float, metavar="S", help="stop after this long [s] (default: at Ctrl-C)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Bring the stack up, wait, bring it down."""
+    stop = wait_for_signal()
+    stack = LocalStack(stack_options(args), out=sys.stdout)
+    try:
+        stack.start(timeout=args.start_timeout)
+        for line in stack.describe():
+            print(line)
+        print("up: every service is alive; Ctrl-C stops them all", flush=True)
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+        while not stop.is_set():
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            dead = stack.exited()
+            if dead:
+                for child in dead:
+                    print(
+                        f"up: manus {child.name} exited with status {child.proc.returncode} "
+                        f"(log {child.log})",
+                        file=sys.stderr,
+                    )
+                return 1
+            stop.wait(0.2)
+        return 0
+    finally:
+        codes = stack.stop()
+        if codes:
+            print("down: " + ", ".join(f"{k} {v}" for k, v in codes.items()), flush=True)

@@ -1,0 +1,278 @@
+"""The whole stack on one machine, each service its own process (``manus up``, ``manus demo``).
+
+Order: a Zenoh router on loopback (``manus router``, a Python session in router mode),
+the simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
+``manus bridge`` on that device (or the real CAN interface), ``manus planner``,
+``manus controller``, ``manus sequencer`` and ``manus record``. Every child is a client
+of the router (``MANUS_ZENOH_CONNECT``), writes its output to ``<run dir>/logs/<name>.log``
+and runs in its own session, so a Ctrl-C reaches only this process, which then stops the
+children in reverse order, each by its pid (SIGINT, then SIGKILL after a grace period).
+
+:class:`LocalStack` waits until every started service's liveliness token is up.
+Services whose command is not part of this installation yet are reported, not started.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from manus.errors import ManusError
+from manus.node import Node
+from manus.session import client_settings
+
+LIVELINESS = {
+    "sim": "simulator",
+    "bridge": "can_bridge",
+    "planner": "planner",
+    "controller": "controller",
+    "sequencer": "sequencer",
+    "record": "recorder",
+}
+"""``manus`` subcommand -> the liveliness name its node declares."""
+
+
+class StackError(ManusError):
+    """The stack could not be brought up (names the service and its log)."""
+
+
+@dataclass
+class Child:
+    """One started process."""
+
+    name: str
+    argv: list[str]
+    log: Path
+    proc: subprocess.Popen[bytes]
+    stream: IO[bytes]
+
+
+@dataclass
+class StackOptions:
+    """What to start, where.
+
+    Attributes:
+        run_dir: directory for logs, the device file and the recording.
+        endpoint: the router's loopback endpoint.
+        prefix: key prefix of the arm.
+        can_interface: python-can interface of a real arm (empty: the simulator).
+        can_channel: its channel.
+        record: start the recorder (``manus record``) when it is installed.
+        sim_args: extra arguments of ``manus sim``.
+    """
+
+    run_dir: Path
+    endpoint: str = "tcp/127.0.0.1:7447"
+    prefix: str = "manus"
+    can_interface: str = ""
+    can_channel: str = ""
+    record: bool = True
+    sim_args: list[str] = field(default_factory=list)
+
+    @property
+    def recording(self) -> Path:
+        """Where the recorder writes."""
+        return self.run_dir / "recording.mcap"
+
+    @property
+    def device_file(self) -> Path:
+        """Where the simulator writes its pty device path."""
+        return self.run_dir / "sim.device"
+
+
+def available_commands() -> set[str]:
+    """``manus`` subcommands of this installation."""
+    from manus_stack.cli import COMMANDS
+
+    return set(COMMANDS)
+
+
+def endpoint_port(endpoint: str) -> tuple[str, int]:
+    """``tcp/127.0.0.1:7447`` -> ("127.0.0.1", 7447)."""
+    host, _, port = endpoint.split("/", 1)[-1].rpartition(":")
+    return host.strip("[]"), int(port)
+
+
+def port_in_use(endpoint: str) -> bool:
+    """Something already listens on the endpoint."""
+    host, port = endpoint_port(endpoint)
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.settimeout(0.2)
+        return s.connect_ex((host, port)) == 0
+
+
+class LocalStack:
+    """Starts, watches and stops the stack's processes (see the module docstring).
+
+    Args:
+        options: what to start and where.
+        out: where progress lines go (None: nowhere).
+    """
+
+    def __init__(self, options: StackOptions, out: IO[str] | None = None) -> None:
+        self.options = options
+        self.out = out
+        self.children: list[Child] = []
+        self.skipped: list[str] = []
+        self.device = ""
+
+    def _say(self, text: str) -> None:
+        if self.out is not None:
+            self.out.write(text + "\n")
+            self.out.flush()
+
+    def _env(self) -> dict[str, str]:
+        env = dict(os.environ)
+        for key in ("MANUS_ZENOH_CONFIG", "MANUS_ZENOH_MODE", "MANUS_ZENOH_LISTEN"):
+            env.pop(key, None)
+        env["MANUS_ZENOH_CONNECT"] = self.options.endpoint
+        env["MANUS_PREFIX"] = self.options.prefix
+        env["PYTHONUNBUFFERED"] = "1"
+        return env
+
+    def _spawn(self, name: str, args: list[str]) -> Child:
+        logs = self.options.run_dir / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        log = logs / f"{name}.log"
+        stream = log.open("wb")
+        argv = [sys.executable, "-m", "manus_stack.cli", name, *args]
+        proc = subprocess.Popen(
+            argv, stdout=stream, stderr=subprocess.STDOUT, env=self._env(), start_new_session=True
+        )
+        child = Child(name, argv, log, proc, stream)
+        self.children.append(child)
+        return child
+
+    def _check(self, child: Child) -> None:
+        code = child.proc.poll()
+        if code is not None:
+            tail = child.log.read_text(errors="replace").strip().splitlines()[-5:]
+            raise StackError(
+                f"manus {child.name} exited with status {code} (log {child.log}):\n  "
+                + "\n  ".join(tail)
+            )
+
+    def start(self, timeout: float = 30.0) -> None:
+        """Start everything and wait until every service is alive.
+
+        Raises:
+            StackError: the port is taken, a process exited, or a service did not come up
+                within ``timeout`` [s].
+        """
+        opts = self.options
+        opts.run_dir.mkdir(parents=True, exist_ok=True)
+        if port_in_use(opts.endpoint):
+            raise StackError(
+                f"{opts.endpoint} is already in use (another `manus up`?); "
+                "choose another with --endpoint"
+            )
+        deadline = time.monotonic() + timeout
+        router = self._spawn("router", ["--listen", opts.endpoint])
+        while not port_in_use(opts.endpoint):
+            self._check(router)
+            if time.monotonic() > deadline:
+                raise StackError(f"the router did not listen on {opts.endpoint} in time")
+            time.sleep(0.05)
+        have = available_commands()
+        if opts.can_interface:
+            bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
+        else:
+            sim = self._spawn("sim", ["--device-file", str(opts.device_file), *opts.sim_args])
+            while not opts.device_file.exists():
+                self._check(sim)
+                if time.monotonic() > deadline:
+                    raise StackError(f"the simulator wrote no device file (log {sim.log})")
+                time.sleep(0.05)
+            self.device = opts.device_file.read_text().strip()
+            bridge_args = ["--can-interface", "slcan", "--can-channel", self.device]
+        plan: list[tuple[str, list[str]]] = [
+            ("bridge", bridge_args),
+            ("planner", []),
+            ("controller", []),
+            ("sequencer", []),
+        ]
+        if opts.record:
+            plan.append(("record", ["--out", str(opts.recording)]))
+        for name, args in plan:
+            if name in have:
+                self._spawn(name, args)
+            else:
+                self.skipped.append(name)
+        self.wait_alive(deadline)
+
+    def expected(self) -> set[str]:
+        """Liveliness names of the started services."""
+        return {LIVELINESS[c.name] for c in self.children if c.name in LIVELINESS}
+
+    def wait_alive(self, deadline: float) -> None:
+        """Wait (until the monotonic ``deadline``) for every started service's token."""
+        settings = client_settings(self.options.endpoint, prefix=self.options.prefix)
+        with Node("up", settings, liveliness=False) as node:
+            while True:
+                for child in self.children:
+                    self._check(child)
+                missing = self.expected() - node.alive_services(timeout=0.5)
+                if not missing:
+                    return
+                if time.monotonic() > deadline:
+                    raise StackError(
+                        f"not alive in time: {', '.join(sorted(missing))} "
+                        f"(logs in {self.options.run_dir / 'logs'})"
+                    )
+                time.sleep(0.1)
+
+    def describe(self) -> list[str]:
+        """Where things are, one line each."""
+        opts = self.options
+        lines = [f"router: {opts.endpoint} (prefix {opts.prefix})"]
+        if self.device:
+            lines.append(f"simulator: slcan on {self.device}")
+        elif opts.can_interface:
+            lines.append(f"arm: {opts.can_interface} {opts.can_channel}")
+        for c in self.children:
+            lines.append(f"{c.name:<10} pid {c.proc.pid:<7} log {c.log}")
+        if any(c.name == "record" for c in self.children):
+            lines.append(f"recording: {opts.recording}")
+        for name in self.skipped:
+            lines.append(f"{name:<10} not started: `manus {name}` is not in this installation yet")
+        return lines
+
+    def exited(self) -> list[Child]:
+        """Children that have stopped on their own."""
+        return [c for c in self.children if c.proc.poll() is not None]
+
+    def stop(self, grace: float = 5.0) -> dict[str, int]:
+        """Stop every child, newest first, by pid: SIGINT, then SIGKILL after ``grace`` [s].
+
+        Returns:
+            name -> exit status.
+        """
+        codes: dict[str, int] = {}
+        for child in reversed(self.children):
+            if child.proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(child.proc.pid, signal.SIGINT)
+                try:
+                    child.proc.wait(timeout=grace)
+                except subprocess.TimeoutExpired:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(child.proc.pid, signal.SIGKILL)
+                    child.proc.wait(timeout=grace)
+            codes[child.name] = int(child.proc.returncode)
+            child.stream.close()
+        self.children.clear()
+        return codes
+
+    def __enter__(self) -> LocalStack:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
