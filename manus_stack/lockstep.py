@@ -1,0 +1,176 @@
+"""Lock-step simulation: simulator core + bridge core (+ subscribers) on one simulated clock.
+
+Everything runs in one thread in time order, with no Zenoh and no wall clock, so a 20 s
+path takes a fraction of a second and gives the same result on every run:
+
+- the arm's frames reach the bridge when the simulator sends them (``on_frame`` with
+  ``now`` = the frame's time);
+- the bridge's frames reach the simulator ``reply_latency_ns`` later;
+- every message published (by the bridge, by a subscriber, or with :meth:`LockStep.publish`)
+  is recorded in :attr:`LockStep.messages` and delivered ``bus_latency_ns`` later to the
+  subscribers of its key suffix; ``cmd/joint_velocity`` and ``estop`` also reach the
+  bridge (``on_command`` / ``on_estop``);
+- the bridge's ``on_tick`` runs every 20 ms.
+
+Events at the same instant run in this order: the simulator, then message deliveries (in
+publication order), then the tick.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from manus.protocol import Frame
+from schemas.base import Message
+from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
+from services.can_bridge.core import BridgeConfig, BridgeCore, Outputs
+from services.simulator.config import SimConfig
+from services.simulator.core import SimCore
+
+Handler = Callable[[Message, int], list[tuple[str, Message]]]
+"""A subscriber: (message, delivery time [ns]) -> messages to publish (key suffix, message)."""
+
+TICK_NS = 20_000_000
+"""Period of the bridge's ``on_tick`` [ns]."""
+
+
+@dataclass(frozen=True)
+class _Delivery:
+    suffix: str
+    msg: Message
+
+
+class LockStep:
+    """Simulator and bridge cores in time order (see the module docstring).
+
+    Args:
+        sim: simulator settings (default: :class:`SimConfig` defaults, seed 0).
+        bridge: bridge settings.
+        reply_latency_ns: time from a frame leaving the bridge to its arrival at the arm [ns].
+        bus_latency_ns: time from a publication to its delivery [ns].
+    """
+
+    def __init__(
+        self,
+        sim: SimConfig | None = None,
+        bridge: BridgeConfig | None = None,
+        *,
+        reply_latency_ns: int = 1_000_000,
+        bus_latency_ns: int = 200_000,
+    ) -> None:
+        if reply_latency_ns < 0 or bus_latency_ns < 0:
+            raise ValueError(
+                f"latencies must be >= 0 ns, got reply {reply_latency_ns}, bus {bus_latency_ns}"
+            )
+        self.sim = SimCore(sim)
+        self.bridge = BridgeCore(bridge)
+        self.reply_latency_ns = reply_latency_ns
+        self.bus_latency_ns = bus_latency_ns
+        self.messages: list[tuple[int, str, Message]] = []
+        """Every message published, with its publication time [ns], in order."""
+        self.arm_frames: list[Frame] = []
+        """Every frame the arm sent (stamped with its send time)."""
+        self.bridge_frames: list[Frame] = []
+        """Every frame the bridge sent (stamped with its send time)."""
+        self._t = 0
+        self._next_tick = TICK_NS
+        self._order = itertools.count()
+        self._queue: list[tuple[int, int, _Delivery]] = []
+        self._subs: dict[str, list[Handler]] = {}
+        self._apply(self.bridge.start(0), 0)
+
+    @property
+    def t_ns(self) -> int:
+        """The simulated time reached [ns]."""
+        return self._t
+
+    def subscribe(self, suffix: str, handler: Handler) -> None:
+        """Call ``handler`` with every message published on ``suffix`` from now on."""
+        self._subs.setdefault(suffix, []).append(handler)
+
+    def publish(self, suffix: str, msg: Message) -> None:
+        """Publish ``msg`` now; it is delivered ``bus_latency_ns`` later."""
+        self._publish(suffix, msg, self._t)
+
+    def arm_command(self, cmd: ArmCommand) -> ArmCommandReply:
+        """Ask the bridge (the ``bridge/command`` queryable), now."""
+        reply, out = self.bridge.on_arm_command(cmd, self._t)
+        self._apply(out, self._t)
+        return reply
+
+    def run_until(self, t_ns: int) -> None:
+        """Run every event up to and including ``t_ns``.
+
+        Raises:
+            ValueError: ``t_ns`` is in the past.
+        """
+        if t_ns < self._t:
+            raise ValueError(f"run_until {t_ns} ns: time is already {self._t} ns")
+        while True:
+            t_sim = self.sim.next_event_ns()
+            t_msg = self._queue[0][0] if self._queue else None
+            t = min(x for x in (t_sim, t_msg, self._next_tick) if x is not None)
+            if t > t_ns:
+                break
+            self._t = t
+            if t == t_sim:
+                for frame in self.sim.advance(t):
+                    self.arm_frames.append(frame)
+                    self._apply(self.bridge.on_frame(frame, frame.t_ns), frame.t_ns)
+            elif t == t_msg:
+                self._deliver(heapq.heappop(self._queue)[2], t)
+            else:
+                self._apply(self.bridge.on_tick(t), t)
+                self._next_tick += TICK_NS
+        self.sim.advance(t_ns)
+        self._t = t_ns
+
+    def run_for(self, seconds: float) -> None:
+        """Run ``seconds`` of simulated time from now."""
+        self.run_until(self._t + round(seconds * 1e9))
+
+    def run_until_phase(self, phase: str, timeout_s: float = 10.0) -> None:
+        """Run until the bridge is in ``phase`` (checked every 10 ms of simulated time).
+
+        Raises:
+            TimeoutError: naming the phase wanted and the phase (and detail) seen.
+        """
+        end = self._t + round(timeout_s * 1e9)
+        while self.bridge.phase != phase:
+            if self._t >= end:
+                raise TimeoutError(
+                    f"bridge phase {phase!r} not reached within {timeout_s:g} s of simulated "
+                    f"time: phase {self.bridge.phase!r} ({self.bridge.detail})"
+                )
+            self.run_until(min(end, self._t + 10_000_000))
+
+    def published(self, suffix: str) -> list[Message]:
+        """Every message published on ``suffix`` so far, in order."""
+        return [m for _, s, m in self.messages if s == suffix]
+
+    # -- plumbing -------------------------------------------------------------------------
+
+    def _apply(self, out: Outputs, now_ns: int) -> None:
+        for frame in out.frames:
+            self.bridge_frames.append(frame.at(now_ns))
+            self.sim.receive(frame.at(now_ns + self.reply_latency_ns))
+        for suffix, msg in out.messages:
+            self._publish(suffix, msg, now_ns)
+
+    def _publish(self, suffix: str, msg: Message, now_ns: int) -> None:
+        self.messages.append((now_ns, suffix, msg))
+        if suffix in self._subs or suffix in ("cmd/joint_velocity", "estop"):
+            due = now_ns + self.bus_latency_ns
+            heapq.heappush(self._queue, (due, next(self._order), _Delivery(suffix, msg)))
+
+    def _deliver(self, d: _Delivery, t: int) -> None:
+        if d.suffix == "cmd/joint_velocity" and isinstance(d.msg, JointVelocityCommand):
+            self._apply(self.bridge.on_command(d.msg, t), t)
+        elif d.suffix == "estop" and isinstance(d.msg, EStop):
+            self._apply(self.bridge.on_estop(d.msg, t), t)
+        for handler in self._subs.get(d.suffix, ()):
+            for suffix, msg in handler(d.msg, t):
+                self._publish(suffix, msg, t)
