@@ -140,5 +140,11 @@ class GoalResult(Message):
         unit="m",
         default_factory=list,
     )
+    via_stamps: list[int] = field(
+        "time of each via error's measurement (snapshot clock: JointState stamp minus the "
+        "snapshot age)",
+        unit="ns",
+        default_factory=list,
+    )
     final_error: float = field("gripper position error at the end", unit="m", default=0.0)
     duration: float = field("time from start to end", unit="s", default=0.0)

@@ -50,7 +50,8 @@ def test_goal_succeeds_with_one_result_and_via_errors(mode: str) -> None:
     assert plant.core.submit(goal).accepted
     result = plant.run_until_result("g")
     assert result.status == "succeeded", result.reason
-    assert len(result.via_errors) == len(goal.trajectory.times)
+    assert len(result.via_errors) == len(goal.trajectory.times) == len(result.via_stamps)
+    assert result.via_stamps == sorted(result.via_stamps)
     assert max(result.via_errors) < 0.01
     assert result.kind == "trajectory" and result.duration >= 3.0
     plant.run(5)

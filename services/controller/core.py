@@ -283,6 +283,7 @@ class ControllerCore:
             status,
             reason,
             via_errors=list(run.via_errors),
+            via_stamps=list(run.via_stamps),
             final_error=run.final_error,
             duration=max(0.0, (end - run.start_ns) / 1e9),
         )
@@ -297,6 +298,7 @@ class ControllerCore:
         *,
         kind: str = "trajectory",
         via_errors: list[float] | None = None,
+        via_stamps: list[int] | None = None,
         final_error: float = 0.0,
         duration: float = 0.0,
     ) -> None:
@@ -309,6 +311,7 @@ class ControllerCore:
                 status=status,
                 reason=reason,
                 via_errors=via_errors or [],
+                via_stamps=via_stamps or [],
                 final_error=final_error,
                 duration=duration,
             )
