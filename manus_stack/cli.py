@@ -26,6 +26,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),
     "up": ("manus_stack.commands.up", "start the whole stack locally until Ctrl-C"),
+    "demo": ("manus_stack.commands.demo", "the stack, the thesis path, an error table and a plot"),
 }
 """Subcommand -> (module, one-line help)."""
 

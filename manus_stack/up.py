@@ -200,7 +200,7 @@ class LocalStack:
             ("sequencer", []),
         ]
         if opts.record:
-            plan.append(("record", ["--out", str(opts.recording)]))
+            plan.append(("record", ["--output", str(opts.recording)]))
         for name, args in plan:
             if name in have:
                 self._spawn(name, args)

@@ -1,0 +1,174 @@
+"""``manus demo [square|circle]``: the whole stack, the thesis path, a report.
+
+Brings the stack up (``manus up``'s processes: router, simulator, bridge, planner,
+controller, sequencer, recorder), then runs one task through the sequencer: fold out,
+the thesis path in real time, close and open the gripper, fold in; with a progress bar.
+Then stops the stack (the recording is closed), prints the via-point errors (mean, max,
+per via point) next to the thesis's figures, writes a PNG (planned vs executed path in
+the yz plane, error over time), and prints ``recording: PATH`` and ``plot: PATH``.
+Exits 0 when the task succeeded, 1 otherwise (with the reason).
+
+When ``manus record`` is not installed the demo records the bus itself (same MCAP
+format, ``services.recorder.writer``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import threading
+import time
+from pathlib import Path
+
+import zenoh
+
+from manus.node import Node, QueryError, wait_for_signal
+from manus.session import client_settings
+from manus_stack.commands.up import add_stack_arguments, stack_options
+from manus_stack.demo import (
+    THESIS_MAX_MM,
+    THESIS_MEAN_MM,
+    Collected,
+    demo_task,
+    error_table,
+    plot_run,
+)
+from manus_stack.up import LocalStack, StackError
+from schemas.sequencing import TaskEvent
+from services.sequencer.client import TaskClient
+from services.sequencer.progress import ProgressView
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The shape and the stack options."""
+    parser.add_argument(
+        "shape",
+        nargs="?",
+        default="square",
+        choices=("square", "circle"),
+        help="the thesis path to run (default: square)",
+    )
+    add_stack_arguments(parser)
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=180.0,
+        metavar="S",
+        help="give up on the task after this long [s]",
+    )
+    parser.add_argument("--plain", action="store_true", help="one line per task event")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; see the module docstring."""
+    stop = wait_for_signal()
+    options = stack_options(args)
+    task = demo_task(args.shape)
+    stack = LocalStack(options, out=sys.stdout)
+    collected = Collected()
+    recording = options.recording
+    own_writer: _LocalRecorder | None = None
+    final: TaskEvent | None = None
+    task_id = ""
+    try:
+        print(f"demo: starting the stack in {options.run_dir}", flush=True)
+        stack.start(timeout=args.start_timeout)
+        for line in stack.describe():
+            print(f"  {line}")
+        settings = client_settings(options.endpoint, prefix=options.prefix)
+        with Node("demo", settings, liveliness=False) as node:
+            if "record" in stack.skipped:
+                own_writer = _LocalRecorder(node, recording, options.prefix)
+            collected.listen(node)
+            client = TaskClient(node)
+            try:
+                reply = client.submit(task)
+            except QueryError as exc:
+                print(f"demo: {exc}", file=sys.stderr)
+                return 1
+            if not reply.accepted:
+                print("demo: task refused:\n  " + "\n  ".join(reply.errors), file=sys.stderr)
+                return 1
+            task_id = reply.task_id
+            print(f"demo: task {task_id}: {task.name}, {len(task.steps)} steps", flush=True)
+            view = ProgressView(task, sys.stdout, live=sys.stdout.isatty() and not args.plain)
+            final = client.follow(task_id, view.show, stop=stop, timeout=args.timeout)
+            if final is None:
+                with contextlib.suppress(QueryError):
+                    client.control("cancel", task_id)
+                client.follow(task_id, view.show, timeout=10.0)
+            time.sleep(0.3)  # the last results and feedback reach the recorder too
+            if own_writer is not None:
+                own_writer.close()
+    except StackError as exc:
+        print(f"demo: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        codes = stack.stop()
+        if codes:
+            print("demo: stopped " + ", ".join(f"{k} {v}" for k, v in codes.items()), flush=True)
+    return _report(args.shape, collected, task_id, final, recording, options.run_dir)
+
+
+class _LocalRecorder:
+    """Records ``<prefix>/**`` from this process (when ``manus record`` is not installed)."""
+
+    def __init__(self, node: Node, path: Path, prefix: str) -> None:
+        from services.recorder.writer import RecordingWriter
+
+        self._writer = RecordingWriter(path, prefix=prefix, source="manus demo")
+        self._lock = threading.Lock()
+        node.subscribe_raw(node.keys.all, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
+        with self._lock:
+            if not self._writer.closed:
+                self._writer.write_payload(str(sample.key_expr), sample.payload.to_bytes(), rx_ns)
+
+    def close(self) -> None:
+        with self._lock:
+            self._writer.close()
+
+
+def _report(
+    shape: str,
+    collected: Collected,
+    task_id: str,
+    final: TaskEvent | None,
+    recording: Path,
+    run_dir: Path,
+) -> int:
+    """Print the error table, write the plot, print where things are; the exit status."""
+    result = collected.path_result(task_id) if task_id else None
+    plot = run_dir / f"demo_{shape}.png"
+    if result is not None:
+        goal = collected.goals.get(result.goal_id)
+        table = error_table(result, goal)
+        title = (
+            f"via-point errors of the thesis {shape} ({result.status}; gripper position "
+            "at each via point's time, FK of the encoders):"
+        )
+        print(table.render(title))
+        feedback = collected.feedback_of(result.goal_id)
+        plot_run(
+            feedback,
+            goal,
+            plot,
+            f"manus demo {shape}: mean {table.mean_mm:.2f} mm, max {table.max_mm:.2f} mm "
+            f"at the via points (thesis: {THESIS_MEAN_MM:g} / ~{THESIS_MAX_MM:g} mm)",
+        )
+    else:
+        print("demo: no trajectory result was heard: no error table, no plot", file=sys.stderr)
+    if recording.exists():
+        print(f"recording: {recording}")
+    if result is not None:
+        print(f"plot: {plot}")
+    if final is None:
+        print("demo: the task did not end (interrupted or timed out)", file=sys.stderr)
+        return 1
+    if final.event != "succeeded":
+        print(f"demo: task {final.event}: {final.reason}", file=sys.stderr)
+        return 1
+    print(f"demo: task {task_id} succeeded", flush=True)
+    return 0
