@@ -28,6 +28,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),
     "up": ("manus_stack.commands.up", "start the whole stack locally until Ctrl-C"),
     "demo": ("manus_stack.commands.demo", "the stack, the thesis path, an error table and a plot"),
+    "record": ("services.recorder.main", "record the bus to MCAP (or --recover a crashed file)"),
+    "replay": ("manus_stack.commands.replay", "replay an MCAP onto the bus, or --check a core"),
+    "export": ("services.recorder.export_cli", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
+    "plot": ("services.recorder.plot_cli", "plot a recording: yz path, joints, increments, errors"),
 }
 """Subcommand -> (module, one-line help)."""
 

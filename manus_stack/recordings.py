@@ -1,0 +1,134 @@
+"""Lock-step recordings of the thesis paths: the regression data kept in ``tests/data``.
+
+:func:`record_thesis_run` runs simulator + bridge + controller cores in lock-step
+(:class:`~manus_stack.controlled.ControlledArm`), plans the path with the planner core
+through the ``planner/plan`` query as the live stack does (mirrored on
+``trace/planner/plan/...``), submits it to the controller (``trace/controller/goal/...``),
+runs until its result and a little after, and writes every message published, at its
+simulated time, to MCAP (with the simulator's truth once per cycle, for plots).
+
+Regenerate the files after a deliberate change of a core's behaviour::
+
+    .venv/bin/python -m manus_stack.recordings            # writes tests/data/*.mcap
+
+then check the change in the plots (``manus plot tests/data/thesis_square.mcap``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from manus.viapoints import load_path
+from manus_stack.controlled import ControlledArm
+from schemas.base import Message
+from schemas.control import TrajectoryGoal
+from schemas.planning import PlanReply, PlanRequest
+from schemas.state import JointState
+from services.planner.core import PlannerCore
+from services.recorder.writer import RecordingWriter
+from services.simulator.config import SimConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+PATHS = ROOT / "paths"
+DATA = ROOT / "tests" / "data"
+SHAPES = ("square", "circle")
+CYCLE_S = 0.06
+AFTER_S = 0.5
+"""Simulated time recorded after the goal's result [s]."""
+
+
+@dataclass(frozen=True)
+class RecordedRun:
+    """One lock-step run written to a file.
+
+    Attributes:
+        output: the MCAP file.
+        messages: messages written.
+        status: the goal's result status.
+        via_errors_mm: its via-point errors [mm].
+        simulated_s: simulated time covered [s].
+    """
+
+    output: Path
+    messages: int
+    status: str
+    via_errors_mm: list[float]
+    simulated_s: float
+
+
+def record_thesis_run(
+    shape: str, output: str | Path, *, mode: str = "default", seed: int = 0
+) -> RecordedRun:
+    """Run ``paths/thesis_<shape>.txt`` in lock-step and record it to ``output``.
+
+    Raises:
+        RuntimeError: the planner or the controller refused, or no result came.
+    """
+    arm = ControlledArm(SimConfig(start_pose="unfolded", seed=seed))
+    planner = PlannerCore()
+
+    def follow(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
+        if isinstance(msg, JointState):
+            planner.on_joint_state(msg)
+        return []
+
+    arm.ls.subscribe("state/joints", follow)
+    arm.start()
+    request = PlanRequest(path=load_path(PATHS / f"thesis_{shape}.txt"))
+    arm.ls.publish("trace/planner/plan/request", request)
+    reply: PlanReply = planner.plan(request)
+    arm.ls.publish("trace/planner/plan/reply", reply)
+    if reply.trajectory is None:
+        raise RuntimeError(f"thesis_{shape}: the planner refused: {reply.error}")
+    goal = TrajectoryGoal(goal_id=f"thesis_{shape}", trajectory=reply.trajectory, mode=mode)
+    ack = arm.submit(goal)
+    if not ack.accepted:
+        raise RuntimeError(f"{goal.goal_id}: the controller refused: {ack.reason}")
+    limit = arm.ls.t_ns + round((reply.trajectory.times[-1] + goal.goal_time_tolerance + 5) * 1e9)
+    while not arm.results(goal.goal_id):
+        if arm.ls.t_ns >= limit:
+            raise RuntimeError(f"{goal.goal_id}: no result by {limit / 1e9:.1f} s")
+        arm.ls.run_for(CYCLE_S)
+        arm.ls.publish("sim/truth", arm.ls.sim.truth())
+    for _ in range(round(AFTER_S / CYCLE_S)):
+        arm.ls.run_for(CYCLE_S)
+        arm.ls.publish("sim/truth", arm.ls.sim.truth())
+    result = arm.results(goal.goal_id)[0]
+    source = f"lockstep thesis_{shape} mode={mode} seed={seed}"
+    with RecordingWriter(output, source=source, flush_interval_ns=10**9) as writer:
+        for t_ns, suffix, msg in arm.ls.messages:
+            writer.write(suffix, msg, t_ns)
+    return RecordedRun(
+        Path(output),
+        len(arm.ls.messages),
+        result.status,
+        [e * 1e3 for e in result.via_errors],
+        arm.ls.t_ns / 1e9,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Regenerate ``tests/data/thesis_<shape>.mcap`` (or into ``--out``)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=DATA, help="directory (default tests/data)")
+    parser.add_argument("shapes", nargs="*", metavar="SHAPE", help="square, circle (default both)")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    for shape in args.shapes or SHAPES:
+        if shape not in SHAPES:
+            parser.error(f"shape {shape!r} is not one of {list(SHAPES)}")
+        run = record_thesis_run(shape, args.out / f"thesis_{shape}.mcap")
+        size = run.output.stat().st_size
+        sys.stdout.write(
+            f"{run.output}: {run.messages} messages, {size / 1024:.0f} KiB, "
+            f"{run.simulated_s:.1f} s simulated, {run.status}, via mean "
+            f"{sum(run.via_errors_mm) / max(1, len(run.via_errors_mm)):.2f} mm\n"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,245 @@
+"""Replay-based regression checks: a recording's inputs through a service core, its
+outputs compared with the recorded ones, bit for bit.
+
+A check reads the recording in log-time order, feeds each input of the service to a
+fresh core (as its shell would), and compares every output with the recorded message
+of the same channel and rank, as encoded bytes. It reports the first difference (the
+one caused by the earliest input): channel, rank, field path, both values. Outputs on
+both sides are counted; one side running out is a difference too.
+
+- ``planner``: ``state/joints`` and ``trace/planner/plan/request`` in,
+  ``trace/planner/plan/reply`` out (``compute_ms`` is wall time and is not compared).
+- ``controller``: the bridge's ``state/joints`` and ``state/status`` and the controller's
+  query requests (``trace/controller/{goal,gripper,cancel,speed_scale}/request``) in;
+  ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result`` and the query
+  replies out.
+
+The recording must hold the service's whole life (a core starts empty): lock-step
+recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
+started before the service. In a live recording a query and a joint state that arrive
+together may be recorded in the other order than the service saw them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import msgpack
+
+from manus_stack.controlled import controller_input
+from schemas.base import Message
+from schemas.planning import PlanRequest
+from schemas.state import JointState
+from services.controller.config import ControllerConfig
+from services.controller.core import ControllerCore
+from services.planner.config import PlannerConfig
+from services.planner.core import PlannerCore
+from services.recorder.reading import Recorded, Recording, decode
+
+
+@dataclass(frozen=True)
+class Difference:
+    """The first output that differs.
+
+    Attributes:
+        suffix: output channel.
+        rank: index of the output on that channel (0-based).
+        input_ns: log time of the input that produced it (or of the recorded output when
+            the replay produced none) [ns].
+        path: field path (``velocity[2]``); empty when one side has no message.
+        recorded: the recorded value (None: no recorded message).
+        replayed: the replayed value (None: no replayed message).
+    """
+
+    suffix: str
+    rank: int
+    input_ns: int
+    path: str
+    recorded: Any
+    replayed: Any
+
+    def __str__(self) -> str:
+        where = f"{self.suffix} #{self.rank} (input at {self.input_ns / 1e9:.6f} s)"
+        if self.recorded is None:
+            return f"{where}: the replay produced an extra message: {self.replayed!r:.200}"
+        if self.replayed is None:
+            return f"{where}: the replay produced nothing; recorded: {self.recorded!r:.200}"
+        field = self.path or "(whole message)"
+        return (
+            f"{where}: {field}: recorded {self.recorded!r:.120} != replayed {self.replayed!r:.120}"
+        )
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of one check.
+
+    Attributes:
+        service: the core checked.
+        inputs: inputs fed to it.
+        compared: outputs compared (identical ones included).
+        recorded: recorded outputs.
+        replayed: outputs the core produced.
+        difference: the first difference (None: identical).
+    """
+
+    service: str
+    inputs: int
+    compared: int
+    recorded: int
+    replayed: int
+    difference: Difference | None
+
+    @property
+    def ok(self) -> bool:
+        """Every output identical."""
+        return self.difference is None
+
+
+def first_difference(recorded: Any, replayed: Any, path: str = "") -> tuple[str, Any, Any] | None:
+    """The first (depth-first) field where two plain values differ: (path, a, b)."""
+    if isinstance(recorded, dict) and isinstance(replayed, dict):
+        for key in sorted(set(recorded) | set(replayed), key=str):
+            sub = f"{path}.{key}" if path else str(key)
+            if key not in recorded or key not in replayed:
+                return sub, recorded.get(key), replayed.get(key)
+            found = first_difference(recorded[key], replayed[key], sub)
+            if found:
+                return found
+        return None
+    if isinstance(recorded, list) and isinstance(replayed, list):
+        for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
+            found = first_difference(a, b, f"{path}[{i}]")
+            if found:
+                return found
+        if len(recorded) != len(replayed):
+            return f"{path} (length)", len(recorded), len(replayed)
+        return None
+    if type(recorded) is not type(replayed) or recorded != replayed:
+        return path, recorded, replayed
+    return None
+
+
+class _Comparer:
+    """Collects replayed outputs and compares them with the recorded ones per channel."""
+
+    def __init__(self, recording: Recording, outputs: tuple[str, ...]) -> None:
+        self.recorded: dict[str, list[Recorded]] = {s: [] for s in outputs}
+        for rec in recording.messages(outputs):
+            self.recorded[rec.suffix].append(rec)
+        self.replayed: dict[str, list[tuple[int, bytes]]] = {s: [] for s in outputs}
+
+    def add(self, suffix: str, payload: bytes, input_ns: int) -> None:
+        self.replayed.setdefault(suffix, []).append((input_ns, payload))
+
+    def result(self, service: str, inputs: int) -> CheckResult:
+        best: Difference | None = None
+        compared = 0
+        for suffix in sorted(set(self.recorded) | set(self.replayed)):
+            recs = self.recorded.get(suffix, [])
+            reps = self.replayed.get(suffix, [])
+            diff: Difference | None = None
+            for rank in range(max(len(recs), len(reps))):
+                rec = recs[rank] if rank < len(recs) else None
+                rep = reps[rank] if rank < len(reps) else None
+                if rec is not None and rep is not None:
+                    compared += 1
+                    if rec.payload == rep[1]:
+                        continue
+                    a, b = _plain(rec.payload), _plain(rep[1])
+                    found = first_difference(a, b) or ("", a, b)
+                    diff = Difference(suffix, rank, rep[0], found[0], found[1], found[2])
+                elif rep is not None:
+                    diff = Difference(suffix, rank, rep[0], "", None, _plain(rep[1]))
+                elif rec is not None:
+                    diff = Difference(suffix, rank, rec.log_ns, "", _plain(rec.payload), None)
+                break
+            if diff is not None and (best is None or diff.input_ns < best.input_ns):
+                best = diff
+        return CheckResult(
+            service,
+            inputs,
+            compared,
+            sum(map(len, self.recorded.values())),
+            sum(map(len, self.replayed.values())),
+            best,
+        )
+
+
+def _plain(payload: bytes) -> Any:
+    try:
+        return msgpack.unpackb(payload, raw=False, strict_map_key=False)
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
+        return payload
+
+
+def _inputs(recording: Recording, suffixes: tuple[str, ...]) -> Iterator[tuple[Recorded, Message]]:
+    for rec in recording.messages(_present(recording, suffixes)):
+        yield rec, decode(rec)
+
+
+def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
+    have = {c.suffix for c in recording.info.channels.values()}
+    return [s for s in suffixes if s in have]  # none: no input at all
+
+
+PLANNER_OUTPUTS = ("trace/planner/plan/reply",)
+
+
+def check_planner(path: str | Path, config: PlannerConfig | None = None) -> CheckResult:
+    """Replay the planner's inputs through :class:`PlannerCore` (see the module docstring)."""
+    recording = Recording(path)
+    core = PlannerCore(config)
+    cmp = _Comparer(recording, PLANNER_OUTPUTS)
+    recorded_ms = [_plain(r.payload) for r in cmp.recorded[PLANNER_OUTPUTS[0]]]
+    inputs = 0
+    for rec, msg in _inputs(recording, ("state/joints", "trace/planner/plan/request")):
+        inputs += 1
+        if isinstance(msg, JointState):
+            core.on_joint_state(msg)
+        elif isinstance(msg, PlanRequest):
+            reply = core.plan(msg)
+            rank = len(cmp.replayed[PLANNER_OUTPUTS[0]])
+            if rank < len(recorded_ms) and isinstance(recorded_ms[rank], dict):
+                ms = recorded_ms[rank].get("compute_ms", 0.0)  # wall time: not compared
+                reply = dataclasses.replace(reply, compute_ms=ms if isinstance(ms, float) else 0.0)
+            cmp.add(PLANNER_OUTPUTS[0], reply.encode(), rec.log_ns)
+    return cmp.result("planner", inputs)
+
+
+CONTROLLER_QUERIES = ("goal", "gripper", "cancel", "speed_scale")
+CONTROLLER_OUTPUTS = (
+    "cmd/joint_velocity",
+    "controller/feedback",
+    "controller/result",
+    *(f"trace/controller/{q}/reply" for q in CONTROLLER_QUERIES),
+)
+CONTROLLER_INPUTS = (
+    "state/joints",
+    "state/status",
+    *(f"trace/controller/{q}/request" for q in CONTROLLER_QUERIES),
+)
+
+
+def check_controller(path: str | Path, config: ControllerConfig | None = None) -> CheckResult:
+    """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
+    recording = Recording(path)
+    core = ControllerCore(config)
+    cmp = _Comparer(recording, CONTROLLER_OUTPUTS)
+    inputs = 0
+    for rec, msg in _inputs(recording, CONTROLLER_INPUTS):
+        inputs += 1
+        for suffix, out in controller_input(core, rec.suffix, msg):
+            cmp.add(suffix, out.encode(), rec.log_ns)
+    return cmp.result("controller", inputs)
+
+
+CHECKS: dict[str, Callable[[str | Path], CheckResult]] = {
+    "planner": check_planner,
+    "controller": check_controller,
+}
+"""Service -> its check."""

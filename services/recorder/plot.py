@@ -1,0 +1,298 @@
+"""``manus plot``: what a run did, from its recording (thesis Figures 5.2 and 5.3).
+
+Four panels:
+
+- the gripper path in the yz plane [mm]: planned (the trajectory preview of each
+  controller goal or planner reply, else the FK of the controller's reference) vs
+  executed (the controller's measured ``actual_xyz``, else the FK of ``state/joints``),
+  plus the simulator's true path when the recording has ``sim/truth``, and the via
+  points;
+- joint references vs actuals over time [deg] (controller feedback; actuals only from
+  ``state/joints`` when there is no controller);
+- commanded increments per motor [counts of 0.1 deg per 20 ms], as the arm executed
+  them (``JointState.applied``);
+- the via-point error table of every ``controller/result`` [mm] (mean, max).
+
+:func:`load_plot_data` extracts the series (testable without drawing); :func:`plot_recording`
+draws them with matplotlib's Agg backend and is what ``manus demo`` calls.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from manus.kinematics import fk_batch
+from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
+from schemas.planning import PlanReply, Trajectory
+from schemas.state import JointState, SimTruth
+from services.recorder.errors import RecordingError
+from services.recorder.reading import Recording
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+_SUFFIXES = (
+    "state/joints",
+    "controller/feedback",
+    "controller/result",
+    "sim/truth",
+    "trace/controller/goal/request",
+    "trace/planner/plan/reply",
+)
+
+
+@dataclass
+class PlotData:
+    """The series of one recording (times in s since the first message; SI units).
+
+    Attributes:
+        planned: planned paths, each (n, 3) [m].
+        planned_source: where ``planned`` came from (``goal``, ``plan``, ``reference``).
+        via_xyz: via points of the planned paths, (k, 3) [m].
+        executed: measured gripper path (m, 3) [m].
+        executed_source: ``feedback`` or ``joint_states``.
+        truth: the simulator's true path (t, 3) [m] (empty without ``sim/truth``).
+        t_fb: feedback times (f,) [s]; ``reference``/``actual``: (f, 6) [rad].
+        t_js: joint-state times (j,) [s]; ``q_js``: (j, 6) [rad]; ``applied``: (j, 6) counts.
+        results: every goal result.
+    """
+
+    planned: list[np.ndarray] = field(default_factory=list)
+    planned_source: str = ""
+    via_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    executed: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    executed_source: str = ""
+    truth: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    t_fb: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reference: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    actual: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    t_js: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    q_js: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    applied: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    results: list[GoalResult] = field(default_factory=list)
+
+
+def _preview(traj: Trajectory) -> np.ndarray:
+    if traj.preview_xyz:
+        return np.asarray(traj.preview_xyz, dtype=float)
+    return np.asarray(traj.via_xyz, dtype=float).reshape(-1, 3)
+
+
+def load_plot_data(path: str | Path) -> PlotData:
+    """Extract the plotted series from a recording.
+
+    Raises:
+        RecordingError: the file cannot be read, or it holds neither joint states nor
+            controller feedback (nothing to plot).
+    """
+    rec = Recording(path)
+    data = PlotData()
+    t0 = rec.info.start_ns
+    goals: list[Trajectory] = []
+    plans: list[Trajectory] = []
+    fb_t: list[float] = []
+    fb_ref: list[list[float]] = []
+    fb_act: list[list[float]] = []
+    fb_xyz: list[list[float]] = []
+    js_t: list[float] = []
+    js_q: list[list[float]] = []
+    js_applied: list[list[int]] = []
+    truth: list[list[float]] = []
+    for r, msg in rec.decoded(_SUFFIXES):
+        t = (r.log_ns - t0) / 1e9
+        if isinstance(msg, JointState):
+            if msg.valid:
+                js_t.append(t)
+                js_q.append(msg.position)
+                js_applied.append(msg.applied[1:7])
+        elif isinstance(msg, ControllerFeedback):
+            if msg.goal_id:
+                fb_t.append(t)
+                fb_ref.append(msg.reference)
+                fb_act.append(msg.actual)
+                fb_xyz.append(msg.actual_xyz)
+        elif isinstance(msg, GoalResult):
+            data.results.append(msg)
+        elif isinstance(msg, SimTruth):
+            truth.append(msg.xyz)
+        elif isinstance(msg, TrajectoryGoal):
+            goals.append(msg.trajectory)
+        elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
+            plans.append(msg.trajectory)
+    if not js_t and not fb_t:
+        raise RecordingError(
+            f"{path}: nothing to plot: no valid state/joints and no controller/feedback"
+        )
+    data.t_fb = np.asarray(fb_t)
+    data.reference = np.asarray(fb_ref, dtype=float).reshape(-1, 6)
+    data.actual = np.asarray(fb_act, dtype=float).reshape(-1, 6)
+    data.t_js = np.asarray(js_t)
+    data.q_js = np.asarray(js_q, dtype=float).reshape(-1, 6)
+    data.applied = np.asarray(js_applied, dtype=float).reshape(-1, 6)
+    data.truth = np.asarray(truth, dtype=float).reshape(-1, 3)
+    chosen = goals or plans
+    if chosen:
+        data.planned = [_preview(tr) for tr in chosen]
+        data.planned_source = "goal" if goals else "plan"
+        vias = [np.asarray(tr.via_xyz, dtype=float).reshape(-1, 3) for tr in chosen]
+        data.via_xyz = np.vstack(vias)
+    elif len(data.reference):
+        data.planned = [fk_batch(data.reference)[:, :3, 3]]
+        data.planned_source = "reference"
+    if fb_xyz:
+        data.executed = np.asarray(fb_xyz, dtype=float)
+        data.executed_source = "feedback"
+    elif len(data.q_js):
+        data.executed = fk_batch(data.q_js)[:, :3, 3]
+        data.executed_source = "joint_states"
+    return data
+
+
+@dataclass(frozen=True)
+class PlotSummary:
+    """What :func:`plot_recording` drew.
+
+    Attributes:
+        output: the PNG written.
+        goals: trajectory results in the table.
+        via_errors_mm: every via-point error of every trajectory result [mm].
+        mean_mm: their mean [mm] (nan when none).
+        max_mm: their largest [mm] (nan when none).
+    """
+
+    output: str
+    goals: int
+    via_errors_mm: list[float]
+    mean_mm: float
+    max_mm: float
+
+
+def plot_recording(
+    path: str | Path, output: str | Path | None = None, *, title: str | None = None
+) -> PlotSummary:
+    """Draw the four panels of ``path`` to a PNG (default: next to it, ``.png``).
+
+    Raises:
+        RecordingError: see :func:`load_plot_data`.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = load_plot_data(path)
+    out = Path(output) if output is not None else Path(path).with_suffix(".png")
+    fig, axes = plt.subplots(2, 2, figsize=(14, 10))
+    try:
+        _path_panel(axes[0][0], data)
+        _joint_panel(axes[0][1], data)
+        _increment_panel(axes[1][0], data)
+        errors = _table_panel(axes[1][1], data)
+        fig.suptitle(title or Path(path).name)
+        fig.tight_layout()
+        fig.savefig(out, dpi=80)
+    finally:
+        plt.close(fig)
+    goals = sum(1 for r in data.results if r.kind == "trajectory")
+    mean = float(np.mean(errors)) if errors else math.nan
+    peak = float(np.max(errors)) if errors else math.nan
+    return PlotSummary(str(out), goals, errors, mean, peak)
+
+
+def _path_panel(a: Axes, data: PlotData) -> None:
+    for i, p in enumerate(data.planned):
+        label = f"planned ({data.planned_source})" if i == 0 else None
+        a.plot(p[:, 1] * 1e3, p[:, 2] * 1e3, "--", color="tab:blue", lw=1.2, label=label)
+    if len(data.executed):
+        a.plot(
+            data.executed[:, 1] * 1e3,
+            data.executed[:, 2] * 1e3,
+            color="tab:red",
+            lw=1.0,
+            label=f"executed ({data.executed_source})",
+        )
+    if len(data.truth):
+        a.plot(
+            data.truth[:, 1] * 1e3,
+            data.truth[:, 2] * 1e3,
+            color="tab:green",
+            lw=0.8,
+            alpha=0.7,
+            label="true (simulator)",
+        )
+    if len(data.via_xyz):
+        a.plot(data.via_xyz[:, 1] * 1e3, data.via_xyz[:, 2] * 1e3, "k+", ms=8, label="via points")
+    a.set_xlabel("y [mm]")
+    a.set_ylabel("z [mm]")
+    a.set_title("gripper path, yz plane")
+    a.set_aspect("equal", adjustable="datalim")
+    a.grid(True, alpha=0.3)
+    a.legend(loc="best", fontsize=8)
+
+
+def _joint_panel(a: Axes, data: PlotData) -> None:
+    colors = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    if len(data.t_fb):
+        for j in range(6):
+            a.plot(data.t_fb, np.degrees(data.reference[:, j]), "--", color=colors[j], lw=1.0)
+            a.plot(
+                data.t_fb, np.degrees(data.actual[:, j]), color=colors[j], lw=1.0, label=f"q{j + 1}"
+            )
+        a.set_title("joint reference (dashed) vs actual")
+    else:
+        for j in range(6):
+            a.plot(
+                data.t_js, np.degrees(data.q_js[:, j]), color=colors[j], lw=1.0, label=f"q{j + 1}"
+            )
+        a.set_title("joint angles (no controller feedback recorded)")
+    a.set_xlabel("time [s]")
+    a.set_ylabel("angle [deg]")
+    a.grid(True, alpha=0.3)
+    a.legend(loc="best", fontsize=8, ncol=2)
+
+
+def _increment_panel(a: Axes, data: PlotData) -> None:
+    for j in range(6):
+        a.step(data.t_js, data.applied[:, j] + 0.0, where="post", lw=0.9, label=f"motor {j + 1}")
+    a.set_xlabel("time [s]")
+    a.set_ylabel("increment [0.1 deg / 20 ms]")
+    a.set_title("commanded increments, as executed")
+    a.set_ylim(-10.5, 10.5)
+    a.grid(True, alpha=0.3)
+    a.legend(loc="best", fontsize=8, ncol=3)
+
+
+def _table_panel(a: Axes, data: PlotData) -> list[float]:
+    a.axis("off")
+    rows: list[list[str]] = []
+    every: list[float] = []
+    for r in data.results:
+        if r.kind != "trajectory":
+            continue
+        errs = [e * 1e3 for e in r.via_errors]
+        every.extend(errs)
+        mean = f"{np.mean(errs):.2f}" if errs else "-"
+        peak = f"{np.max(errs):.2f}" if errs else "-"
+        rows.append(
+            [r.goal_id[:24], r.status, str(len(errs)), mean, peak, f"{r.final_error * 1e3:.2f}"]
+        )
+    if every:
+        rows.append(
+            ["all", "", str(len(every)), f"{np.mean(every):.2f}", f"{np.max(every):.2f}", ""]
+        )
+    if not rows:
+        a.text(0.5, 0.5, "no controller/result recorded", ha="center", va="center")
+        return every
+    table = a.table(
+        cellText=rows[:30],
+        colLabels=["goal", "status", "via points", "mean [mm]", "max [mm]", "final [mm]"],
+        loc="upper center",
+    )
+    table.scale(1.0, 1.4)
+    a.set_title("via-point errors (gripper position, FK of the encoders)")
+    return every

@@ -1,0 +1,33 @@
+"""``manus plot FILE.mcap [-o PNG]``: the path in the yz plane (planned vs executed), joint
+references vs actuals, commanded increments and the via-point error table, as one PNG.
+Prints ``plot: PNG`` and the via-point error summary as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from services.recorder.plot import plot_recording
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The file and the output."""
+    parser.add_argument("file", help="MCAP recording")
+    parser.add_argument("-o", "--output", help="PNG to write (default: FILE with .png)")
+    parser.add_argument("--title", help="figure title (default: the file name)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Draw the plot."""
+    summary = plot_recording(args.file, args.output, title=args.title)
+    sys.stderr.write(f"plot: {summary.output}\n")
+    out = {
+        "output": summary.output,
+        "goals": summary.goals,
+        "via_points": len(summary.via_errors_mm),
+        "mean_mm": None if summary.goals == 0 else round(summary.mean_mm, 3),
+        "max_mm": None if summary.goals == 0 else round(summary.max_mm, 3),
+    }
+    sys.stdout.write(json.dumps(out) + "\n")
+    return 0

@@ -1,0 +1,178 @@
+"""Replaying a recording onto the bus, in recorded order, at real, scaled or full speed.
+
+:func:`schedule` is the deterministic part: which recorded messages go out, in log-time
+order (ties in file order), each with its offset from the first one. :class:`Replayer`
+publishes them on Zenoh, under the recording's prefix or another one.
+
+``as_service`` stands in for one service: only the keys that service publishes
+(:data:`SERVICE_OUTPUTS`) are replayed, so, for example, ``can_bridge`` feeds a live
+controller with the recorded arm state while the controller's own outputs stay live.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import zenoh
+
+from manus.node import Node
+from manus.session import ZenohSettings
+from services.recorder.errors import RecordingError
+from services.recorder.reading import Recorded, Recording
+
+SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
+    "can_bridge": ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx"),
+    "controller": ("cmd/joint_velocity", "controller/feedback", "controller/result"),
+    "simulator": ("sim/truth",),
+    "sequencer": ("sequencer/events",),
+}
+"""Key suffixes each service publishes (schemas/keys.py, the publisher column)."""
+
+
+@dataclass(frozen=True)
+class Scheduled:
+    """One message to replay.
+
+    Attributes:
+        offset_s: recorded time since the first replayed message [s].
+        rec: the recorded message.
+    """
+
+    offset_s: float
+    rec: Recorded
+
+
+def selected_suffixes(
+    recording: Recording, only: Iterable[str] | None = None, as_service: str | None = None
+) -> list[str]:
+    """Key suffixes to replay: all, or those matching ``only`` (a suffix, or a prefix
+    ending in ``/``, or ``**`` patterns ``state/**``), intersected with ``as_service``'s.
+
+    Raises:
+        RecordingError: an unknown service, or a selection that matches no channel.
+    """
+    suffixes = sorted({c.suffix for c in recording.info.channels.values()})
+    if as_service is not None:
+        outputs = SERVICE_OUTPUTS.get(as_service)
+        if outputs is None:
+            raise RecordingError(
+                f"--as {as_service!r}: not one of {sorted(SERVICE_OUTPUTS)} (services that publish)"
+            )
+        suffixes = [s for s in suffixes if s in outputs]
+    if only:
+        patterns = list(only)
+        suffixes = [s for s in suffixes if any(_matches(s, p) for p in patterns)]
+    if not suffixes:
+        raise RecordingError(
+            f"{recording.path}: nothing to replay (channels: "
+            f"{sorted(c.suffix for c in recording.info.channels.values())})"
+        )
+    return suffixes
+
+
+def _matches(suffix: str, pattern: str) -> bool:
+    pattern = pattern.removesuffix("**").removesuffix("*")
+    if pattern.endswith("/"):
+        return suffix.startswith(pattern)
+    return suffix == pattern
+
+
+def schedule(
+    recording: Recording, only: Iterable[str] | None = None, as_service: str | None = None
+) -> list[Scheduled]:
+    """The messages to replay, in order, with their offsets (see :func:`selected_suffixes`)."""
+    recs = list(recording.messages(selected_suffixes(recording, only, as_service)))
+    if not recs:
+        return []
+    t0 = recs[0].log_ns
+    return [Scheduled((r.log_ns - t0) / 1e9, r) for r in recs]
+
+
+@dataclass(frozen=True)
+class ReplayStats:
+    """What a replay published.
+
+    Attributes:
+        messages: messages published.
+        duration_s: wall time the replay took [s].
+        recorded_s: recorded time span replayed [s].
+    """
+
+    messages: int
+    duration_s: float
+    recorded_s: float
+
+
+class Replayer:
+    """Publishes scheduled messages on the bus.
+
+    Args:
+        settings: how to reach the bus; its prefix replaces the recorded one.
+        session: an open session to share (not closed by :meth:`close`).
+    """
+
+    def __init__(self, settings: ZenohSettings, *, session: zenoh.Session | None = None) -> None:
+        self.node = Node("replay", settings, session=session, liveliness=False)
+        self._pubs: dict[str, zenoh.Publisher] = {}
+
+    def _publisher(self, suffix: str, express: bool) -> zenoh.Publisher:
+        pub = self._pubs.get(suffix)
+        if pub is None:
+            pub = self.node.session.declare_publisher(
+                self.node.keys(suffix),
+                express=express,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                reliability=zenoh.Reliability.RELIABLE,
+            )
+            self._pubs[suffix] = pub
+        return pub
+
+    def play(
+        self,
+        items: list[Scheduled],
+        *,
+        rate: float | None = 1.0,
+        stop: threading.Event | None = None,
+    ) -> ReplayStats:
+        """Publish ``items`` in order.
+
+        Args:
+            items: from :func:`schedule`.
+            rate: speed factor (2: twice as fast); None: as fast as possible.
+            stop: a ``threading.Event`` that ends the replay early when set.
+        """
+        if rate is not None and rate <= 0.0:
+            raise RecordingError(f"replay rate {rate} must be > 0")
+        started = time.monotonic()
+        sent = 0
+        for item in items:
+            if stop is not None and stop.is_set():
+                break
+            if rate is not None:
+                delay = started + item.offset_s / rate - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+            rec = item.rec
+            attachment = (
+                rec.publish_ns.to_bytes(8, "little") if rec.suffix.startswith("trace/") else None
+            )
+            self._publisher(rec.suffix, rate is not None).put(rec.payload, attachment=attachment)
+            sent += 1
+        recorded = items[sent - 1].offset_s if sent else 0.0
+        return ReplayStats(sent, time.monotonic() - started, recorded)
+
+    def close(self) -> None:
+        """Leave the bus."""
+        for pub in self._pubs.values():
+            pub.undeclare()
+        self._pubs.clear()
+        self.node.close()
+
+    def __enter__(self) -> Replayer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,114 @@
+"""The recorder's live shell: everything under ``<prefix>/**`` into an MCAP file.
+
+Zenoh callbacks only stamp each sample with its receive time and queue it; one writer
+thread drains the queue into :class:`~services.recorder.writer.RecordingWriter`, so a
+slow disk never blocks the bus, and closes a chunk at least every flush interval even
+when the bus is quiet. Samples of the query mirrors (``trace/...``) carry the query's
+receive time as their attachment, which becomes their publish time.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from pathlib import Path
+
+import zenoh
+
+from manus.node import Node, now_ns
+from manus.session import ZenohSettings
+from services.recorder.writer import (
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_FLUSH_INTERVAL_NS,
+    RecordingWriter,
+    WriterStats,
+)
+
+log = logging.getLogger("manus.recorder")
+
+_Item = tuple[str, bytes, int, int | None]  # key, payload, receive time, publish time
+
+
+class RecorderShell:
+    """Records the bus of one arm (liveliness token ``<prefix>/alive/recorder``).
+
+    Args:
+        settings: how to reach the bus; its prefix selects the arm.
+        output: the MCAP file to write.
+        session: an open session to share (not closed by :meth:`close`).
+        chunk_size: largest uncompressed chunk [bytes].
+        flush_interval_ns: longest time a message waits in an open chunk [ns].
+    """
+
+    def __init__(
+        self,
+        settings: ZenohSettings,
+        output: str | Path,
+        *,
+        session: zenoh.Session | None = None,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        flush_interval_ns: int = DEFAULT_FLUSH_INTERVAL_NS,
+    ) -> None:
+        self.writer = RecordingWriter(
+            output,
+            prefix=settings.prefix,
+            chunk_size=chunk_size,
+            flush_interval_ns=flush_interval_ns,
+            source="manus record",
+        )
+        self._queue: queue.SimpleQueue[_Item | None] = queue.SimpleQueue()
+        self._poll_s = min(flush_interval_ns / 4e9, 0.1)
+        self.received = 0
+        self._count_lock = threading.Lock()
+        self.write_errors = 0
+        self._thread = threading.Thread(target=self._drain, name="recorder-writer", daemon=True)
+        self._thread.start()
+        self.node = Node("recorder", settings, session=session)
+        self.node.subscribe_raw(self.node.keys.all, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
+        if sample.kind != zenoh.SampleKind.PUT:
+            return
+        publish: int | None = None
+        attachment = sample.attachment
+        if attachment is not None:
+            raw = attachment.to_bytes()
+            if len(raw) == 8:
+                publish = int.from_bytes(raw, "little")
+        with self._count_lock:  # callbacks may run on several Zenoh threads
+            self.received += 1
+        self._queue.put((str(sample.key_expr), sample.payload.to_bytes(), rx_ns, publish))
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                item = self._queue.get(timeout=self._poll_s)
+            except queue.Empty:
+                self.writer.tick(now_ns())
+                continue
+            if item is None:
+                return
+            try:
+                self.writer.write_payload(*item)
+            except Exception:
+                self.write_errors += 1
+                log.exception("recorder: cannot record a sample on %s", item[0])
+
+    @property
+    def recorded(self) -> int:
+        """Messages written so far."""
+        return self.writer.stats.messages
+
+    def close(self) -> WriterStats:
+        """Stop listening, write what is queued, and close the file (summary and indexes)."""
+        self.node.close()
+        self._queue.put(None)
+        self._thread.join()
+        return self.writer.close()
+
+    def __enter__(self) -> RecorderShell:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
