@@ -8,5 +8,6 @@ from __future__ import annotations
 BENCHES: dict[str, tuple[str, bool]] = {
     "kin": ("manus_stack.bench.kin", True),
     "plan": ("manus_stack.bench.plan", True),
+    "track": ("manus_stack.bench.track", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

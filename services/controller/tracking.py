@@ -221,7 +221,7 @@ class TrajectoryRun:
             counts = self._thesis_law(q)
         else:
             counts = self._default_law(q, est)
-            at_rest = not np.any(counts) and not np.any(est.u)
+            at_rest = not np.any(est.u)  # nothing in flight: a zero now stops the arm here
             verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
         if verdict is not None:
             zero = np.zeros(6, dtype=np.int64)
@@ -247,7 +247,9 @@ class TrajectoryRun:
             q_target = ref.sample(tau + self.scale * period).q
             target = dh_to_encoder(q_target)
             u = deadbeat_speed(x1, v1, target, period, tau_s)
-            if cfg.default_quantizer == "cartesian" and self.end_ns is None:
+            if self.end_ns is not None:  # holding the end: nearest counts, no residual
+                return RoundingQuantizer()(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
+            if cfg.default_quantizer == "cartesian":
                 wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
                 gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
                 miss = x1 + v1 * lag_factor(tau_s, period) - target  # at zero counts
@@ -322,7 +324,7 @@ class TrajectoryRun:
     ) -> tuple[str, str] | None:
         """Success, abort, or None (keep going), once the reference has ended.
 
-        ``at_rest``: nothing is in flight and this cycle's command is zero.
+        ``at_rest``: nothing is in flight, so zeros from now on leave the arm where it is.
         """
         goal, end = self.goal, self.ref.end
         self.final_error = float(np.linalg.norm(xyz - self.ref.via_xyz[-1]))
