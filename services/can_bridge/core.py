@@ -376,7 +376,7 @@ class BridgeCore:
             return
         self._faulted_cycle = cycle.index
         self._clean_run = 0
-        reason = cycle.faults[-1] if cycle.faults else f"{cycle.missing} frames missing"
+        reason = cycle.faults[-1] if cycle.faults else "cycle incomplete"
         if self.phase == "running":
             self.health.resyncs += 1
             self._set_phase("resync", reason, now_ns, out)

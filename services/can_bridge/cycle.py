@@ -81,7 +81,10 @@ class Cycle:
     def _count_missing(self) -> int:
         slots = {FrameId.STATUS: self.status, FrameId.POSITION: self.position}
         slots[FrameId.SYNC] = self.sync
-        return sum(1 for fid, f in slots.items() if f is None and fid not in self.touched)
+        gone = [f"0x{fid:03X}" for fid, f in slots.items() if f is None and fid not in self.touched]
+        if gone:
+            self.faults.append(f"{' and '.join(gone)} missing")
+        return len(gone)
 
 
 @dataclass(frozen=True)
