@@ -129,6 +129,7 @@ class RecordingWriter:
             self._stream,
             chunk_size=chunk_size,
             compression=CompressionType.ZSTD if compression == "zstd" else CompressionType.NONE,
+            enable_data_crcs=True,  # DataEnd carries the CRC of the whole data section
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
         self._writer.add_metadata(METADATA_NAME, {"prefix": prefix, "source": source})
