@@ -13,113 +13,33 @@ import numpy as np
 import pytest
 
 from manus.kinematics import fk
-from manus_stack.lockstep import LockStep
-from schemas.base import Message
+from manus_stack.task_lockstep import TaskLockStep
 from schemas.commands import ArmCommand, EStop
-from schemas.control import CancelGoal, GoalResult, GripperGoal, TrajectoryGoal
-from schemas.planning import PlanRequest
-from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
+from schemas.control import GripperGoal, TrajectoryGoal
+from schemas.sequencing import Task, TaskStep
 from schemas.state import JointState
-from services.controller.core import ControllerCore
-from services.planner.core import PlannerCore
-from services.sequencer.core import Action, Publish, SequencerCore
 from services.sequencer.taskfile import task_from_args
-from services.sequencer.validate import Validator
 from tests.test_sequencer_core import SQUARE
 
 NS = 1_000_000_000
 
 
-class Rig:
-    """Simulator + bridge (LockStep) + controller + planner + sequencer cores."""
+class Rig(TaskLockStep):
+    """The lock-step task runner, started, with the test's shorthand."""
 
     def __init__(self) -> None:
-        self.ls = LockStep()
-        self.controller = ControllerCore()
-        self.planner = PlannerCore()
-        self.seq = SequencerCore()
-        self.events: list[TaskEvent] = []
-        self.requests: list[Message] = []
-        ls, ctl, seq = self.ls, self.controller, self.seq
-        ls.subscribe("state/joints", lambda m, t: ctl.on_joint_state(m))  # type: ignore[arg-type]
-        ls.subscribe("state/status", lambda m, t: ctl.on_status(m))  # type: ignore[arg-type]
-        ls.subscribe(
-            "state/joints",
-            lambda m, t: self.do(
-                seq.on_joint_state(m, t)  # type: ignore[arg-type]
-                + seq.on_tick(t),
-                t,
-            ),
-        )
-        ls.subscribe("state/bridge", lambda m, t: self.do(seq.on_bridge_state(m, t), t))  # type: ignore[arg-type]
-        ls.subscribe("controller/feedback", lambda m, t: self.do(seq.on_feedback(m, t), t))  # type: ignore[arg-type]
-        ls.subscribe("controller/result", lambda m, t: self.do(seq.on_result(m, t), t))  # type: ignore[arg-type]
-        for name in ("planner", "controller", "can_bridge"):
-            seq.on_liveliness(name, True, 0)
-        ls.run_until_phase("running", 20.0)
-        ls.run_for(0.5)
-
-    def answer(self, request: Message) -> Message:
-        self.requests.append(request)
-        if isinstance(request, PlanRequest):
-            return self.planner.plan(request)
-        if isinstance(request, TrajectoryGoal):
-            return self.controller.submit(request)
-        if isinstance(request, GripperGoal):
-            return self.controller.submit_gripper(request)
-        if isinstance(request, CancelGoal):
-            return self.controller.cancel(request)
-        assert isinstance(request, ArmCommand)
-        return self.ls.arm_command(request)
-
-    def do(self, actions: list[Action], t: int) -> list[tuple[str, Message]]:
-        out: list[tuple[str, Message]] = []
-        for action in actions:
-            if isinstance(action, Publish):
-                assert isinstance(action.message, TaskEvent)
-                self.events.append(action.message)
-                out.append((action.suffix, action.message))
-                continue
-            reply = self.answer(action.request)
-            out += self.do(self.seq.on_reply(action.token, reply, "", t), t)
-        return out
+        super().__init__()
+        self.start_arm()
 
     def start(self, task: Task) -> None:
-        v = Validator(task, self.seq.start_configuration())
-        while (request := v.next_request()) is not None:
-            v.on_reply(self.planner.plan(request))
-        assert v.errors == []
-        assert self.seq.refuse(task) is None
-        self.do(self.seq.start("t", task, self.ls.t_ns), self.ls.t_ns)
+        reply = self.submit(task)
+        assert reply.accepted, reply.errors
 
-    def control(self, action: str) -> bool:
-        status, actions = self.seq.control(TaskControl(action=action), self.ls.t_ns)
-        self.do(actions, self.ls.t_ns)
-        return status.ok
+    def control_ok(self, action: str) -> bool:
+        return self.control(action).ok
 
-    def run_while(self, busy: bool = True, limit_s: float = 120.0) -> None:
-        end = self.ls.t_ns + round(limit_s * NS)
-        while self.seq.busy == busy and self.ls.t_ns < end:
-            self.ls.run_for(0.1)
-
-    def run_until_event(self, name: str, limit_s: float = 60.0) -> None:
-        end = self.ls.t_ns + round(limit_s * NS)
-        while not any(e.event == name for e in self.events):
-            assert self.ls.t_ns < end, f"no {name} event within {limit_s} s"
-            self.ls.run_for(0.06)
-
-    def names(self) -> list[str]:
-        return [e.event for e in self.events if e.event != "step_progress"]
-
-    def joint_states(self, since_ns: int = 0) -> list[tuple[int, JointState]]:
-        return [
-            (t, m)
-            for t, s, m in self.ls.messages
-            if s == "state/joints" and t >= since_ns and isinstance(m, JointState)
-        ]
-
-    def results(self) -> list[GoalResult]:
-        return [m for m in self.ls.published("controller/result") if isinstance(m, GoalResult)]
+    def run_while(self) -> None:
+        self.run_while_busy(120.0)
 
 
 def demo_task() -> Task:
@@ -173,7 +93,7 @@ def test_cancel_mid_path_decelerates_and_stops_the_arm() -> None:
     moving = speed(rig.joint_states(rig.ls.t_ns - NS))
     assert max(moving) > math.radians(2.0)  # it was moving
     cancel_at = rig.ls.t_ns
-    assert rig.control("cancel")
+    assert rig.control_ok("cancel")
     rig.run_while()
     assert rig.seq.state == "cancelled"
     assert rig.names()[-1] == "cancelled"
@@ -194,12 +114,12 @@ def test_pause_and_resume_finish_the_path_where_it_would_have_ended() -> None:
     rig = Rig()
     start_square(rig)
     rig.ls.run_for(7.0)
-    assert rig.control("pause")
+    assert rig.control_ok("pause")
     rig.run_until_event("paused")
     rig.ls.run_for(2.0)
     still = [s.position for (t, s) in rig.joint_states(rig.ls.t_ns - NS // 2)]
     assert all(p == still[0] for p in still)  # paused: the arm holds still
-    assert rig.control("resume")
+    assert rig.control_ok("resume")
     rig.run_while()
     assert rig.seq.state == "succeeded", rig.seq.reason
     assert rig.names() == [

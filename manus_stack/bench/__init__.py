@@ -9,5 +9,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "kin": ("manus_stack.bench.kin", True),
     "plan": ("manus_stack.bench.plan", True),
     "track": ("manus_stack.bench.track", False),
+    "sequencer": ("manus_stack.bench.sequencer", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
