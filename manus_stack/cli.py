@@ -18,6 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "kin": ("manus_stack.commands.kin", "kinematics: fk, ik, jacobian, urdf"),
     "bench": ("manus_stack.commands.bench", "benchmarks; prints figures as JSON"),
     "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
+    "bridge": ("services.can_bridge.main", "the CAN bridge: owns the bus and the 60 ms cycle"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
     "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
     "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),

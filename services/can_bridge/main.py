@@ -1,0 +1,123 @@
+"""``manus bridge``: the CAN bridge as a process, on any python-can interface.
+
+    manus bridge --can-interface socketcan --can-channel can0      # a real arm
+    manus bridge --can-interface pcan --can-channel PCAN_USBBUS1
+    manus sim --device-file /tmp/manus-sim.device &                 # the simulator ...
+    manus bridge                                                    # ... found through that file
+
+With ``slcan`` (the default) and no ``--can-channel``, the channel is read from the
+device file the simulator writes (``--device-file``, default ``$MANUS_SIM_DEVICE_FILE``
+or ``/tmp/manus-sim.device``), waiting up to ``--wait-device`` seconds for it.
+
+Runs until SIGINT/SIGTERM (or ``--duration``): the arm then gets zeros and 0x370 before
+the bus is closed. Prints ``bridge: ...`` when ready and one ``stats:`` JSON line (health
+counters) on exit, both on standard error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import can
+
+from manus.canbus import open_bus
+from manus.errors import ConfigError
+from manus.node import wait_for_signal
+from manus.protocol import BITRATE
+from manus.session import settings_from_env
+from services.can_bridge.config import load_bridge_config
+from services.can_bridge.shell import BridgeShell
+
+DEFAULT_DEVICE_FILE = "/tmp/manus-sim.device"
+"""Where ``manus bridge`` looks for the simulator's pty by default (see the module doc)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of ``manus bridge``."""
+    parser.add_argument(
+        "--can-interface", default="slcan", help="python-can interface (default: slcan)"
+    )
+    parser.add_argument(
+        "--can-channel",
+        default="",
+        help="channel (can0, PCAN_USBBUS1, /dev/ttyACM0 ...); with slcan and none given, "
+        "the path in --device-file",
+    )
+    parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
+    parser.add_argument(
+        "--device-file",
+        default=os.environ.get("MANUS_SIM_DEVICE_FILE", DEFAULT_DEVICE_FILE),
+        help="file holding the simulator's slcan device path (manus sim --device-file)",
+    )
+    parser.add_argument(
+        "--wait-device", type=float, default=10.0, help="wait this long for the device file [s]"
+    )
+    parser.add_argument("--config", help="bridge config JSON (BridgeConfig field names)")
+    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
+    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
+    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    parser.add_argument("--duration", type=float, help="stop after this many seconds")
+
+
+def resolve_channel(interface: str, channel: str, device_file: str, wait_s: float) -> str:
+    """The CAN channel: as given, or (slcan without one) read from the device file.
+
+    Raises:
+        ConfigError: no channel and no device file appeared within ``wait_s`` [s].
+    """
+    if channel or interface != "slcan":
+        return channel
+    path = Path(device_file)
+    deadline = time.monotonic() + wait_s
+    while not path.exists():
+        if time.monotonic() >= deadline:
+            raise ConfigError(
+                f"no CAN channel: give --can-channel, or start `manus sim --device-file "
+                f"{path}` (no device file {path} after {wait_s:g} s)"
+            )
+        time.sleep(0.05)
+    return path.read_text().strip()
+
+
+def open_arm_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
+    """Open the arm's bus; a pseudo-terminal slcan (the simulator) needs no settle time."""
+    extra: dict[str, Any] = {}
+    if interface == "slcan" and channel.startswith("/dev/pts/"):
+        extra["sleep_after_open"] = 0
+    return open_bus(interface, channel, bitrate, **extra)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Bridge the arm until interrupted."""
+    config = load_bridge_config(args.config)
+    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    stop = wait_for_signal()
+    channel = resolve_channel(args.can_interface, args.can_channel, args.device_file,
+                              args.wait_device)  # fmt: skip
+    bus = open_arm_bus(args.can_interface, channel, args.bitrate)
+    try:
+        with BridgeShell(bus, settings, config) as shell:
+            shell.start()
+            print(f"bridge: {args.can_interface} {channel}, serving "
+                  f"{shell.node.keys.bridge_command}", file=sys.stderr, flush=True)  # fmt: skip
+            stop.wait(args.duration)
+            shell.stop(timeout=3.0)
+            with shell.lock:
+                state = shell.core.health
+                stats = {
+                    "phase": shell.core.phase,
+                    **dataclasses.asdict(state),
+                    "send_errors": shell.send_errors,
+                    "bad_payloads": state.bad_payloads + shell.node.bad_payload_count,
+                }
+    finally:
+        bus.shutdown()
+    print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
+    return 0

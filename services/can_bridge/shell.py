@@ -1,0 +1,219 @@
+"""The bridge's live shell: a python-can receive loop around :class:`BridgeCore`, on Zenoh.
+
+One thread owns the bus. It waits in ``bus.recv``, stamps each frame with its arrival
+time, feeds the core and **sends the core's frames before anything else**: the reply to
+a 0x37F leaves before any Zenoh call of that cycle. Only then are the core's messages
+published (``state/joints`` first when a 0x360 came in). Zenoh callbacks (velocity
+commands, e-stop, the ``bridge/command`` queryable) feed the core under ``node.lock``; the
+loop takes the same lock only around the core call itself, never around bus or Zenoh I/O.
+
+Times: the core works on the wall clock in ns (``time.time_ns``), the clock python-can
+stamps received messages with and the one :mod:`manus.node` stamps Zenoh samples with.
+A frame's own timestamp is used when it is plausible (not in the future, at most a minute
+old), so frames that sat in a driver buffer look old and their syncs are not answered.
+
+Stopping (:meth:`BridgeShell.stop`, or SIGINT/SIGTERM in ``manus bridge``): the core
+answers the next sync with zeros and the one after with 0x370; if no sync comes within
+``shutdown_timeout_s`` both are sent at once. Then the loop ends; the caller closes the bus.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+import can
+import zenoh
+
+from manus.canbus import from_can, to_can
+from manus.node import Node, Publisher
+from manus.protocol import FrameId
+from manus.session import ZenohSettings
+from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
+from schemas.state import BridgeState
+from services.can_bridge.config import BridgeConfig
+from services.can_bridge.core import BridgeCore, Outputs
+
+log = logging.getLogger("manus.bridge")
+
+SERVICE_NAME = "can_bridge"
+"""Liveliness name (``<prefix>/alive/can_bridge``)."""
+TICK_NS = 20_000_000
+"""Period of the core's timeout checks [ns]."""
+MAX_STAMP_AGE_NS = 60_000_000_000
+"""A frame timestamp older than this is taken for another clock, not for a buffer [ns]."""
+SUFFIXES = ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx")
+
+
+class BridgeShell:
+    """The bridge on a CAN bus and on Zenoh.
+
+    Args:
+        bus: any python-can bus (opened by the caller, closed by the caller).
+        settings: how to reach Zenoh (its prefix roots the keys).
+        config: bridge settings.
+        session: an open Zenoh session to share (not closed by :meth:`close`).
+        clock: wall clock [ns].
+        on_reply: called in the loop after each reply to a sync with (sync arrival, sent)
+            [ns] (benchmarks).
+        on_state: called in the loop after each joint state is published with (0x360
+            arrival, published) [ns] (benchmarks).
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        settings: ZenohSettings | None = None,
+        config: BridgeConfig | None = None,
+        *,
+        session: zenoh.Session | None = None,
+        clock: Callable[[], int] = time.time_ns,
+        on_reply: Callable[[int, int], None] | None = None,
+        on_state: Callable[[int, int], None] | None = None,
+    ) -> None:
+        self.bus = bus
+        self.core = BridgeCore(config)
+        self.clock = clock
+        self.on_reply = on_reply
+        self.on_state = on_state
+        self.node = Node(SERVICE_NAME, settings, session=session)
+        self.lock = self.node.lock
+        keys = self.node.keys
+        self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in SUFFIXES}
+        self.send_errors = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._last_phase = ""
+        self.node.subscribe(keys.joint_velocity, JointVelocityCommand, self._on_command)
+        self.node.subscribe(keys.estop, EStop, self._on_estop)
+        self.node.queryable(keys.bridge_command, ArmCommand, self._on_arm_command)
+
+    # -- Zenoh side (callbacks run under node.lock) -------------------------------------------
+
+    def _on_command(self, cmd: JointVelocityCommand, rx_ns: int) -> None:
+        self._publish(self.core.on_command(cmd, rx_ns))
+
+    def _on_estop(self, msg: EStop, rx_ns: int) -> None:
+        log.warning("e-stop %s by %s %s", "engaged" if msg.engaged else "released",
+                    msg.source, msg.reason)  # fmt: skip
+        self._publish(self.core.on_estop(msg, rx_ns))
+
+    def _on_arm_command(self, req: ArmCommand) -> ArmCommandReply:
+        reply, out = self.core.on_arm_command(req, self.clock())
+        log.info("arm command %s from %s: %s", req.action, req.source or "?", reply.message)
+        self._publish(out)
+        return reply
+
+    # -- the receive loop ---------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Run the receive loop in a thread."""
+        self._thread = threading.Thread(target=self.run, name="manus-bridge", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Ask the loop to shut the arm down and end; wait at most ``timeout`` [s]."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    @property
+    def running(self) -> bool:
+        """The loop thread is alive."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def run(self, shutdown_timeout_s: float = 0.3) -> None:
+        """The receive loop, until :meth:`stop`; then zeros and 0x370 (see the module doc)."""
+        with self.lock:
+            out = self.core.start(self.clock())
+        self._publish(out)
+        next_tick = self.clock() + TICK_NS
+        deadline: int | None = None
+        while True:
+            if self._stop.is_set() and deadline is None:
+                now = self.clock()
+                deadline = now + round(shutdown_timeout_s * 1e9)
+                with self.lock:
+                    out = self.core.begin_shutdown(now)
+                self._publish(out)
+            if deadline is not None and (self.core.finished or self.clock() >= deadline):
+                break
+            msg = self.bus.recv(timeout=0.01)
+            now = self.clock()
+            if msg is not None:
+                self._frame(msg, now)
+            if now >= next_tick:
+                next_tick = now + TICK_NS
+                with self.lock:
+                    out = self.core.on_tick(now)
+                self._send(out, None)
+                self._publish(out)
+        if not self.core.finished:
+            now = self.clock()
+            with self.lock:
+                out = self.core.force_shutdown(now)
+            self._send(out, None)
+            self._publish(out)
+        log.info("stopped: zeros and 0x370 sent")
+
+    def _frame(self, msg: can.Message, now: int) -> None:
+        stamp = round(msg.timestamp * 1e9) if msg.timestamp else now
+        if not now - MAX_STAMP_AGE_NS <= stamp <= now:
+            stamp = now
+        frame = from_can(msg, stamp)
+        with self.lock:
+            out = self.core.on_frame(frame, now)
+        sync = frame.t_ns if frame.id == FrameId.SYNC else None
+        self._send(out, sync)
+        self._publish(out)
+        if self.on_state is not None and out.messages and out.messages[0][0] == "state/joints":
+            self.on_state(frame.t_ns, self.clock())
+
+    def _send(self, out: Outputs, sync_ns: int | None) -> None:
+        for frame in out.frames:
+            try:
+                self.bus.send(to_can(frame))
+            except can.CanError as exc:
+                self.send_errors += 1
+                log.error("cannot send 0x%03X: %s", frame.id, exc)
+                continue
+            if sync_ns is not None:
+                sent = self.clock()
+                with self.lock:
+                    self.core.on_sent(sync_ns, sent)
+                if self.on_reply is not None:
+                    self.on_reply(sync_ns, sent)
+
+    def _publish(self, out: Outputs) -> None:
+        for suffix, msg in out.messages:
+            pub = self._pubs.get(suffix)
+            if pub is None:
+                log.error("core published on unknown key suffix %r", suffix)
+                continue
+            pub.put(msg)
+            if isinstance(msg, BridgeState):
+                self._log_state(msg)
+
+    def _log_state(self, st: BridgeState) -> None:
+        key = f"{st.phase}: {st.detail}"
+        if key == self._last_phase:
+            return
+        self._last_phase = key
+        level = logging.WARNING if st.phase in ("resync", "arm_error", "estopped") else logging.INFO
+        log.log(level, "phase %s (%s); cycles %d, resyncs %d, dropped %d, duplicate %d, "
+                "garbled %d, missed windows %d, reply latency max %.2f ms", st.phase, st.detail,
+                st.cycles, st.resyncs, st.dropped_frames, st.duplicate_frames,
+                st.garbled_frames, st.missed_windows, st.reply_latency_max_ms)  # fmt: skip
+
+    def close(self) -> None:
+        """Stop the loop (if running) and leave Zenoh; the bus stays with its owner."""
+        self.stop()
+        self.node.close()
+
+    def __enter__(self) -> BridgeShell:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
