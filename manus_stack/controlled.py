@@ -1,13 +1,13 @@
 """A lock-step arm with the controller attached, wired as the live stack wires them.
 
 :class:`ControlledArm` puts a :class:`ControllerCore` on a
-:class:`~manus_stack.lockstep.LockStep`: it subscribes ``state/joints`` and
-``state/status`` and answers the controller's queryables. A query travels as the live
-``Node`` mirrors it: the request is published on ``trace/<queryable>/request``, the
-controller handles it when it is delivered and publishes its answer on
-``trace/<queryable>/reply``. So :attr:`LockStep.messages` holds everything the controller
-saw, in the order it saw it, and a fresh core fed those messages gives the same commands
-(the replay test).
+:class:`~manus_stack.lockstep.LockStep`: it subscribes ``state/joints``,
+``state/status`` and ``state/bridge`` and answers the controller's queryables. A
+query travels as the live ``Node`` mirrors it: the request is published on
+``trace/<queryable>/request``, the controller handles it when it is delivered and
+publishes its answer on ``trace/<queryable>/reply``. So :attr:`LockStep.messages` holds
+everything the controller saw, in the order it saw it, and a fresh core fed those
+messages gives the same commands (the replay test).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from schemas.control import (
     TrajectoryGoal,
 )
 from schemas.planning import PlanRequest, Trajectory
-from schemas.state import ArmStatus, JointState
+from schemas.state import ArmStatus, BridgeState, JointState
 from services.can_bridge.config import BridgeConfig
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
@@ -46,7 +46,7 @@ QUERYABLES = (
 def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
     """Hand one bus message to the controller as its shell would; returns what it publishes.
 
-    ``state/joints`` and ``state/status`` go to their handlers; a
+    ``state/joints``, ``state/status`` and ``state/bridge`` go to their handlers; a
     ``trace/<queryable>/request`` goes to the queryable's method and its GoalAck comes back
     on ``trace/<queryable>/reply``. Anything else is ignored.
     """
@@ -54,6 +54,8 @@ def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
         return core.on_joint_state(msg)
     if suffix == "state/status" and isinstance(msg, ArmStatus):
         return core.on_status(msg)
+    if suffix == "state/bridge" and isinstance(msg, BridgeState):
+        return core.on_bridge_state(msg)
     if suffix.startswith("trace/") and suffix.endswith("/request"):
         name = suffix.removeprefix("trace/").removesuffix("/request")
         ack: GoalAck | None = None
@@ -89,7 +91,7 @@ class ControlledArm:
         self.core = ControllerCore(config)
         self._results: list[GoalResult] = []
         self._scanned = 0
-        for suffix in ("state/joints", "state/status"):
+        for suffix in ("state/joints", "state/status", "state/bridge"):
             self.ls.subscribe(suffix, self._handler(suffix))
         for name in QUERYABLES:
             request = f"trace/{name}/request"

@@ -67,6 +67,9 @@ class ControllerConfig:
             ``cartesian`` (round each joint up or down so that the gripper lands nearest).
         rounding_rotation_m: weight of the gripper's orientation error against its
             position error in the ``cartesian`` rounding [m/rad].
+        rounding_joint_m: weight of each joint's own deviation from its ideal count in
+            the ``cartesian`` rounding [m/rad]; discourages trading one joint's rounding
+            against another's (wrist chatter).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -89,6 +92,7 @@ class ControllerConfig:
     observer: bool = True
     default_quantizer: str = "cartesian"
     rounding_rotation_m: float = 0.05
+    rounding_joint_m: float = 0.2
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)
@@ -107,6 +111,7 @@ class ControllerConfig:
         _check("max_stamp_gap_ms", self.max_stamp_gap_ms, self.cycle_ms, 10_000.0)
         _check("gripper_gain", self.gripper_gain, 0.0, 1000.0)
         _check("rounding_rotation_m", self.rounding_rotation_m, 0.0, 10.0)
+        _check("rounding_joint_m", self.rounding_joint_m, 0.0, 10.0)
         if self.default_quantizer not in QUANTIZERS:
             raise ConfigError(
                 f"`default_quantizer` {self.default_quantizer!r} must be one of {QUANTIZERS}"

@@ -7,7 +7,8 @@ Contract (docs/architecture.md, Time; the team brief's contract 4):
   command, zeros when idle. While a goal runs, one ``controller/feedback`` per cycle.
 - A trajectory goal starts at the next joint state; each accepted goal (trajectory or
   gripper) ends with exactly one ``controller/result``.
-- Stops: an error reported by the arm aborts every goal with the arm's message; a gap in
+- Stops: an error reported by the arm aborts every goal with the arm's message, and so
+  does the bridge leaving ``running`` (stop, e-stop, arm error, fold); a gap in
   the joint states (a ``seq`` jump or a stamp gap over ``max_stamp_gap_ms``), an invalid
   state or a mode other than joint mode aborts them and commands zeros (no
   extrapolation). A cancel decelerates at ``cancel_decel`` to rest, then reports.
@@ -37,7 +38,7 @@ from schemas.control import (
     SpeedScale,
     TrajectoryGoal,
 )
-from schemas.state import ArmStatus, JointState
+from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
 from services.controller.goals import (
@@ -53,6 +54,9 @@ from services.controller.tracking import Step, TrajectoryRun
 
 Output = list[tuple[str, Message]]
 """(key suffix, message) pairs to publish, in order."""
+
+STOPPING_PHASES = ("stopped", "estopped", "arm_error", "folding_in", "folding_out", "shutdown")
+"""Bridge phases in which no goal can run: entering one aborts every goal."""
 
 GRIPPER_UNIT_M = 1e-4
 """Resolution of the gripper reading [m] (0.1 mm)."""
@@ -77,6 +81,8 @@ class ControllerCore:
         self.last_js: JointState | None = None
         self.arm_error: str | None = None
         """The arm's error message while it reports one."""
+        self.bridge_phase: str | None = None
+        """The bridge's phase (None: no BridgeState seen, not checked)."""
         self.run: TrajectoryRun | None = None
         self.pending: TrajectoryGoal | None = None
         self.gripper: GripperRun | None = None
@@ -95,8 +101,7 @@ class ControllerCore:
             check_goal(goal)
             tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
             ref = Reference(goal.trajectory, arm=self.config.arm)
-            if self.arm_error is not None:
-                raise GoalRefusedError(f"the arm reports an error: {self.arm_error}")
+            self._check_ready()
             js = self.last_js
             if js is None or not js.valid:
                 raise GoalRefusedError("no valid joint state yet (is the bridge running?)")
@@ -118,9 +123,10 @@ class ControllerCore:
         """Accept or refuse a gripper goal (it runs beside any trajectory goal)."""
         if not goal.goal_id:
             return GoalAck(accepted=False, goal_id="", reason="`goal_id` is empty")
-        if self.arm_error is not None:
-            reason = f"the arm reports an error: {self.arm_error}"
-            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=reason)
+        try:
+            self._check_ready()
+        except GoalRefusedError as exc:
+            return GoalAck(accepted=False, goal_id=goal.goal_id, reason=str(exc))
         if not (math.isfinite(goal.tolerance) and goal.tolerance > 0 and goal.timeout > 0):
             reason = f"tolerance {goal.tolerance!r} m and timeout {goal.timeout!r} s must be > 0"
             return GoalAck(accepted=False, goal_id=goal.goal_id, reason=reason)
@@ -129,6 +135,15 @@ class ControllerCore:
             self._queue(old, "preempted", f"preempted by {goal.goal_id!r}", kind="gripper")
         self.gripper = GripperRun(goal)
         return GoalAck(accepted=True, goal_id=goal.goal_id)
+
+    def _check_ready(self) -> None:
+        if self.arm_error is not None:
+            raise GoalRefusedError(f"the arm reports an error: {self.arm_error}")
+        if self.bridge_phase is not None and self.bridge_phase != "running":
+            raise GoalRefusedError(
+                f"the bridge is in phase {self.bridge_phase!r}, not 'running' "
+                "(clear it or wait for it first)"
+            )
 
     def cancel(self, req: CancelGoal) -> GoalAck:
         """Cancel one goal (or every goal with an empty id): decelerate, then report."""
@@ -171,6 +186,21 @@ class ControllerCore:
         if first:
             self._abort_all(f"arm error: {self.arm_error}")
         return self._flush(st.stamp_ns)
+
+    def on_bridge_state(self, bs: BridgeState) -> Output:
+        """Follow the bridge's phase: goals run only while it is ``running``.
+
+        Leaving ``running`` for a stop, an e-stop, an arm error, a fold or a shutdown
+        aborts every goal (``resync`` does not: it shows as a gap in the joint states).
+        """
+        self.bridge_phase = bs.phase
+        if bs.phase in STOPPING_PHASES and self._active():
+            self._abort_all(f"bridge phase {bs.phase}: {bs.detail}")
+            return self._flush(bs.stamp_ns)
+        return []
+
+    def _active(self) -> bool:
+        return self.pending is not None or self.run is not None or self.gripper is not None
 
     def on_joint_state(self, js: JointState) -> Output:
         """One cycle: the command for this joint state, feedback and any results."""

@@ -101,6 +101,8 @@ def cartesian_rounding(
     J = jacobian(q_target, config.arm)
     J[3:] *= config.rounding_rotation_m
     cost = np.sum((err_dh @ J.T) ** 2, axis=1)
+    # Rounding a joint away from its own nearest count costs too (no wrist chatter).
+    cost += (config.rounding_joint_m * gain) ** 2 * np.sum((cand - wanted) ** 2, axis=1)
     return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)
 
 
@@ -247,8 +249,8 @@ class TrajectoryRun:
             q_target = ref.sample(tau + self.scale * period).q
             target = dh_to_encoder(q_target)
             u = deadbeat_speed(x1, v1, target, period, tau_s)
-            if self.end_ns is not None:  # holding the end: nearest counts, no residual
-                return RoundingQuantizer()(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
+            if self.end_ns is not None:
+                return self._hold(x1, v1, target, q_target)
             if cfg.default_quantizer == "cartesian":
                 wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
                 gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
@@ -258,6 +260,22 @@ class TrajectoryRun:
             target = dh_to_encoder(ref.sample(self.tau + self.scale * period).q)
             u = (target - dh_to_encoder(q)) / period
         return self.quantizer(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
+
+    def _hold(
+        self, x1: np.ndarray, v1: np.ndarray, target: np.ndarray, q_target: np.ndarray
+    ) -> np.ndarray:
+        """Holding the end: one-cycle pulses between rests, so no limit cycle.
+
+        With zero from now on the motors would rest at x1 + v1 tau; a pulse of n counts
+        for one cycle moves a motor n x 0.3 deg further once its transient has died out.
+        Choose the pulses (Cartesian-aware) that bring that rest nearest the target: at
+        the optimum the best pulse is zero, and the arm stays.
+        """
+        cfg = self.config
+        rest = x1 + v1 * (cfg.drive_tau_ms / 1000.0)
+        gain = cfg.cycle_s * COUNT_RAD_S
+        wanted = np.clip((target - rest) / gain, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
+        return cartesian_rounding(wanted, rest - target, gain, q_target, cfg)
 
     def _thesis_law(self, q: np.ndarray) -> np.ndarray:
         ref, tau = self.current_reference()
