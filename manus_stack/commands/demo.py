@@ -82,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
                 own_writer = _LocalRecorder(node, recording, options.prefix)
             collected.listen(node)
             client = TaskClient(node)
+            phase = client.wait_for_arm(args.start_timeout)
+            print(f"demo: bridge phase {phase or 'unknown'}", flush=True)
             try:
                 reply = client.submit(task)
             except QueryError as exc:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable
 
 from manus.node import Node
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
+from schemas.state import BridgeState
 
 FINAL_EVENTS = ("succeeded", "failed", "cancelled")
 """Events that end a task."""
@@ -29,7 +30,14 @@ class TaskClient:
     def __init__(self, node: Node) -> None:
         self.node = node
         self._events: queue.Queue[TaskEvent] = queue.Queue()
+        self._running = 0  # consecutive state/bridge reports in phase running
+        self.bridge_phase = ""
         node.subscribe(node.keys("sequencer/events"), TaskEvent, self._on_event, locked=False)
+        node.subscribe(node.keys.bridge_state, BridgeState, self._on_bridge, locked=False)
+
+    def _on_bridge(self, state: BridgeState, rx_ns: int) -> None:
+        self.bridge_phase = state.phase
+        self._running = self._running + 1 if state.phase == "running" else 0
 
     def _on_event(self, event: TaskEvent, rx_ns: int) -> None:
         self._events.put(event)
@@ -43,6 +51,15 @@ class TaskClient:
             if not missing or time.monotonic() >= deadline:
                 return missing
             time.sleep(0.1)
+
+    def wait_for_arm(self, timeout: float) -> str:
+        """Wait up to ``timeout`` [s] until the bridge has reported phase ``running`` twice
+        in a row (the arm is powered up and in joint mode; the sequencer, on the same
+        stream, has heard it too). Returns the last phase seen ('' when none)."""
+        deadline = time.monotonic() + timeout
+        while self._running < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return self.bridge_phase
 
     def submit(self, task: Task, timeout: float = 60.0) -> SubmitReply:
         """Submit ``task`` (the sequencer validates it whole before answering).

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-import time
 
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import settings_from_env
@@ -37,16 +36,6 @@ def _err(text: str) -> None:
     sys.stderr.flush()
 
 
-def _wait_for_arm(shell: SequencerShell, timeout: float) -> None:
-    """Give a fresh sequencer up to ``timeout`` [s] to hear the bridge and the arm."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        with shell.node.lock:
-            if shell.core.bridge_phase and shell.core.latest is not None:
-                return
-        time.sleep(0.05)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The task and the bus settings."""
     parser.add_argument(
@@ -55,16 +44,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ITEM",
         help="a .toml task file, or via-point files and gripper openings [mm], alternating",
     )
-    parser.add_argument("--mode", dest="control_mode", choices=("default", "thesis"),
-                        help="controller mode of the move steps (default: default)")  # fmt: skip
+    parser.add_argument(
+        "--mode",
+        dest="control_mode",
+        choices=("default", "thesis"),
+        help="controller mode of the move steps (default: default)",
+    )
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
-    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
-                        help="how long to wait for the services to come up [s]")  # fmt: skip
-    parser.add_argument("--timeout", type=float, default=None, metavar="S",
-                        help="give up (and cancel) after this long [s]")  # fmt: skip
-    parser.add_argument("--plain", action="store_true",
-                        help="one line per event instead of redrawn progress bars")  # fmt: skip
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="how long to wait for the services to come up [s]",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="give up (and cancel) after this long [s]",
+    )
+    parser.add_argument(
+        "--plain", action="store_true", help="one line per event instead of redrawn progress bars"
+    )
 
 
 def load_task(items: list[str], mode: str | None) -> Task:
@@ -90,13 +94,19 @@ def run(args: argparse.Namespace) -> int:
         node = stack.enter_context(Node("run", settings, liveliness=False))
         client = TaskClient(node)
         if "sequencer" not in node.alive_services(timeout=1.0):
-            _err("manus run: no sequencer is running: running one in this process")  # fmt: skip
-            shell = stack.enter_context(SequencerShell(settings, session=node.session))
-            _wait_for_arm(shell, args.wait)
+            _err("manus run: no sequencer is running: running one in this process")
+            stack.enter_context(SequencerShell(settings, session=node.session))
         missing = client.wait_for_services((*REQUIRED_SERVICES, "sequencer"), args.wait)
         if missing:
-            _err(f"manus run: waited {args.wait:g} s; still missing: {', '.join(missing)} "
-                  "(start them, e.g. with `manus up`)")  # fmt: skip
+            _err(
+                f"manus run: waited {args.wait:g} s; still missing: {', '.join(missing)} "
+                "(start them, e.g. with `manus up`)"
+            )
+        elif client.wait_for_arm(args.wait) != "running":
+            _err(
+                f"manus run: the bridge is not running after {args.wait:g} s "
+                f"(phase {client.bridge_phase or 'unknown'})"
+            )
         try:
             reply = client.submit(task)
         except QueryError as exc:
