@@ -11,7 +11,7 @@ import pytest
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
 from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
-from schemas.state import ArmStatus
+from schemas.state import ArmStatus, BridgeState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.reference import Reference
@@ -303,3 +303,39 @@ def test_config_validation_names_the_field() -> None:
     with pytest.raises(ConfigError, match="default_quantizer"):
         ControllerConfig(default_quantizer="magic")
     assert ControllerConfig().cycle_ns == 60 * MS
+
+
+def test_goals_run_only_while_the_bridge_is_running() -> None:
+    plant = _plant()
+    bs = BridgeState(
+        stamp_ns=plant.t_ns,
+        seq=0,
+        phase="running",
+        estop=False,
+        cycles=10,
+        period_ms=60.0,
+        jitter_ms=0.0,
+        reply_latency_ms=1.0,
+        reply_latency_max_ms=1.0,
+        missed_windows=0,
+        stale_commands=0,
+        resyncs=0,
+        dropped_frames=0,
+        duplicate_frames=0,
+        garbled_frames=0,
+        buffered_syncs=0,
+        bad_payloads=0,
+        detail="",
+    )
+    assert plant.core.on_bridge_state(bs) == []
+    plant.core.submit(_goal())
+    plant.run(5)
+    plant.collect(
+        plant.core.on_bridge_state(dataclasses.replace(bs, phase="estopped", detail="e-stop"))
+    )
+    result = plant.results[-1]
+    assert result.status == "aborted" and result.reason == "bridge phase estopped: e-stop"
+    ack = plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position)))
+    assert not ack.accepted and "'estopped'" in ack.reason
+    plant.core.on_bridge_state(bs)
+    assert plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position))).accepted
