@@ -113,8 +113,9 @@ def test_bridge_shell_on_virtual_with_live_sim(
             )
             seen.wait_phase("estopped", timeout=2.0)
             time.sleep(0.3)
-            reply = node.query(node.keys.bridge_command, ArmCommand(action="clear"),
-                               ArmCommandReply)  # fmt: skip
+            reply = node.query(
+                node.keys.bridge_command, ArmCommand(action="clear"), ArmCommandReply
+            )
             assert not reply.ok and reply.phase == "estopped"
             ids = [f.id for f in seen.tx_since(0)]
             assert ids[-1] == FrameId.STOP
@@ -180,8 +181,7 @@ def test_manus_bridge_process_with_manus_sim_over_slcan(
             assert tx[0].id == FrameId.STOP  # the first sync: stop what an earlier run left
             assert [f.id for f in tx[-3:]] == [FrameId.JOINT] * 3
             assert all(f.data == bytes(8) for f in tx[-3:])  # no controller: zeros
-            reply = node.query(node.keys.bridge_command, ArmCommand(action="stop"),
-                               ArmCommandReply)  # fmt: skip
+            reply = node.query(node.keys.bridge_command, ArmCommand(action="stop"), ArmCommandReply)
             assert reply.ok and reply.phase == "stopped"
             time.sleep(0.3)
             assert seen.tx_since(0)[-1].id == FrameId.STOP

@@ -8,6 +8,7 @@ from __future__ import annotations
 BENCHES: dict[str, tuple[str, bool]] = {
     "kin": ("manus_stack.bench.kin", True),
     "plan": ("manus_stack.bench.plan", True),
+    "bridge": ("manus_stack.bench.bridge", False),
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
 }

@@ -538,8 +538,9 @@ class BridgeCore:
             if phase in START_UP:
                 return False, f"the bridge is not ready yet (phase {phase})"
             self._fold = _Fold(req.action, rx_ns)
-            self._set_phase(f"folding_{req.action[5:]}", f"{req.action} requested by {who}",
-                            rx_ns, out)  # fmt: skip
+            self._set_phase(
+                f"folding_{req.action[5:]}", f"{req.action} requested by {who}", rx_ns, out
+            )
             return True, f"{req.action} held until the arm reports completion"
         # clear
         if self.estop:

@@ -96,8 +96,9 @@ class BridgeShell:
         self._publish(self.core.on_command(cmd, rx_ns))
 
     def _on_estop(self, msg: EStop, rx_ns: int) -> None:
-        log.warning("e-stop %s by %s %s", "engaged" if msg.engaged else "released",
-                    msg.source, msg.reason)  # fmt: skip
+        log.warning(
+            "e-stop %s by %s %s", "engaged" if msg.engaged else "released", msg.source, msg.reason
+        )
         self._publish(self.core.on_estop(msg, rx_ns))
 
     def _on_arm_command(self, req: ArmCommand) -> ArmCommandReply:
@@ -118,6 +119,11 @@ class BridgeShell:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout)
+
+    @property
+    def thread(self) -> threading.Thread | None:
+        """The receive loop's thread (None before :meth:`start`)."""
+        return self._thread
 
     @property
     def running(self) -> bool:
@@ -202,10 +208,20 @@ class BridgeShell:
             return
         self._last_phase = key
         level = logging.WARNING if st.phase in ("resync", "arm_error", "estopped") else logging.INFO
-        log.log(level, "phase %s (%s); cycles %d, resyncs %d, dropped %d, duplicate %d, "
-                "garbled %d, missed windows %d, reply latency max %.2f ms", st.phase, st.detail,
-                st.cycles, st.resyncs, st.dropped_frames, st.duplicate_frames,
-                st.garbled_frames, st.missed_windows, st.reply_latency_max_ms)  # fmt: skip
+        log.log(
+            level,
+            "phase %s (%s); cycles %d, resyncs %d, dropped %d, duplicate %d, "
+            "garbled %d, missed windows %d, reply latency max %.2f ms",
+            st.phase,
+            st.detail,
+            st.cycles,
+            st.resyncs,
+            st.dropped_frames,
+            st.duplicate_frames,
+            st.garbled_frames,
+            st.missed_windows,
+            st.reply_latency_max_ms,
+        )
 
     def close(self) -> None:
         """Stop the loop (if running) and leave Zenoh; the bus stays with its owner."""
