@@ -9,7 +9,8 @@ both sides are counted; one side running out is a difference too.
 
 - ``planner``: ``state/joints`` and ``trace/planner/plan/request`` in,
   ``trace/planner/plan/reply`` out (``compute_ms`` is wall time and is not compared).
-- ``controller``: the bridge's ``state/joints`` and ``state/status`` and the controller's
+- ``controller``: the bridge's ``state/joints``, ``state/status`` and ``state/bridge``
+  (each handed over as :func:`manus_stack.controlled.controller_input` does) and the controller's
   query requests (``trace/controller/{goal,gripper,cancel,speed_scale}/request``) in;
   ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result`` and the query
   replies out.
@@ -221,6 +222,7 @@ CONTROLLER_OUTPUTS = (
 CONTROLLER_INPUTS = (
     "state/joints",
     "state/status",
+    "state/bridge",
     *(f"trace/controller/{q}/request" for q in CONTROLLER_QUERIES),
 )
 

@@ -118,17 +118,28 @@ class Replayer:
         self.node = Node("replay", settings, session=session, liveliness=False)
         self._pubs: dict[str, zenoh.Publisher] = {}
 
-    def _publisher(self, suffix: str, express: bool) -> zenoh.Publisher:
+    def _publisher(self, suffix: str) -> zenoh.Publisher:
         pub = self._pubs.get(suffix)
         if pub is None:
             pub = self.node.session.declare_publisher(
                 self.node.keys(suffix),
-                express=express,
+                express=True,  # one sample per network message: recorded timing kept
                 congestion_control=zenoh.CongestionControl.BLOCK,
                 reliability=zenoh.Reliability.RELIABLE,
             )
             self._pubs[suffix] = pub
         return pub
+
+    def wait_for_subscribers(self, suffixes: Iterable[str], timeout: float = 5.0) -> bool:
+        """Declare the publishers of ``suffixes`` and wait until each has a subscriber
+        (subscriptions take a moment to reach the router). True when all matched."""
+        pubs = [self._publisher(s) for s in suffixes]
+        deadline = time.monotonic() + timeout
+        while not all(p.matching_status for p in pubs):
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
 
     def play(
         self,
@@ -159,7 +170,7 @@ class Replayer:
             attachment = (
                 rec.publish_ns.to_bytes(8, "little") if rec.suffix.startswith("trace/") else None
             )
-            self._publisher(rec.suffix, rate is not None).put(rec.payload, attachment=attachment)
+            self._publisher(rec.suffix).put(rec.payload, attachment=attachment)
             sent += 1
         recorded = items[sent - 1].offset_s if sent else 0.0
         return ReplayStats(sent, time.monotonic() - started, recorded)
