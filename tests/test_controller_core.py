@@ -12,6 +12,7 @@ from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
 from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
 from schemas.state import ArmStatus, BridgeState
+from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.reference import Reference
@@ -339,3 +340,20 @@ def test_goals_run_only_while_the_bridge_is_running() -> None:
     assert not ack.accepted and "'estopped'" in ack.reason
     plant.core.on_bridge_state(bs)
     assert plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position))).accepted
+
+
+def test_play_model_aims_the_belt_output() -> None:
+    play = PlayModel(np.radians([0.0, 0.0, 0.0, 0.3, 0.3, 0.3]), math.radians(0.02))
+    motor = np.zeros(6)
+    play.update(motor)
+    half = math.radians(0.15)
+    up = play.motor_target(np.full(6, math.radians(1.0)), motor)
+    np.testing.assert_allclose(up[3:], math.radians(1.0) + half)
+    np.testing.assert_allclose(up[:3], math.radians(1.0))
+    moved = np.full(6, math.radians(1.0) + half)
+    play.update(moved)
+    np.testing.assert_allclose(play.output[3:], math.radians(1.0))  # type: ignore[index]
+    hold = play.motor_target(np.full(6, math.radians(1.0)), moved)
+    np.testing.assert_allclose(hold[3:], moved[3:])  # output already there: motor stays
+    down = play.motor_target(np.full(6, math.radians(0.5)), moved)
+    np.testing.assert_allclose(down[3:], math.radians(0.5) - half)

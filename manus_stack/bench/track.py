@@ -15,7 +15,8 @@ the arm already is, excluded):
   encoder quantization count.
 
 ``variants`` measures the default mode with one of its ideas switched off (the choices
-behind it); ``seeds`` repeats both modes on other simulator seeds (the drives' gain
+behind it), or with the belt play compensated (its widths taken as calibrated: the
+simulator's); ``seeds`` repeats both modes on other simulator seeds (the drives' gain
 errors differ).
 """
 
@@ -42,6 +43,7 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "error_feedback": {"default_quantizer": "error_feedback"},
     "no_observer": {"observer": False},
     "no_delay_compensation": {"delay_compensation": False},
+    "backlash_compensation": {"backlash_deg": SimConfig().backlash_deg},
 }
 """Default-mode variants: name -> ControllerConfig overrides."""
 

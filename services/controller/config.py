@@ -70,6 +70,13 @@ class ControllerConfig:
         rounding_joint_m: weight of each joint's own deviation from its ideal count in
             the ``cartesian`` rounding [m/rad]; discourages trading one joint's rounding
             against another's (wrist chatter).
+        backlash_deg: default mode: full dead band of each motor's belt, motors 1..6,
+            as calibrated [deg]; the motor targets are moved so that the joint side,
+            not the motor, follows the reference. Zeros (the default): off; the
+            encoders cannot see the play, so with it on the encoder-based via errors
+            grow by up to half a band while the true ones shrink.
+        backlash_dead_zone_deg: an estimated belt output this close to its target is
+            not pushed [deg].
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -93,6 +100,8 @@ class ControllerConfig:
     default_quantizer: str = "cartesian"
     rounding_rotation_m: float = 0.05
     rounding_joint_m: float = 0.2
+    backlash_deg: tuple[float, ...] = (0.0,) * 6
+    backlash_dead_zone_deg: float = 0.02
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)
@@ -112,6 +121,14 @@ class ControllerConfig:
         _check("gripper_gain", self.gripper_gain, 0.0, 1000.0)
         _check("rounding_rotation_m", self.rounding_rotation_m, 0.0, 10.0)
         _check("rounding_joint_m", self.rounding_joint_m, 0.0, 10.0)
+        _check("backlash_dead_zone_deg", self.backlash_dead_zone_deg, 0.0, 10.0)
+        object.__setattr__(self, "backlash_deg", tuple(float(v) for v in self.backlash_deg))
+        if len(self.backlash_deg) != 6 or not all(
+            math.isfinite(v) and 0.0 <= v <= 10.0 for v in self.backlash_deg
+        ):
+            raise ConfigError(
+                f"`backlash_deg` must hold 6 widths in [0, 10] deg, got {self.backlash_deg!r}"
+            )
         if self.default_quantizer not in QUANTIZERS:
             raise ConfigError(
                 f"`default_quantizer` {self.default_quantizer!r} must be one of {QUANTIZERS}"

@@ -39,6 +39,7 @@ from schemas.control import (
     TrajectoryGoal,
 )
 from schemas.state import ArmStatus, BridgeState, JointState
+from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
 from services.controller.goals import (
@@ -76,6 +77,11 @@ class ControllerCore:
         half = math.radians(cfg.encoder_unit_deg) / 2.0 if cfg.observer else 0.0
         self.joints = DriveEstimator(tau, half, 6)
         """Estimated motor angles [rad] and speeds."""
+        self.play = PlayModel(
+            np.radians(cfg.backlash_deg),
+            math.radians(cfg.backlash_dead_zone_deg),
+        )
+        """Estimated belt outputs (default mode, when ``backlash_deg`` is set)."""
         self.grip = DriveEstimator(tau, GRIPPER_UNIT_M / 2.0, 1)
         """Estimated gripper opening [m] and speed."""
         self.last_js: JointState | None = None
@@ -216,6 +222,7 @@ class ControllerCore:
         if gap or not usable:
             self.joints.reset()
             self.grip.reset()
+            self.play.reset()
             if gap and last is not None:
                 self._abort_all(
                     f"joint states interrupted: seq {js.seq} after {last.seq}, "
@@ -229,7 +236,8 @@ class ControllerCore:
         applied = np.asarray(js.applied, dtype=float)
         if js.applied_kind != "joint":
             applied = np.zeros(8)
-        self.joints.update(_motor_angles(js), applied[1:7] * COUNT_RAD_S, dt)
+        motors = self.joints.update(_motor_angles(js), applied[1:7] * COUNT_RAD_S, dt)
+        self.play.update(motors)
         self.grip.update(np.array([js.gripper]), applied[7:8] * 0.005, dt)
         if self.arm_error is not None:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
@@ -239,7 +247,7 @@ class ControllerCore:
         step: Step | None = None
         run = self.run
         if run is not None:
-            step = run.step(snap, q, self.joints, self.last_counts)
+            step = run.step(snap, q, self.joints, self.last_counts, self.play)
             if step.ended is not None:
                 self._end_run(run, *step.ended)
         had_gripper = self.gripper is not None

@@ -45,6 +45,7 @@ from manus.quantize import (
 )
 from manus.trajectory import Sample
 from schemas.control import TrajectoryGoal
+from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.goals import violation
@@ -193,7 +194,12 @@ class TrajectoryRun:
     # -- one cycle -----------------------------------------------------------------------
 
     def step(
-        self, snap_ns: int, q: np.ndarray, est: DriveEstimator, last_counts: np.ndarray
+        self,
+        snap_ns: int,
+        q: np.ndarray,
+        est: DriveEstimator,
+        last_counts: np.ndarray,
+        play: PlayModel | None = None,
     ) -> Step:
         """Advance to the snapshot at ``snap_ns`` with measured DH angles ``q`` [rad]."""
         dt = (snap_ns - self.last_ns) / 1e9
@@ -222,7 +228,7 @@ class TrajectoryRun:
             verdict = self._judge(snap_ns, q, xyz, True) if self.end_ns is not None else None
             counts = self._thesis_law(q)
         else:
-            counts = self._default_law(q, est)
+            counts = self._default_law(q, est, play)
             at_rest = not np.any(est.u)  # nothing in flight: a zero now stops the arm here
             verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
         if verdict is not None:
@@ -239,7 +245,9 @@ class TrajectoryRun:
 
     # -- laws ----------------------------------------------------------------------------
 
-    def _default_law(self, q: np.ndarray, est: DriveEstimator) -> np.ndarray:
+    def _default_law(
+        self, q: np.ndarray, est: DriveEstimator, play: PlayModel | None
+    ) -> np.ndarray:
         cfg = self.config
         period = cfg.cycle_s
         tau_s = cfg.drive_tau_ms / 1000.0
@@ -248,6 +256,8 @@ class TrajectoryRun:
             x1, v1 = est.predict(cfg.command_delay_ms / 1000.0)
             q_target = ref.sample(tau + self.scale * period).q
             target = dh_to_encoder(q_target)
+            if play is not None and play.active:
+                target = play.motor_target(target, x1)
             u = deadbeat_speed(x1, v1, target, period, tau_s)
             if self.end_ns is not None:
                 return self._hold(x1, v1, target, q_target)
