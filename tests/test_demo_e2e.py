@@ -1,0 +1,51 @@
+"""``manus demo square`` end to end: every service its own process, over Zenoh, real time.
+
+About 40 s of wall time (the folds and the 19.2 s square run in real time); run in CI.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from manus_stack.demo import THESIS_MAX_MM, THESIS_MEAN_MM
+from tests.conftest import free_port
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    cmd = [sys.executable, "-m", "manus_stack.cli", "demo", "square", "--plain",
+           "--endpoint", endpoint, "--prefix", "demotest", "--run-dir", str(tmp_path)]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=220, cwd=ROOT,
+                          env=dict(os.environ))  # fmt: skip
+    out = proc.stdout
+    assert proc.returncode == 0, out + proc.stderr
+    assert "step 5/5 fold_in: step_finished" in out
+    assert re.search(r"demo: task \w+ succeeded", out)
+
+    # the error table: 17 via points, within the thesis's figures
+    rows = re.findall(r"^\s+(\d+)\s+(\d*)\s+(\d+\.\d+)$", out, flags=re.MULTILINE)
+    assert len(rows) == 17
+    mean = float(re.search(r"mean\s+(\d+\.\d+)", out).group(1))  # type: ignore[union-attr]
+    worst = float(re.search(r"max\s+(\d+\.\d+)", out).group(1))  # type: ignore[union-attr]
+    assert mean < THESIS_MEAN_MM and worst < THESIS_MAX_MM
+    assert worst == pytest.approx(max(float(r[2]) for r in rows), abs=0.01)
+
+    recording = Path(re.search(r"^recording: (.+)$", out, re.MULTILINE).group(1))  # type: ignore[union-attr]
+    plot = Path(re.search(r"^plot: (.+)$", out, re.MULTILINE).group(1))  # type: ignore[union-attr]
+    with recording.open("rb") as f:
+        reader = make_reader(f)
+        topics = {channel.topic for _, channel, _ in reader.iter_messages()}
+    assert {"demotest/state/joints", "demotest/controller/result",
+            "demotest/sequencer/events"} <= topics  # fmt: skip
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and plot.stat().st_size > 20_000
