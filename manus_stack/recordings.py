@@ -67,6 +67,21 @@ def record_thesis_run(
     Raises:
         RuntimeError: the planner or the controller refused, or no result came.
     """
+    return record_thesis_runs([shape], output, mode=mode, seed=seed)
+
+
+def record_thesis_runs(
+    shapes: list[str], output: str | Path, *, mode: str = "default", seed: int = 0
+) -> RecordedRun:
+    """Run the thesis paths ``shapes`` one after the other (each planned from where the
+    previous one left the arm) in one lock-step session and record it to ``output``.
+
+    Returns:
+        the run; ``status`` and ``via_errors_mm`` are those of the last goal.
+
+    Raises:
+        RuntimeError: the planner or the controller refused, or no result came.
+    """
     arm = ControlledArm(SimConfig(start_pose="unfolded", seed=seed))
     planner = PlannerCore()
 
@@ -75,29 +90,36 @@ def record_thesis_run(
             planner.on_joint_state(msg)
         return []
 
+    def cycle() -> None:
+        arm.ls.run_for(CYCLE_S)
+        arm.ls.publish("sim/truth", arm.ls.sim.truth())
+
     arm.ls.subscribe("state/joints", follow)
     arm.start()
-    request = PlanRequest(path=load_path(PATHS / f"thesis_{shape}.txt"))
-    arm.ls.publish("trace/planner/plan/request", request)
-    reply: PlanReply = planner.plan(request)
-    arm.ls.publish("trace/planner/plan/reply", reply)
-    if reply.trajectory is None:
-        raise RuntimeError(f"thesis_{shape}: the planner refused: {reply.error}")
-    goal = TrajectoryGoal(goal_id=f"thesis_{shape}", trajectory=reply.trajectory, mode=mode)
-    ack = arm.submit(goal)
-    if not ack.accepted:
-        raise RuntimeError(f"{goal.goal_id}: the controller refused: {ack.reason}")
-    limit = arm.ls.t_ns + round((reply.trajectory.times[-1] + goal.goal_time_tolerance + 5) * 1e9)
-    while not arm.results(goal.goal_id):
-        if arm.ls.t_ns >= limit:
-            raise RuntimeError(f"{goal.goal_id}: no result by {limit / 1e9:.1f} s")
-        arm.ls.run_for(CYCLE_S)
-        arm.ls.publish("sim/truth", arm.ls.sim.truth())
-    for _ in range(round(AFTER_S / CYCLE_S)):
-        arm.ls.run_for(CYCLE_S)
-        arm.ls.publish("sim/truth", arm.ls.sim.truth())
-    result = arm.results(goal.goal_id)[0]
-    source = f"lockstep thesis_{shape} mode={mode} seed={seed}"
+    result = None
+    for i, shape in enumerate(shapes):
+        request = PlanRequest(path=load_path(PATHS / f"thesis_{shape}.txt"))
+        arm.ls.publish("trace/planner/plan/request", request)
+        reply: PlanReply = planner.plan(request)
+        arm.ls.publish("trace/planner/plan/reply", reply)
+        if reply.trajectory is None:
+            raise RuntimeError(f"thesis_{shape}: the planner refused: {reply.error}")
+        goal_id = f"thesis_{shape}" if len(shapes) == 1 else f"thesis_{shape}_{i}"
+        goal = TrajectoryGoal(goal_id=goal_id, trajectory=reply.trajectory, mode=mode)
+        ack = arm.submit(goal)
+        if not ack.accepted:
+            raise RuntimeError(f"{goal.goal_id}: the controller refused: {ack.reason}")
+        span = reply.trajectory.times[-1] + goal.goal_time_tolerance + 5
+        limit = arm.ls.t_ns + round(span * 1e9)
+        while not arm.results(goal.goal_id):
+            if arm.ls.t_ns >= limit:
+                raise RuntimeError(f"{goal.goal_id}: no result by {limit / 1e9:.1f} s")
+            cycle()
+        for _ in range(round(AFTER_S / CYCLE_S)):
+            cycle()
+        result = arm.results(goal.goal_id)[0]
+    assert result is not None, "no shapes given"
+    source = f"lockstep thesis_{'+'.join(shapes)} mode={mode} seed={seed}"
     with RecordingWriter(output, source=source, flush_interval_ns=10**9) as writer:
         for t_ns, suffix, msg in arm.ls.messages:
             writer.write(suffix, msg, t_ns)

@@ -11,5 +11,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "bridge": ("manus_stack.bench.bridge", False),
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
+    "replay": ("manus_stack.bench.replay", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
