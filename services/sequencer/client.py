@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterable
 
 from manus.node import Node
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
-from schemas.state import BridgeState
+from schemas.state import BridgeState, JointState
 
 FINAL_EVENTS = ("succeeded", "failed", "cancelled")
 """Events that end a task."""
@@ -33,11 +33,19 @@ class TaskClient:
         self._running = 0  # consecutive state/bridge reports in phase running
         self.bridge_phase = ""
         node.subscribe(node.keys("sequencer/events"), TaskEvent, self._on_event, locked=False)
+        self._valid_states = 0  # valid joint states since the bridge entered running
         node.subscribe(node.keys.bridge_state, BridgeState, self._on_bridge, locked=False)
+        node.subscribe(node.keys.joints, JointState, self._on_joints, locked=False)
 
     def _on_bridge(self, state: BridgeState, rx_ns: int) -> None:
         self.bridge_phase = state.phase
         self._running = self._running + 1 if state.phase == "running" else 0
+        if not self._running:
+            self._valid_states = 0
+
+    def _on_joints(self, state: JointState, rx_ns: int) -> None:
+        if state.valid and self._running:
+            self._valid_states += 1
 
     def _on_event(self, event: TaskEvent, rx_ns: int) -> None:
         self._events.put(event)
@@ -54,10 +62,11 @@ class TaskClient:
 
     def wait_for_arm(self, timeout: float) -> str:
         """Wait up to ``timeout`` [s] until the bridge has reported phase ``running`` twice
-        in a row (the arm is powered up and in joint mode; the sequencer, on the same
-        stream, has heard it too). Returns the last phase seen ('' when none)."""
+        in a row and two valid joint states have followed (the arm is powered up and in
+        joint mode; the sequencer, on the same streams, has heard them too). Returns the
+        last phase seen ('' when none)."""
         deadline = time.monotonic() + timeout
-        while self._running < 2 and time.monotonic() < deadline:
+        while (self._running < 2 or self._valid_states < 2) and time.monotonic() < deadline:
             time.sleep(0.05)
         return self.bridge_phase
 

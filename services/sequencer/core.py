@@ -177,6 +177,12 @@ class SequencerCore:
                 task_id="",
                 errors=[f"required service(s) not running: {', '.join(missing)}"],
             )
+        if self.start_configuration() is None and self.bridge_phase == "running":
+            return SubmitReply(
+                accepted=False,
+                task_id="",
+                errors=["no valid joint state from the arm yet; try again in a moment"],
+            )
         if self.bridge_phase != "running":
             seen = self.bridge_phase or "no state/bridge received yet"
             return SubmitReply(

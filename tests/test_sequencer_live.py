@@ -1,0 +1,167 @@
+"""The sequencer with the real services in real time: simulator (LiveSim on a python-can
+virtual bus), bridge, controller, planner and sequencer shells on a loopback router, and a
+supervisor in another process (examples/supervisor.py).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from manus.kinematics import fk
+from manus.node import Node
+from manus.session import ZenohSettings
+from schemas.control import GoalResult
+from schemas.sequencing import TaskEvent
+from schemas.state import JointState
+from services.can_bridge.shell import BridgeShell
+from services.controller.shell import ControllerShell
+from services.planner.shell import PlannerShell
+from services.sequencer.client import TaskClient
+from services.sequencer.shell import SequencerShell
+from services.sequencer.taskfile import parse_task_text
+from services.simulator.config import SimConfig
+from services.simulator.core import SimCore
+from services.simulator.live import LiveSim
+
+pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parent.parent
+FAST = SimConfig(start_pose="unfolded", gripper_ready_ms=60, angles_measured_ms=120)
+
+# 100 mm along y then back up in z, 6 s (via-point file columns, relative moves)
+SHORT = """[[step]]
+move = [
+  [0, 0, 0,    0, 0, 0,  0, 0, 0,  0, 0, 0,  0.0, 2],
+  [0, 50, 0,   0, 0, 0,  0, 0, 0,  0, 0, 0,  2.0, 2],
+  [0, 50, 0,   0, 0, 0,  0, 0, 0,  0, 0, 0,  4.0, 2],
+  [0, 0, 50,   0, 0, 0,  0, 0, 0,  0, 0, 0,  6.0, 2],
+]
+[[step]]
+gripper = 30
+"""
+
+
+def eventually(check: Callable[[], bool], timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not check():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.02)
+
+
+class LiveStack:
+    def __init__(self, settings: ZenohSettings) -> None:
+        channel = f"seq-{uuid.uuid4().hex}"
+        self.arm_bus = can.Bus(interface="virtual", channel=channel)
+        self.pc_bus = can.Bus(interface="virtual", channel=channel)
+        self.sim = LiveSim(SimCore(FAST), self.arm_bus)
+        self.bridge = BridgeShell(self.pc_bus, settings)
+        self.controller = ControllerShell(settings)
+        self.planner = PlannerShell(settings)
+        self.sequencer = SequencerShell(settings)
+        self.node = Node("test_supervisor", settings, liveliness=False)
+        self.client = TaskClient(self.node)
+        self.joints: list[tuple[float, JointState]] = []
+        self.results: list[GoalResult] = []
+        self.node.subscribe(self.node.keys.joints, JointState,
+                            lambda m, rx: self.joints.append((time.monotonic(), m)))  # fmt: skip
+        self.node.subscribe(self.node.keys.result, GoalResult,
+                            lambda m, rx: self.results.append(m))  # fmt: skip
+        self.bridge.start()
+        self.sim.start()
+        assert self.client.wait_for_arm(10.0) == "running"
+        eventually(lambda: not self.sequencer.core.missing_services())
+
+    def follow(self, task_id: str, timeout: float = 30.0) -> list[TaskEvent]:
+        got: list[TaskEvent] = []
+        assert self.client.follow(task_id, got.append, timeout=timeout) is not None, got
+        return got
+
+    def at_rest_since(self, seconds: float) -> bool:
+        now = time.monotonic()
+        recent = [m.position for t, m in list(self.joints) if t >= now - seconds]
+        return len(recent) >= 3 and all(p == recent[0] for p in recent)
+
+    def close(self) -> None:
+        self.node.close()
+        self.sequencer.close()
+        self.planner.close()
+        self.controller.close()
+        self.bridge.stop(timeout=3.0)
+        self.bridge.node.close()
+        self.sim.stop()
+        self.arm_bus.shutdown()
+        self.pc_bus.shutdown()
+
+
+@pytest.fixture
+def live(zenoh_settings: ZenohSettings) -> Iterator[LiveStack]:
+    stack = LiveStack(zenoh_settings)
+    try:
+        yield stack
+    finally:
+        stack.close()
+
+
+def names(events: list[TaskEvent]) -> list[str]:
+    return [e.event for e in events if e.event != "step_progress"]
+
+
+def test_cancel_mid_path_stops_the_real_arm(live: LiveStack) -> None:
+    reply = live.client.submit(parse_task_text(SHORT, source="short.toml"))
+    assert reply.accepted, reply.errors
+    eventually(lambda: live.sequencer.core._phase == "active")
+    time.sleep(1.5)
+    assert not live.at_rest_since(0.3)  # moving
+    assert live.client.control("cancel", reply.task_id).ok
+    events = live.follow(reply.task_id)
+    assert names(events)[-1] == "cancelled"
+    assert [r.status for r in live.results] == ["cancelled"]
+    eventually(lambda: live.at_rest_since(0.5), timeout=3.0)
+
+
+def test_pause_resume_with_the_real_controller(live: LiveStack) -> None:
+    task = parse_task_text(SHORT, source="short.toml")
+    first = [m for _, m in live.joints if m.valid][-1].position
+    reply = live.client.submit(task)
+    assert reply.accepted, reply.errors
+    eventually(lambda: live.sequencer.core._phase == "active")
+    time.sleep(2.5)
+    assert live.client.control("pause", reply.task_id).ok
+    eventually(lambda: live.client.control("status").state == "paused", timeout=5.0)
+    eventually(lambda: live.at_rest_since(0.5), timeout=3.0)
+    assert live.client.control("resume", reply.task_id).ok
+    events = live.follow(reply.task_id)
+    assert names(events) == ["accepted", "step_started", "paused", "resumed", "step_finished",
+                             "step_started", "step_finished", "succeeded"]  # fmt: skip
+    paths = [r for r in live.results if r.kind == "trajectory"]
+    assert [r.status for r in paths] == ["cancelled", "succeeded"]
+    # the arm ends where the uninterrupted path would have: start + (0, 100, 50) mm
+    last = live.joints[-1][1].position
+    moved = (fk(last)[:3, 3] - fk(first)[:3, 3]) * 1e3
+    assert np.allclose(moved, [0.0, 100.0, 50.0], atol=3.0)
+
+
+def test_supervisor_process_runs_a_task_on_the_real_stack(
+    live: LiveStack, router_endpoint: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "leg.txt"
+    path.write_text("0 0 0 0 0 0 0 0 0 0 0 0 0 2\n0 40 0 0 0 0 0 0 0 0 0 0 2.0 2\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", router_endpoint,
+         "--prefix", "test", str(path), "20"],
+        capture_output=True, text=True, timeout=60, env=env,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "alive: can_bridge, controller, planner, sequencer" in proc.stdout
+    assert proc.stdout.strip().endswith("event: succeeded step -1/2")
+    assert [r.status for r in live.results] == ["succeeded", "succeeded"]
