@@ -314,3 +314,34 @@ def test_bridge_state_reports_phase_every_cycle() -> None:
     assert [s.seq for s in states] == list(range(states[0].seq, states[0].seq + len(states)))
     assert all(s.phase == "running" and not s.estop for s in states)
     assert math.isclose(states[-1].period_ms, 60.0)
+
+
+def test_a_restarted_bridge_stops_the_arm_first_and_skips_the_power_up_wait() -> None:
+    from services.can_bridge.core import BridgeCore
+
+    ls = running()
+    ls.subscribe("state/joints", VelocityController((10.0, 0, 0, 0, 0, 0)))
+    ls.run_for(0.5)
+    assert moves(ls)[-1][1][1] == 2  # the arm is moving
+    ls.bridge = BridgeCore()  # the old process died; its last command stays latched
+    t0 = ls.t_ns
+    ls.bridge.start(t0)
+    ls.run_for(0.2)
+    after = [f for f in ls.bridge_frames if f.t_ns > t0]
+    assert after[0].id == FrameId.STOP  # the first sync stops the leftover motion
+    q = ls.sim.truth().q_true
+    ls.run_until_phase("running", timeout_s=2.0)  # joint mode reported: no power-up wait
+    assert phases(ls, t0)[-3:] == ["entering_joint_mode", "initialising", "running"]
+    assert abs(ls.sim.truth().q_true[0] - q[0]) < 0.01
+
+
+def test_power_up_timeout_when_the_messages_never_come() -> None:
+    from services.can_bridge.config import BridgeConfig
+
+    sim = SimConfig(start_pose="unfolded", gripper_ready_ms=900, angles_measured_ms=1000)
+    ls = LockStep(sim, BridgeConfig(power_up_timeout_ms=300))
+    ls.run_until_phase("entering_joint_mode", timeout_s=1.0)
+    assert ls.t_ns < 600 * MS
+    assert "no 'absolute angles measured' within 300 ms" in ls.bridge.detail
+    ls.run_until_phase("running", timeout_s=2.0)  # zeros are obeyed once the arm is ready
+    check_safety(ls)
