@@ -24,14 +24,10 @@ import math
 import numpy as np
 
 from manus.joint_map import dh_to_encoder
-from manus.kinematics import fk_position
-from manus.quantize import COUNT_RAD_S, counts_to_joint_rates
+from manus.quantize import COUNT_RAD_S
 from manus.trajectory import TrajectoryError
-from schemas.base import Message
-from schemas.commands import JointVelocityCommand
 from schemas.control import (
     CancelGoal,
-    ControllerFeedback,
     GoalAck,
     GoalResult,
     GripperGoal,
@@ -49,12 +45,12 @@ from services.controller.goals import (
     tolerances,
     trajectory_error,
 )
-from services.controller.gripper import GripperRun, gripper_command, gripper_speed
+from services.controller.gripper import GripperRun, gripper_command
+from services.controller.outbox import Outbox, Output
 from services.controller.reference import Reference
 from services.controller.tracking import Step, TrajectoryRun
 
-Output = list[tuple[str, Message]]
-"""(key suffix, message) pairs to publish, in order."""
+__all__ = ["STOPPING_PHASES", "ControllerCore", "Output"]
 
 STOPPING_PHASES = ("stopped", "estopped", "arm_error", "folding_in", "folding_out", "shutdown")
 """Bridge phases in which no goal can run: entering one aborts every goal."""
@@ -94,10 +90,8 @@ class ControllerCore:
         self.gripper: GripperRun | None = None
         self.last_counts = np.zeros(6, dtype=np.int64)
         """Motor increments of the last command sent, shape (6,)."""
-        self._queued: list[GoalResult] = []
-        self._cmd_seq = 0
-        self._fb_seq = 0
-        self._res_seq = 0
+        self.outbox = Outbox(cfg.arm)
+        """Message numbering and the results waiting for their stamp."""
 
     # -- requests --------------------------------------------------------------------------
 
@@ -340,7 +334,7 @@ class ControllerCore:
         final_error: float = 0.0,
         duration: float = 0.0,
     ) -> None:
-        self._queued.append(
+        self.outbox.queue(
             GoalResult(
                 stamp_ns=0,
                 seq=0,
@@ -356,12 +350,7 @@ class ControllerCore:
         )
 
     def _flush(self, stamp_ns: int) -> Output:
-        out: Output = []
-        for r in self._queued:
-            out.append(("controller/result", _restamp(r, stamp_ns, self._res_seq)))
-            self._res_seq += 1
-        self._queued.clear()
-        return out
+        return self.outbox.flush(stamp_ns)
 
     def _answer(
         self,
@@ -375,65 +364,17 @@ class ControllerCore:
         """The command, the feedback (while a goal ran this cycle) and queued results."""
         counts = np.asarray(counts, dtype=np.int64)
         self.last_counts = counts
-        velocity = counts_to_joint_rates(counts.astype(float))
-        cmd = JointVelocityCommand(
-            stamp_ns=js.stamp_ns,
-            seq=self._cmd_seq,
-            source="controller",
-            ref_seq=js.seq,
-            velocity=[float(v) for v in velocity],
-            gripper_velocity=gripper_speed(grip),
-            counts=[0, *(int(c) for c in counts), int(grip)],
-        )
-        self._cmd_seq += 1
+        cmd = self.outbox.command(js, counts, grip)
         out: Output = [("cmd/joint_velocity", cmd)]
         if step is not None or had_gripper:
-            out.append(("controller/feedback", self._feedback(js, step, run, velocity)))
+            fb = self.outbox.feedback(js, step, run, self.gripper, np.asarray(cmd.velocity))
+            out.append(("controller/feedback", fb))
         return out + self._flush(js.stamp_ns)
-
-    def _feedback(
-        self,
-        js: JointState,
-        step: Step | None,
-        run: TrajectoryRun | None,
-        velocity: np.ndarray,
-    ) -> ControllerFeedback:
-        q = np.asarray(js.position, dtype=float)
-        ref = step.reference.q if step is not None else q
-        goal_id = run.goal.goal_id if run is not None else ""
-        ref_xyz = fk_position(ref, self.config.arm)
-        act_xyz = fk_position(q, self.config.arm)
-        grip = self.gripper
-        fb = ControllerFeedback(
-            stamp_ns=js.stamp_ns,
-            seq=self._fb_seq,
-            goal_id=goal_id,
-            state=step.state if step is not None else "idle",
-            segment=step.segment if step is not None else -1,
-            t=run.tau if run is not None else 0.0,
-            reference=[float(v) for v in ref],
-            actual=[float(v) for v in q],
-            error=[float(v) for v in ref - q],
-            command=[float(v) for v in velocity],
-            reference_xyz=[float(v) for v in ref_xyz],
-            actual_xyz=[float(v) for v in act_xyz],
-            position_error=float(np.linalg.norm(ref_xyz - act_xyz)),
-            gripper_goal_id=grip.goal.goal_id if grip is not None else "",
-            gripper_target=grip.goal.opening if grip is not None else 0.0,
-            gripper=js.gripper,
-            speed_scale=run.scale if run is not None else 1.0,
-        )
-        self._fb_seq += 1
-        return fb
 
 
 def _motor_angles(js: JointState) -> np.ndarray:
     """Motor angles [rad] of a joint state's DH angles (the map of SPEC 2.2), shape (6,)."""
     return dh_to_encoder(np.asarray(js.position, dtype=float))
-
-
-def _restamp(r: GoalResult, stamp_ns: int, seq: int) -> GoalResult:
-    return dataclasses.replace(r, stamp_ns=stamp_ns, seq=seq)
 
 
 def _with_scale(goal: TrajectoryGoal, scale: float) -> TrajectoryGoal:

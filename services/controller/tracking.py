@@ -1,6 +1,6 @@
 """One trajectory goal being executed: time base, control law, via-point errors, verdicts.
 
-Two control laws (``TrajectoryGoal.mode``):
+Two control laws (``TrajectoryGoal.mode``; the laws themselves: :mod:`.laws`):
 
 - ``default``, built for the arm's interface. One global time base: trajectory time 0 is
   the moment the first command acts (the start snapshot + ``command_delay_ms``). The
@@ -32,23 +32,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder
-from manus.kinematics import fk_position, jacobian
+from manus.kinematics import fk_position
 from manus.quantize import (
     COUNT_RAD_S,
-    JOINT_COUNT_MAX,
-    ErrorFeedbackQuantizer,
     Quantizer,
-    RoundingQuantizer,
-    joint_rates_to_counts,
-    saturate,
 )
 from manus.trajectory import Sample
 from schemas.control import TrajectoryGoal
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
-from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
+from services.controller.estimator import DriveEstimator
 from services.controller.goals import violation
+from services.controller.laws import default_law, make_quantizer, thesis_law
 from services.controller.reference import Reference, rest_to_rest
 
 
@@ -69,47 +64,6 @@ class Step:
     segment: int
     state: str
     ended: tuple[str, str] | None = None
-
-
-_CORNERS = np.array([[(k >> j) & 1 for j in range(6)] for k in range(64)], dtype=float)
-"""Every floor/ceil choice of six joints, shape (64, 6)."""
-
-
-def cartesian_rounding(
-    wanted: np.ndarray,
-    miss: np.ndarray,
-    gain: float,
-    q_target: np.ndarray,
-    config: ControllerConfig,
-) -> np.ndarray:
-    """Round each joint up or down so that the gripper, not each joint, lands nearest.
-
-    Of the 64 floor/ceil choices, take the one whose predicted motor error at the end of
-    the command's cycle, mapped to the gripper through the Jacobian at the target, is
-    smallest (position in m, orientation weighted by ``rounding_rotation_m`` [m/rad]).
-
-    Args:
-        wanted: ideal float counts, shape (6,), within the range.
-        miss: predicted motor error at the cycle's end with zero counts [rad], shape (6,).
-        gain: motor angle one count adds by the cycle's end [rad].
-        q_target: DH target angles [rad], shape (6,).
-        config: controller settings.
-    """
-    lo = np.floor(wanted)
-    cand = np.clip(lo + _CORNERS, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
-    err_motor = miss + gain * cand  # (64, 6)
-    err_dh = err_motor @ M_ENCODER_TO_DH.T
-    J = jacobian(q_target, config.arm)
-    J[3:] *= config.rounding_rotation_m
-    cost = np.sum((err_dh @ J.T) ** 2, axis=1)
-    # Rounding a joint away from its own nearest count costs too (no wrist chatter).
-    cost += (config.rounding_joint_m * gain) ** 2 * np.sum((cand - wanted) ** 2, axis=1)
-    return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)
-
-
-def make_quantizer(name: str) -> Quantizer:
-    """The quantizer called ``name`` (``rounding`` or ``error_feedback``)."""
-    return ErrorFeedbackQuantizer() if name == "error_feedback" else RoundingQuantizer()
 
 
 @dataclass
@@ -248,50 +202,15 @@ class TrajectoryRun:
     def _default_law(
         self, q: np.ndarray, est: DriveEstimator, play: PlayModel | None
     ) -> np.ndarray:
-        cfg = self.config
-        period = cfg.cycle_s
-        tau_s = cfg.drive_tau_ms / 1000.0
         ref, tau = self.current_reference()
-        if cfg.delay_compensation and est.x is not None:
-            x1, v1 = est.predict(cfg.command_delay_ms / 1000.0)
-            q_target = ref.sample(tau + self.scale * period).q
-            target = dh_to_encoder(q_target)
-            if play is not None and play.active:
-                target = play.motor_target(target, x1)
-            u = deadbeat_speed(x1, v1, target, period, tau_s)
-            if self.end_ns is not None:
-                return self._hold(x1, v1, target, q_target)
-            if cfg.default_quantizer == "cartesian":
-                wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
-                gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
-                miss = x1 + v1 * lag_factor(tau_s, period) - target  # at zero counts
-                return cartesian_rounding(wanted, miss, gain, q_target, cfg)
-        else:
-            target = dh_to_encoder(ref.sample(self.tau + self.scale * period).q)
-            u = (target - dh_to_encoder(q)) / period
-        return self.quantizer(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
-
-    def _hold(
-        self, x1: np.ndarray, v1: np.ndarray, target: np.ndarray, q_target: np.ndarray
-    ) -> np.ndarray:
-        """Holding the end: one-cycle pulses between rests, so no limit cycle.
-
-        With zero from now on the motors would rest at x1 + v1 tau; a pulse of n counts
-        for one cycle moves a motor n x 0.3 deg further once its transient has died out.
-        Choose the pulses (Cartesian-aware) that bring that rest nearest the target: at
-        the optimum the best pulse is zero, and the arm stays.
-        """
-        cfg = self.config
-        rest = x1 + v1 * (cfg.drive_tau_ms / 1000.0)
-        gain = cfg.cycle_s * COUNT_RAD_S
-        wanted = np.clip((target - rest) / gain, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
-        return cartesian_rounding(wanted, rest - target, gain, q_target, cfg)
+        holding = self.end_ns is not None
+        return default_law(
+            self.config, ref, (tau, self.tau), self.scale, q, est, play, self.quantizer, holding
+        )
 
     def _thesis_law(self, q: np.ndarray) -> np.ndarray:
         ref, tau = self.current_reference()
-        s = ref.sample(tau)
-        qdot = s.qd * self.scale + self.config.thesis_gain * (s.q - q)
-        return RoundingQuantizer()(saturate(joint_rates_to_counts(qdot)))
+        return thesis_law(self.config, ref, tau, self.scale, q)
 
     def _decelerate(self, last: np.ndarray) -> Step:
         step = self.config.cancel_decel * self.config.cycle_s / COUNT_RAD_S

@@ -1,0 +1,105 @@
+"""What the controller publishes: commands, feedback and results, numbered per stream.
+
+Results are queued where a goal ends (a request, a status, a joint state) and published
+with the stamp of the message that is being answered when they leave
+(:meth:`Outbox.flush`), so every output carries a time taken from the inputs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from manus.config import ArmConfig
+from manus.kinematics import fk_position
+from manus.quantize import counts_to_joint_rates
+from schemas.base import Message
+from schemas.commands import JointVelocityCommand
+from schemas.control import ControllerFeedback, GoalResult
+from schemas.state import JointState
+from services.controller.gripper import GripperRun, gripper_speed
+from services.controller.tracking import Step, TrajectoryRun
+
+Output = list[tuple[str, Message]]
+"""(key suffix, message) pairs to publish, in order."""
+
+
+class Outbox:
+    """Builds and numbers the controller's messages.
+
+    Args:
+        arm: the arm model (gripper positions in the feedback).
+    """
+
+    def __init__(self, arm: ArmConfig) -> None:
+        self.arm = arm
+        self._queued: list[GoalResult] = []
+        self._cmd_seq = 0
+        self._fb_seq = 0
+        self._res_seq = 0
+
+    def queue(self, result: GoalResult) -> None:
+        """A result to publish with the next :meth:`flush`."""
+        self._queued.append(result)
+
+    def flush(self, stamp_ns: int) -> Output:
+        """The queued results, stamped ``stamp_ns`` [ns] and numbered."""
+        out: Output = []
+        for r in self._queued:
+            out.append(
+                ("controller/result", dataclasses.replace(r, stamp_ns=stamp_ns, seq=self._res_seq))
+            )
+            self._res_seq += 1
+        self._queued.clear()
+        return out
+
+    def command(self, js: JointState, counts: np.ndarray, grip: int) -> JointVelocityCommand:
+        """The command answering ``js``: motor ``counts`` (6,) and gripper ``grip`` counts."""
+        velocity = counts_to_joint_rates(counts.astype(float))
+        cmd = JointVelocityCommand(
+            stamp_ns=js.stamp_ns,
+            seq=self._cmd_seq,
+            source="controller",
+            ref_seq=js.seq,
+            velocity=[float(v) for v in velocity],
+            gripper_velocity=gripper_speed(grip),
+            counts=[0, *(int(c) for c in counts), int(grip)],
+        )
+        self._cmd_seq += 1
+        return cmd
+
+    def feedback(
+        self,
+        js: JointState,
+        step: Step | None,
+        run: TrajectoryRun | None,
+        grip: GripperRun | None,
+        velocity: np.ndarray,
+    ) -> ControllerFeedback:
+        """One cycle's reference vs actual (``velocity``: the commanded DH rates [rad/s])."""
+        q = np.asarray(js.position, dtype=float)
+        ref = step.reference.q if step is not None else q
+        ref_xyz = fk_position(ref, self.arm)
+        act_xyz = fk_position(q, self.arm)
+        fb = ControllerFeedback(
+            stamp_ns=js.stamp_ns,
+            seq=self._fb_seq,
+            goal_id=run.goal.goal_id if run is not None else "",
+            state=step.state if step is not None else "idle",
+            segment=step.segment if step is not None else -1,
+            t=run.tau if run is not None else 0.0,
+            reference=[float(v) for v in ref],
+            actual=[float(v) for v in q],
+            error=[float(v) for v in ref - q],
+            command=[float(v) for v in velocity],
+            reference_xyz=[float(v) for v in ref_xyz],
+            actual_xyz=[float(v) for v in act_xyz],
+            position_error=float(np.linalg.norm(ref_xyz - act_xyz)),
+            gripper_goal_id=grip.goal.goal_id if grip is not None else "",
+            gripper_target=grip.goal.opening if grip is not None else 0.0,
+            gripper=js.gripper,
+            speed_scale=run.scale if run is not None else 1.0,
+        )
+        self._fb_seq += 1
+        return fb
