@@ -24,10 +24,23 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.mark.timeout(240)
 def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    cmd = [sys.executable, "-m", "manus_stack.cli", "demo", "square", "--plain",
-           "--endpoint", endpoint, "--prefix", "demotest", "--run-dir", str(tmp_path)]  # fmt: skip
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=220, cwd=ROOT,
-                          env=dict(os.environ))  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "manus_stack.cli",
+        "demo",
+        "square",
+        "--plain",
+        "--endpoint",
+        endpoint,
+        "--prefix",
+        "demotest",
+        "--run-dir",
+        str(tmp_path),
+    ]
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=220, cwd=ROOT, env=dict(os.environ)
+    )
     out = proc.stdout
     assert proc.returncode == 0, out + proc.stderr
     assert "step 5/5 fold_in: step_finished" in out
@@ -46,6 +59,15 @@ def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
     with recording.open("rb") as f:
         reader = make_reader(f)
         topics = {channel.topic for _, channel, _ in reader.iter_messages()}
-    assert {"demotest/state/joints", "demotest/controller/result",
-            "demotest/sequencer/events"} <= topics  # fmt: skip
+    assert {
+        "demotest/state/joints",
+        "demotest/controller/result",
+        "demotest/sequencer/events",
+    } <= topics
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and plot.stat().st_size > 20_000
+    # the recorder's plot reads the recording back and finds the same errors
+    overview = re.search(
+        r"^overview: (\S+) \(from the recording: 1 path\(s\), mean (\d+\.\d+)", out, re.MULTILINE
+    )
+    assert overview is not None and Path(overview.group(1)).exists()
+    assert float(overview.group(2)) == pytest.approx(mean, abs=0.01)

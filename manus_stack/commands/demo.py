@@ -5,7 +5,8 @@ controller, sequencer, recorder), then runs one task through the sequencer: fold
 the thesis path in real time, close and open the gripper, fold in; with a progress bar.
 Then stops the stack (the recording is closed), prints the via-point errors (mean, max,
 per via point) next to the thesis's figures, writes a PNG (planned vs executed path in
-the yz plane, error over time), and prints ``recording: PATH`` and ``plot: PATH``.
+the yz plane, error over time), and prints ``recording: PATH`` and ``plot: PATH`` (and
+``overview: PATH``, the recorder's four-panel plot read back from the recording).
 Exits 0 when the task succeeded, 1 otherwise (with the reason).
 
 When ``manus record`` is not installed the demo records the bus itself (same MCAP
@@ -133,6 +134,23 @@ class _LocalRecorder:
             self._writer.close()
 
 
+def _overview(recording: Path, out: Path, title: str) -> None:
+    """The recorder's four-panel plot of the whole recording (``manus plot``), read back
+    from the MCAP: path, joints, increments, via-point table."""
+    from services.recorder.errors import RecordingError
+    from services.recorder.plot import plot_recording
+
+    try:
+        summary = plot_recording(recording, out, title=title)
+    except RecordingError as exc:
+        print(f"demo: cannot plot the recording: {exc}", file=sys.stderr)
+        return
+    print(
+        f"overview: {summary.output} (from the recording: {summary.goals} path(s), "
+        f"mean {summary.mean_mm:.2f} mm, max {summary.max_mm:.2f} mm)"
+    )
+
+
 def _report(
     shape: str,
     collected: Collected,
@@ -164,6 +182,7 @@ def _report(
         print("demo: no trajectory result was heard: no error table, no plot", file=sys.stderr)
     if recording.exists():
         print(f"recording: {recording}")
+        _overview(recording, run_dir / "overview.png", f"manus demo {shape}")
     if result is not None:
         print(f"plot: {plot}")
     if final is None:
