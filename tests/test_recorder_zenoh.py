@@ -29,7 +29,7 @@ from services.controller.shell import ControllerShell
 from services.planner.shell import PlannerShell
 from services.recorder.reading import Recording, decode
 from services.recorder.recover import recover
-from services.recorder.replay import Replayer, schedule
+from services.recorder.replay import Replayer, matching, schedule
 from services.recorder.shell import RecorderShell
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -168,7 +168,7 @@ def _publish(settings: ZenohSettings, count: int) -> None:
         pub = node.session.declare_publisher(
             node.keys.estop, congestion_control=zenoh.CongestionControl.BLOCK
         )
-        eventually(lambda: pub.matching_status, what="the recorder subscribed")
+        eventually(lambda: matching(pub), what="the recorder subscribed")
         for i in range(count):
             msg = EStop(stamp_ns=i + 1, seq=i, engaged=False, source="test")
             pub.put(msg.encode())

@@ -32,6 +32,12 @@ SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
 """Key suffixes each service publishes (schemas/keys.py, the publisher column)."""
 
 
+def matching(pub: zenoh.Publisher) -> bool:
+    """Whether ``pub`` has a subscriber now (zenoh returns a ``MatchingStatus`` object,
+    always truthy, whatever its stub says)."""
+    return bool(getattr(pub.matching_status, "matching", False))
+
+
 @dataclass(frozen=True)
 class Scheduled:
     """One message to replay.
@@ -135,7 +141,7 @@ class Replayer:
         (subscriptions take a moment to reach the router). True when all matched."""
         pubs = [self._publisher(s) for s in suffixes]
         deadline = time.monotonic() + timeout
-        while not all(p.matching_status for p in pubs):
+        while not all(matching(p) for p in pubs):
             if time.monotonic() > deadline:
                 return False
             time.sleep(0.01)
