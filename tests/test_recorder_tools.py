@@ -78,6 +78,15 @@ def test_candump_export_round_trips_through_python_can(tmp_path: Path) -> None:
     assert {m.arbitration_id for m in read} >= {0x350, 0x360, 0x37F, 0x374}
 
 
+def test_export_info_describes_the_recording(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["export", str(SQUARE), "--info"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["prefix"] == "manus" and info["source"].startswith("lockstep thesis_square")
+    assert info["channels"]["state/joints"]["type"] == "manus/JointState/1"
+    assert info["messages"] == sum(c["messages"] for c in info["channels"].values())
+    assert 20.0 < info["duration_s"] < 30.0
+
+
 def test_candump_export_needs_can_channels(tmp_path: Path) -> None:
     empty = tmp_path / "nocan.mcap"
     RecordingWriter(empty).close()

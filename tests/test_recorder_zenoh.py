@@ -21,6 +21,7 @@ from manus.config import UNFOLDED_Q_DEG
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
 from manus.viapoints import load_path
+from manus_stack.cli import main
 from manus_stack.regression import check_planner
 from schemas.commands import EStop
 from schemas.control import GoalAck, TrajectoryGoal
@@ -210,3 +211,28 @@ def test_manus_record_process_stops_cleanly_and_survives_kill(
     assert stats.messages == rescued.info.messages == 100
     assert Counter(r.suffix for r in rescued.messages()) == {"estop": 100}
     assert [decode(r).seq for r in rescued.messages()] == list(range(100))  # type: ignore[attr-defined]
+
+
+def test_manus_replay_command_publishes_the_selection(
+    router_endpoint: str, zenoh_settings: ZenohSettings, tmp_path: Path
+) -> None:
+    out = tmp_path / "replayed.mcap"
+    want = [r.payload for r in Recording(SQUARE).messages(["state/joints"])]
+    total = len(schedule(Recording(SQUARE), ["state/**"], "can_bridge"))
+    with RecorderShell(zenoh_settings, out) as recorder:
+        with Node("probe", zenoh_settings, liveliness=False) as probe:
+            pub = probe.session.declare_publisher(probe.keys.joints)
+            eventually(lambda: matching(pub), what="the recorder subscribed")
+            pub.undeclare()
+        args = ["replay", str(SQUARE), "--max", "--only", "state/**", "--as", "can_bridge"]
+        assert main([*args, "--connect", router_endpoint, "--prefix", "test"]) == 0
+        eventually(lambda: recorder.recorded >= total, what="replayed state")
+    got = Recording(out)
+    assert {c.suffix for c in got.info.channels.values()} == {
+        "state/joints",
+        "state/status",
+        "state/bridge",
+    }
+    assert got.info.messages == total
+    assert [r.payload for r in got.messages(["state/joints"])] == want
+    assert main(["replay", str(SQUARE), "--only", "no/such/key"]) == 1
