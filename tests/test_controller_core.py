@@ -225,11 +225,12 @@ def test_arm_error_stops_and_aborts_with_the_arms_message() -> None:
 
 
 @pytest.mark.parametrize("kind", ["seq", "stamp"])
-def test_joint_state_gap_stops_with_zeros(kind: str) -> None:
+def test_short_joint_state_gap_stops_for_a_cycle_then_resumes(kind: str) -> None:
     plant = _plant()
     plant.core.submit(_goal())
     plant.run(10)
     assert any(plant.commands[-1].counts or [])
+    tau_before = plant.core.run.tau if plant.core.run else 0.0
     if kind == "seq":
         plant.cycle(seq_step=2)  # the next state skips a seq
     else:
@@ -237,8 +238,26 @@ def test_joint_state_gap_stops_with_zeros(kind: str) -> None:
     plant.cycle()
     cmd = plant.commands[-1]
     assert cmd.counts == [0] * 8 and cmd.ref_seq == plant.states[-1].seq
-    result = plant.results[-1]
-    assert result.status == "aborted" and "joint states interrupted" in result.reason
+    run = plant.core.run
+    waited = tau_before + (0.06 if kind == "seq" else 0.0)  # nothing added over the gap
+    assert run is not None and run.tau == pytest.approx(waited)
+    result = plant.run_until_result("g")
+    assert result.status == "succeeded", result.reason
+
+
+def test_long_joint_state_outage_aborts_with_zeros() -> None:
+    plant = _plant()
+    plant.core.submit(_goal())
+    plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=0.06))
+    plant.run(10)
+    for _ in range(6):
+        plant.cycle(skip=True)
+    plant.cycle()
+    assert plant.commands[-1].counts == [0] * 8
+    reasons = {r.goal_id: (r.status, r.reason) for r in plant.results}
+    assert reasons["g"][0] == "aborted" and "joint states interrupted" in reasons["g"][1]
+    assert "max_outage_ms 300 ms" in reasons["g"][1]
+    assert reasons["grip"][0] == "aborted"
 
 
 def test_old_or_duplicate_state_is_not_answered() -> None:

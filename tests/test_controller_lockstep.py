@@ -184,16 +184,31 @@ def test_gripper_and_arm_goals_run_together() -> None:
     assert {r.goal_id: r.status for r in arm.results()} == {"arm": "succeeded", "grip": "succeeded"}
 
 
-def test_stale_joint_state_gives_zeros_and_stops() -> None:
+def test_stale_joint_state_gives_zeros_and_a_long_outage_stops() -> None:
     arm, js = _arm()
     arm.submit(TrajectoryGoal(goal_id="s", trajectory=_move(js, (20, 0, 0, 0, 0, 0), 2.0)))
     arm.ls.run_for(0.8)
     assert any(_commands(arm)[-1].counts or [])
-    arm.ls.sim.add_fault(Silence(start_ms=_now_ms(arm), duration_ms=150.0))
-    result = arm.run_until_result("s", timeout_s=3.0)
-    assert result.status == "aborted" and "interrupted" in result.reason
-    commands = _commands(arm)
-    last = next(c for c in reversed(commands) if c.ref_seq == result_seq(arm, result.stamp_ns))
+    n = len(_commands(arm))
+    # The arm falls silent for two cycles: the first state after it is answered with zeros
+    # and the trajectory's time waits; the goal then finishes.
+    arm.ls.sim.add_fault(Silence(start_ms=_now_ms(arm), duration_ms=100.0))
+    result = arm.run_until_result("s", timeout_s=6.0)
+    assert result.status == "succeeded", result.reason
+    after_gap = [c for c in _commands(arm)[n:] if c.ref_seq >= 0]
+    assert after_gap[0].counts == [0] * 8
+    assert result.duration > 2.0
+    # A silence of half a second aborts the next goal and stops the arm.
+    now = arm.core.last_js
+    assert now is not None
+    arm.submit(TrajectoryGoal(goal_id="t", trajectory=_move(now, (-20, 0, 0, 0, 0, 0), 2.0)))
+    arm.ls.run_for(0.6)
+    arm.ls.sim.add_fault(Silence(start_ms=_now_ms(arm), duration_ms=500.0))
+    aborted = arm.run_until_result("t", timeout_s=3.0)
+    assert aborted.status == "aborted" and "interrupted" in aborted.reason
+    last = next(
+        c for c in reversed(_commands(arm)) if c.ref_seq == result_seq(arm, aborted.stamp_ns)
+    )
     assert last.counts == [0] * 8
     arm.ls.run_for(0.5)
     assert np.max(np.abs(arm.ls.sim.state.speed_deg_s)) < 0.1

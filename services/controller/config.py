@@ -54,7 +54,10 @@ class ControllerConfig:
         splice_blend_s: a replacing trajectory absorbs the difference of position,
             velocity and acceleration at the splice over this time [s] (at most its
             own duration, at least one cycle).
-        max_stamp_gap_ms: joint states further apart than this are a gap: stop [ms].
+        max_stamp_gap_ms: joint states further apart than this are a gap: answered
+            with zeros, the trajectory's time waits [ms].
+        max_outage_ms: a gap with more than this missing (stamps, or seq jumps times
+            the cycle) aborts every goal [ms].
         gripper_gain: gripper loop: commanded opening speed per error, after the
             delay compensation [1/s].
         delay_compensation: default mode: predict the motor angles at the time the
@@ -94,6 +97,7 @@ class ControllerConfig:
     speed_scale_rate: float = 2.0
     splice_blend_s: float = 1.0
     max_stamp_gap_ms: float = 90.0
+    max_outage_ms: float = 300.0
     gripper_gain: float = 1.0 / 0.06
     delay_compensation: bool = True
     observer: bool = True
@@ -118,6 +122,7 @@ class ControllerConfig:
         _check("speed_scale_rate", self.speed_scale_rate, 1e-3, 1e3)
         _check("splice_blend_s", self.splice_blend_s, 0.0, 60.0)
         _check("max_stamp_gap_ms", self.max_stamp_gap_ms, self.cycle_ms, 10_000.0)
+        _check("max_outage_ms", self.max_outage_ms, 0.0, 60_000.0)
         _check("gripper_gain", self.gripper_gain, 0.0, 1000.0)
         _check("rounding_rotation_m", self.rounding_rotation_m, 0.0, 10.0)
         _check("rounding_joint_m", self.rounding_joint_m, 0.0, 10.0)

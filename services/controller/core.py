@@ -8,10 +8,11 @@ Contract (docs/architecture.md, Time; the team brief's contract 4):
 - A trajectory goal starts at the next joint state; each accepted goal (trajectory or
   gripper) ends with exactly one ``controller/result``.
 - Stops: an error reported by the arm aborts every goal with the arm's message, and so
-  does the bridge leaving ``running`` (stop, e-stop, arm error, fold); a gap in
-  the joint states (a ``seq`` jump or a stamp gap over ``max_stamp_gap_ms``), an invalid
-  state or a mode other than joint mode aborts them and commands zeros (no
-  extrapolation). A cancel decelerates at ``cancel_decel`` to rest, then reports.
+  does the bridge leaving ``running`` (stop, e-stop, arm error, fold), an invalid state
+  or a mode other than joint mode. A gap in the joint states (a ``seq`` jump or a stamp
+  gap over ``max_stamp_gap_ms``) is answered with zeros (nothing is extrapolated) and
+  the running trajectory's time waits over it; a gap longer than ``max_outage_ms``
+  aborts every goal. A cancel decelerates at ``cancel_decel`` to rest, then reports.
 - Time comes only from the messages' stamps; no clock, no randomness: replaying the same
   messages gives the same commands, bit for bit.
 """
@@ -36,7 +37,7 @@ from schemas.control import (
 )
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
-from services.controller.config import ControllerConfig
+from services.controller.config import MS, ControllerConfig
 from services.controller.estimator import DriveEstimator
 from services.controller.goals import (
     GoalRefusedError,
@@ -217,10 +218,11 @@ class ControllerCore:
             self.joints.reset()
             self.grip.reset()
             self.play.reset()
-            if gap and last is not None:
+            if gap and last is not None and self._outage(js, last) > cfg.max_outage_ms * MS:
                 self._abort_all(
                     f"joint states interrupted: seq {js.seq} after {last.seq}, "
-                    f"{(js.stamp_ns - last.stamp_ns) / 1e6:.0f} ms apart (stopped)"
+                    f"{(js.stamp_ns - last.stamp_ns) / 1e6:.0f} ms apart, more than "
+                    f"max_outage_ms {cfg.max_outage_ms:g} ms (stopped)"
                 )
             if not usable:
                 self._abort_all(f"joint state not usable (valid={js.valid}, mode {js.mode})")
@@ -241,13 +243,24 @@ class ControllerCore:
         step: Step | None = None
         run = self.run
         if run is not None:
+            if gap:
+                run.pause(snap)  # the reference waits for the arm over the gap
             step = run.step(snap, q, self.joints, self.last_counts, self.play)
             if step.ended is not None:
                 self._end_run(run, *step.ended)
         had_gripper = self.gripper is not None
         grip = self._gripper_cycle(js, snap)
         counts = step.counts if step is not None else np.zeros(6, dtype=np.int64)
+        if gap:  # stop for this cycle: nothing is known of the cycle(s) missed
+            counts, grip = np.zeros(6, dtype=np.int64), 0
         return self._answer(js, counts, grip, step, run, had_gripper)
+
+    def _outage(self, js: JointState, last: JointState) -> int:
+        """How long the joint states were missing [ns] (0: none)."""
+        cycle = self.config.cycle_ns
+        by_stamp = js.stamp_ns - last.stamp_ns - cycle
+        by_seq = (js.seq - last.seq - 1) * cycle
+        return max(0, by_stamp, by_seq)
 
     # -- internals -------------------------------------------------------------------------
 

@@ -145,6 +145,11 @@ class TrajectoryRun:
         ref, tau = self.current_reference()
         return ref, tau + self.scale * (snap_ns - self.last_ns) / 1e9
 
+    def pause(self, snap_ns: int) -> None:
+        """The joint states stopped until ``snap_ns`` [ns]: the time base does not advance
+        over the gap (the arm was stopped), so the reference resumes where it was."""
+        self.last_ns = snap_ns
+
     # -- one cycle -----------------------------------------------------------------------
 
     def step(
