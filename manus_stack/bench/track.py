@@ -17,7 +17,8 @@ the arm already is, excluded):
 ``variants`` measures the default mode with one of its ideas switched off (the choices
 behind it), or with the belt play compensated (its widths taken as calibrated: the
 simulator's); ``seeds`` repeats both modes on other simulator seeds (the drives' gain
-errors differ).
+errors differ); ``dropped_frames_1pct`` loses 1 % of the arm's frames (the controller
+answers each gap with zeros and lets the trajectory's time wait).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from manus_stack.controlled import ControlledArm
 from schemas.control import TrajectoryGoal
 from services.controller.config import ControllerConfig
 from services.simulator.config import SimConfig
+from services.simulator.faults import FaultConfig, FrameFault
 
 PATHS = FilePath(__file__).resolve().parents[2] / "paths"
 TRUTH_STEP_S = 0.010
@@ -46,14 +48,21 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "backlash_compensation": {"backlash_deg": SimConfig().backlash_deg},
 }
 """Default-mode variants: name -> ControllerConfig overrides."""
+DROPS = FaultConfig(frames=(FrameFault(kind="drop", rate=0.01, start_ms=2000.0),))
+"""1 % of the arm's frames lost from 2 s on (each costs the bridge a resync)."""
 
 
 def track(
-    path: str, mode: str, config: ControllerConfig | None = None, seed: int = 0
+    path: str,
+    mode: str,
+    config: ControllerConfig | None = None,
+    seed: int = 0,
+    faults: FaultConfig | None = None,
 ) -> dict[str, Any]:
     """Run one path (``square`` or ``circle``) in one mode; its figures."""
     started = time.process_time()
-    arm = ControlledArm(SimConfig(start_pose="unfolded", seed=seed), config)
+    sim = SimConfig(start_pose="unfolded", seed=seed, faults=faults or FaultConfig())
+    arm = ControlledArm(sim, config)
     arm.start()
     trajectory = arm.plan(PATHS / f"thesis_{path}.txt")
     goal = TrajectoryGoal(goal_id=f"{path}-{mode}", trajectory=trajectory, mode=mode)
@@ -62,12 +71,16 @@ def track(
         raise RuntimeError(f"{goal.goal_id} refused: {ack.reason}")
     stamps: list[int] = []
     xyz: list[list[float]] = []
-    limit = arm.ls.t_ns + round((trajectory.times[-1] + goal.goal_time_tolerance + 5.0) * 1e9)
+    started_ns = arm.ls.t_ns
+    duration = trajectory.times[-1]
+    limit = arm.ls.t_ns + round((2.0 * duration + goal.goal_time_tolerance + 5.0) * 1e9)
     while not arm.results(goal.goal_id) and arm.ls.t_ns < limit:
         arm.ls.run_for(TRUTH_STEP_S)
         truth = arm.ls.sim.truth()
         stamps.append(truth.stamp_ns)
         xyz.append(truth.xyz)
+    if not arm.results(goal.goal_id):
+        raise RuntimeError(f"{goal.goal_id}: no result within {(limit - started_ns) / 1e9:.0f} s")
     result = arm.results(goal.goal_id)[0]
     vias = np.asarray(trajectory.via_xyz, dtype=float)[1:]
     at = np.asarray(result.via_stamps[1:], dtype=float)
@@ -107,6 +120,9 @@ def run(quick: bool = False) -> dict[str, Any]:
                 name: _summary(track(path, "default", ControllerConfig(**changes)))
                 for name, changes in VARIANTS.items()
             }
+            entry["dropped_frames_1pct"] = {
+                mode: _summary(track(path, mode, faults=DROPS)) for mode in ("default", "thesis")
+            }
             entry["seeds"] = {
                 mode: [_summary(track(path, mode, seed=seed)) for seed in range(1, 4)]
                 for mode in ("default", "thesis")
@@ -124,5 +140,5 @@ def run(quick: bool = False) -> dict[str, Any]:
 
 
 def _summary(figures: dict[str, Any]) -> dict[str, Any]:
-    keys = ("mean_mm", "max_mm", "true_mean_mm", "true_max_mm", "status")
+    keys = ("mean_mm", "max_mm", "true_mean_mm", "true_max_mm", "status", "duration_s")
     return {k: figures[k] for k in keys}

@@ -147,8 +147,10 @@ class TrajectoryRun:
 
     def pause(self, snap_ns: int) -> None:
         """The joint states stopped until ``snap_ns`` [ns]: the time base does not advance
-        over the gap (the arm was stopped), so the reference resumes where it was."""
+        over the gap (the arm was stopped), so the reference resumes where it was, from
+        rest: its speed scale ramps back up at ``speed_scale_rate``."""
         self.last_ns = snap_ns
+        self.scale = 0.0
 
     # -- one cycle -----------------------------------------------------------------------
 
