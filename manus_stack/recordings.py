@@ -11,6 +11,8 @@ Regenerate the files after a deliberate change of a core's behaviour::
 
     .venv/bin/python -m manus_stack.recordings            # writes tests/data/*.mcap
 
+(the thesis square and circle in the default mode, and the square in the thesis mode)
+
 then check the change in the plots (``manus plot tests/data/thesis_square.mcap``).
 """
 
@@ -35,6 +37,12 @@ ROOT = Path(__file__).resolve().parents[1]
 PATHS = ROOT / "paths"
 DATA = ROOT / "tests" / "data"
 SHAPES = ("square", "circle")
+RECORDINGS: dict[str, tuple[str, str]] = {
+    "thesis_square": ("square", "default"),
+    "thesis_circle": ("circle", "default"),
+    "thesis_square_thesis_mode": ("square", "thesis"),
+}
+"""The files of ``tests/data``: name -> (thesis path, controller mode)."""
 CYCLE_S = 0.06
 AFTER_S = 0.5
 """Simulated time recorded after the goal's result [s]."""
@@ -133,16 +141,19 @@ def record_thesis_runs(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Regenerate ``tests/data/thesis_<shape>.mcap`` (or into ``--out``)."""
+    """Regenerate the files of :data:`RECORDINGS` in ``tests/data`` (or ``--out``)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=DATA, help="directory (default tests/data)")
-    parser.add_argument("shapes", nargs="*", metavar="SHAPE", help="square, circle (default both)")
+    parser.add_argument(
+        "names", nargs="*", metavar="NAME", help=f"{', '.join(RECORDINGS)} (default: all)"
+    )
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    for shape in args.shapes or SHAPES:
-        if shape not in SHAPES:
-            parser.error(f"shape {shape!r} is not one of {list(SHAPES)}")
-        run = record_thesis_run(shape, args.out / f"thesis_{shape}.mcap")
+    for name in args.names or RECORDINGS:
+        if name not in RECORDINGS:
+            parser.error(f"recording {name!r} is not one of {list(RECORDINGS)}")
+        shape, mode = RECORDINGS[name]
+        run = record_thesis_run(shape, args.out / f"{name}.mcap", mode=mode)
         size = run.output.stat().st_size
         sys.stdout.write(
             f"{run.output}: {run.messages} messages, {size / 1024:.0f} KiB, "

@@ -33,6 +33,7 @@ from services.recorder.writer import RecordingWriter
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
 CIRCLE = DATA / "thesis_circle.mcap"
+SQUARE_THESIS = DATA / "thesis_square_thesis_mode.mcap"
 REGENERATE = "python -m manus_stack.recordings, then look at manus plot tests/data/*.mcap"
 
 
@@ -115,7 +116,9 @@ def test_plot_of_a_recording_without_arm_data_is_refused(tmp_path: Path) -> None
     assert main(["plot", str(empty)]) == 1
 
 
-@pytest.mark.parametrize("path", [SQUARE, CIRCLE], ids=["square", "circle"])
+@pytest.mark.parametrize(
+    "path", [SQUARE, CIRCLE, SQUARE_THESIS], ids=["square", "circle", "thesis"]
+)
 def test_controller_core_reproduces_the_recorded_run_bit_for_bit(path: Path) -> None:
     result = check_controller(path)
     assert result.ok, f"{result.difference} (if the controller changed on purpose: {REGENERATE})"
