@@ -39,6 +39,10 @@ LIVELINESS = {
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
+NICE = {"planner": 5, "sequencer": 5, "record": 5}
+"""Niceness of the services off the 60 ms loop: the simulator, bridge, controller and
+router keep the CPU first when the machine is busy (a late joint state stops a path)."""
+
 
 class StackError(ManusError):
     """The stack could not be brought up (names the service and its log)."""
@@ -144,8 +148,14 @@ class LocalStack:
         log = logs / f"{name}.log"
         stream = log.open("wb")
         argv = [sys.executable, "-m", "manus_stack.cli", name, *args]
+        nice = NICE.get(name, 0)
         proc = subprocess.Popen(
-            argv, stdout=stream, stderr=subprocess.STDOUT, env=self._env(), start_new_session=True
+            argv,
+            stdout=stream,
+            stderr=subprocess.STDOUT,
+            env=self._env(),
+            start_new_session=True,
+            preexec_fn=(lambda: os.nice(nice)) if nice else None,  # noqa: PLW1509 (no threads yet)
         )
         child = Child(name, argv, log, proc, stream)
         self.children.append(child)
