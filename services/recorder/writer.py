@@ -191,20 +191,15 @@ class RecordingWriter:
             stamp = publish_time_ns if publish_time_ns is not None else log_time_ns
         self._add(key, payload, log_time_ns, stamp)
 
-    def write(self, key_or_suffix: str, msg: Message, log_time_ns: int) -> None:
+    def write(self, suffix: str, msg: Message, log_time_ns: int) -> None:
         """Record a message directly (no bus): lock-step runs, tests, tools.
 
         Args:
-            key_or_suffix: a key suffix such as ``state/joints`` (prefixed here) or a full
-                key under the prefix.
+            suffix: the key after the prefix, such as ``state/joints``.
             msg: the message (encoded here as it would travel).
             log_time_ns: the time it was published [ns] (simulated time in lock-step).
         """
-        key = (
-            key_or_suffix
-            if key_or_suffix.startswith(self.keys.prefix + "/")
-            else self.keys(key_or_suffix)
-        )
+        key = self.keys(suffix)
         stamp = getattr(msg, "stamp_ns", None)
         self._add(key, msg.encode(), log_time_ns, stamp if isinstance(stamp, int) else log_time_ns)
 
