@@ -4,8 +4,10 @@ liveliness, stops all of them (and only them) cleanly."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import psutil
@@ -17,29 +19,56 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.slow
-def test_manus_up_starts_and_stops_the_stack(tmp_path: Path) -> None:
+def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    cmd = [sys.executable, "-m", "manus_stack.cli", "up", "--endpoint", endpoint,
-           "--prefix", "uptest", "--run-dir", str(tmp_path), "--duration", "1"]  # fmt: skip
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT,
-                          env=dict(os.environ))  # fmt: skip
-    out = proc.stdout
-    assert proc.returncode == 0, out + proc.stderr
+    cmd = [
+        sys.executable,
+        "-m",
+        "manus_stack.cli",
+        "up",
+        "--endpoint",
+        endpoint,
+        "--prefix",
+        "uptest",
+        "--run-dir",
+        str(tmp_path),
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+        env=dict(os.environ),
+    )
+    try:
+        assert proc.stdout is not None
+        lines: list[str] = []
+        deadline = time.monotonic() + 60.0
+        while not any(line.startswith("up: every service is alive") for line in lines):
+            assert time.monotonic() < deadline and proc.poll() is None, lines
+            lines.append(proc.stdout.readline())
+        os.kill(proc.pid, signal.SIGINT)  # Ctrl-C
+        rest, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    out = "".join(lines) + rest
+    assert proc.returncode == 0, out + err
     assert f"router: {endpoint} (prefix uptest)" in out
-    assert "up: every service is alive" in out
     pids = {}
     for line in out.splitlines():
         words = line.split()
         if len(words) >= 3 and words[1] == "pid":
             pids[words[0]] = int(words[2])
-    assert {"router", "sim", "planner", "controller", "sequencer"} <= set(pids)
+    assert {"router", "sim", "bridge", "planner", "controller", "sequencer", "record"} <= set(pids)
     down = next(line for line in out.splitlines() if line.startswith("down: "))
     assert all(f"{name} 0" in down for name in pids)  # every child exited cleanly
     for pid in pids.values():
         assert not psutil.pid_exists(pid) or psutil.Process(pid).status() == "zombie"
     logs = {p.stem for p in (tmp_path / "logs").glob("*.log")}
     assert set(pids) <= logs
-    assert (
-        "sequencer: serving uptest/sequencer/submit"
-        in (tmp_path / "logs" / "sequencer.log").read_text()
-    )
+    text = (tmp_path / "logs" / "sequencer.log").read_text()
+    assert "sequencer: serving uptest/sequencer/submit" in text
+    assert (tmp_path / "recording.mcap").stat().st_size > 0
