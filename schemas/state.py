@@ -98,6 +98,12 @@ class BridgeState(Message):
     buffered_syncs: int = field("old syncs found in a buffer and not answered", minimum=0)
     bad_payloads: int = field("bus messages to the bridge that failed to decode", minimum=0)
     detail: str = field("last notable event, in words")
+    late_frames: int = field(
+        "frames that arrived out of order: after a later frame of their cycle, or after "
+        "their cycle had ended",
+        default=0,
+        minimum=0,
+    )
 
 
 @dataclass(frozen=True)

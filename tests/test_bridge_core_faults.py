@@ -24,7 +24,7 @@ KINDS = ("drop", "duplicate", "delay", "corrupt")
 COUNTER = {
     "drop": "dropped_frames",
     "duplicate": "duplicate_frames",
-    "delay": "dropped_frames",  # the frame is missing from its slot
+    "delay": "late_frames",  # 30 ms: after the next frame of its cycle, out of order
     "corrupt": "garbled_frames",
 }
 

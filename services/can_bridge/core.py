@@ -202,6 +202,7 @@ class BridgeCore:
         h = self.health
         h.garbled_frames += p.kind in ("garbled", "unknown")
         h.duplicate_frames += p.duplicate
+        h.late_frames += p.late
         h.dropped_frames += p.skipped_frames
         for c in p.closed:
             h.dropped_frames += c.missing

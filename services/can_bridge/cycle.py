@@ -1,25 +1,28 @@
 """Sorting the arm's frames into cycles by their arrival times (docs/architecture.md, Time).
 
 Within each 60 ms cycle the arm sends 0x350, 0x360 and the 0x37F sync 20 ms apart. The
-assembler anchors on the last sync it accepted and gives every later frame a 20 ms slot:
-slot m after the anchor (m >= 1) holds 0x350 when m % 3 == 1, 0x360 when m % 3 == 2 and
-the sync when m % 3 == 0, and belongs to cycle ``anchor + ceil(m / 3)``. A frame is *in
-its slot* when its id matches the slot and it arrived within ``tolerance`` of the slot's
-time. Anything else is a fault of the cycle the frame arrived in: a frame off its slot
-(delayed, out of order), a second frame in a filled slot (duplicate), a frame with the
-wrong length (garbled). Slots still empty when their cycle closes are counted dropped.
+assembler keeps an *anchor*, its estimate of when the last sync arrived without delay,
+and gives every frame the cycle whose nominal time for that frame (anchor + 20, 40, 60 ms
++ 60 ms per cycle) it follows by at most one cycle, allowing ``tolerance`` early. So a
+frame that is late but still in order (a busy sender or receiver) is accepted, while a
+frame that arrives after a later frame of its cycle (delayed past it: out of order), a
+second frame of a kind (duplicate), a frame with the wrong length (garbled), or a frame of
+a cycle that has already ended is a fault of the cycle it arrived in. Frames still missing
+when their cycle ends are counted dropped.
 
-The anchor moves to every sync that is in its slot (so clock drift never accumulates),
-and to an off-slot sync when the sync before it was off-slot too and one cycle earlier
-(the arm's phase has changed, for example after a silence or a restart).
+Arrival delays only ever add, so the anchor is the earliest of the last ``ANCHOR_SYNCS``
+syncs carried forward by whole cycles: one late sync does not move it, an early one moves
+it at once, and a lasting shift or a slow clock drift is followed within ``ANCHOR_SYNCS``
+cycles. Two syncs a cycle apart that both land in cycles already ended re-anchor (the
+arm's phase moved earlier by more than ``tolerance``, e.g. after a restart).
 
-A cycle is *clean* when it holds exactly its three frames, each in its slot, and nothing
-else arrived during it.
+A cycle is *clean* when it holds exactly its three frames, in order, and nothing else
+arrived during it.
 """
 
 from __future__ import annotations
 
-import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -29,11 +32,12 @@ SLOT_NS = 20_000_000
 """Spacing of the arm's frames [ns]."""
 CYCLE_NS = 3 * SLOT_NS
 """The arm's cycle [ns]."""
+ANCHOR_SYNCS = 8
+"""The anchor is the earliest of this many recent syncs, carried forward by cycles."""
 
 Kind = Literal["status", "position", "sync", "garbled", "unknown"]
 
-_SLOT_OF = {FrameId.STATUS: 1, FrameId.POSITION: 2, FrameId.SYNC: 0}
-_ID_OF_SLOT = {slot: int(fid) for fid, slot in _SLOT_OF.items()}
+_SLOT_OF = {FrameId.STATUS: 1, FrameId.POSITION: 2, FrameId.SYNC: 3}
 
 
 def classify(frame: Frame) -> Kind:
@@ -96,7 +100,8 @@ class Placement:
         cycle: the cycle it was put in (None for unknown ids).
         in_slot: it arrived in its own slot (and filled it).
         duplicate: its slot was already filled.
-        late: it belongs to a cycle that has already closed.
+        late: it arrived out of order: after a later frame of its cycle, or after its
+            cycle had closed.
         closed: cycles closed by this frame (the previous one when a sync ended it or a
             later frame skipped its end; whole cycles skipped count 3 missing frames each
             in ``skipped_frames``).
@@ -129,6 +134,8 @@ class CycleAssembler:
         self.last_sync_period_ns: int | None = None
         """Arrival spacing of the last two in-slot syncs of consecutive cycles [ns]."""
         self._candidate_ns: int | None = None
+        self._last_closed: Cycle | None = None
+        self._recent: deque[tuple[int, int]] = deque(maxlen=ANCHOR_SYNCS)
 
     def place(self, frame: Frame) -> Placement:
         """Put ``frame`` (stamped with its arrival time) into its cycle."""
@@ -137,19 +144,17 @@ class CycleAssembler:
             return Placement(kind, None)
         if self.anchor_ns is None:
             return self._place_unanchored(frame, kind)
+        fid = FrameId(frame.id)
+        slot = _SLOT_OF[fid]
         t = frame.t_ns - self.anchor_ns
-        m = round(t / SLOT_NS)
-        dev = t - m * SLOT_NS
-        in_time = abs(dev) <= self.tolerance_ns
-        in_slot = m >= 1 and in_time and m % 3 == _SLOT_OF[FrameId(frame.id)]
-        if in_slot:
-            index = self.anchor_index + (m + 2) // 3
-        else:
-            index = self.anchor_index + max(1, math.ceil((t - self.tolerance_ns) / CYCLE_NS))
+        # Cycle n after the anchor holds this frame if it is at most `tolerance` early and
+        # less than one cycle minus `tolerance` late.
+        n = (t - slot * SLOT_NS + self.tolerance_ns) // CYCLE_NS + 1
+        lateness_ms = (t - (3 * (n - 1) + slot) * SLOT_NS) / 1e6
+        index = self.anchor_index + n
         cur = self.current
         if index < cur.index:
-            cur.faults.append(f"0x{frame.id:03X} of an earlier cycle arrived late")
-            return Placement(kind, cur, late=True)
+            return self._late(frame, kind, index, lateness_ms)
         closed: list[Cycle] = []
         skipped = 0
         if index > cur.index:
@@ -159,35 +164,53 @@ class CycleAssembler:
             cur = self.current = Cycle(index)
             if skipped:
                 cur.faults.append(f"{skipped} frames of whole cycles missing")
-        duplicate = False
-        fid = FrameId(frame.id)
+        filled = [f for f in (cur.status, cur.position) if f is not None]
+        accepted = late = duplicate = False
         if kind == "garbled":
             cur.faults.append(f"0x{frame.id:03X} garbled (DLC {frame.dlc}, remote {frame.remote})")
             cur.touched.add(fid)
-        elif not in_slot:
-            duplicate = kind == "sync" and m == 0 and in_time
-            if duplicate:
-                what = "duplicated"
-            elif in_time and m >= 1:
-                what = f"out of order (in the slot of 0x{_ID_OF_SLOT[m % 3]:03X})"
-            else:
-                what = f"off its slot by {dev / 1e6:+.1f} ms"
-            cur.faults.append(f"0x{frame.id:03X} {what}")
         elif self._slot(cur, fid) is not None:
             duplicate = True
             cur.faults.append(f"0x{frame.id:03X} duplicated")
+        elif any(_SLOT_OF[FrameId(f.id)] > slot for f in filled):
+            cur.faults.append(f"0x{frame.id:03X} out of order ({lateness_ms:+.1f} ms late)")
+            cur.touched.add(fid)
+            late = True
         else:
+            accepted = True
             self._fill(cur, fid, frame)
         if fid == FrameId.SYNC and not duplicate:
-            closed += self._sync_seen(frame, in_slot)
+            closed += self._close(frame.t_ns, index)
         return Placement(
             kind,
             cur,
-            in_slot=in_slot and not duplicate and kind != "garbled",
+            in_slot=accepted,
             duplicate=duplicate,
+            late=late,
             closed=tuple(closed),
             skipped_frames=skipped,
         )
+
+    def _late(self, frame: Frame, kind: Kind, index: int, lateness_ms: float) -> Placement:
+        """A frame of a cycle already closed: a duplicate of its frame, or out of order."""
+        cur = self.current
+        fid = FrameId(frame.id)
+        last = self._last_closed
+        original = self._slot(last, fid) if last is not None and last.index == index else None
+        if original is not None and frame.t_ns - original.t_ns <= self.tolerance_ns:
+            cur.faults.append(f"0x{frame.id:03X} duplicated")
+            return Placement(kind, cur, duplicate=True)
+        cur.faults.append(f"0x{frame.id:03X} of an earlier cycle ({lateness_ms:+.1f} ms late)")
+        closed: tuple[Cycle, ...] = ()
+        if fid == FrameId.SYNC:
+            # The arm's phase may have moved earlier: two such syncs a cycle apart re-anchor.
+            candidate, self._candidate_ns = self._candidate_ns, frame.t_ns
+            if (
+                candidate is not None
+                and abs(frame.t_ns - candidate - CYCLE_NS) <= self.tolerance_ns
+            ):
+                closed = tuple(self._anchor(frame.t_ns, cur.index))
+        return Placement(kind, cur, late=True, closed=closed)
 
     def _place_unanchored(self, frame: Frame, kind: Kind) -> Placement:
         cur = self.current
@@ -203,27 +226,31 @@ class CycleAssembler:
             self._fill(cur, fid, frame)
         closed: tuple[Cycle, ...] = ()
         if fid == FrameId.SYNC:
+            self._recent.append((cur.index, frame.t_ns))
             closed = tuple(self._anchor(frame.t_ns, cur.index))
         return Placement(kind, cur, duplicate=duplicate, closed=closed)
 
-    def _sync_seen(self, frame: Frame, in_slot: bool) -> list[Cycle]:
-        t = frame.t_ns
-        if in_slot:
-            prev = self.anchor_ns
-            cur = self.current
-            if prev is not None and cur.index == self.anchor_index + 1:
-                self.last_sync_period_ns = t - prev
-            return self._anchor(t, cur.index)
-        candidate, self._candidate_ns = self._candidate_ns, t
-        if candidate is not None and abs(t - candidate - CYCLE_NS) <= self.tolerance_ns:
-            return self._anchor(t, self.current.index)
-        return []
+    def _close(self, t: int, index: int) -> list[Cycle]:
+        """A sync arrived at ``t`` ends cycle ``index``.
+
+        Arrival delays only ever add, so the anchor is the earliest of the last
+        ``ANCHOR_SYNCS`` syncs, each carried forward by whole cycles: one late sync does
+        not move it, an early one moves it at once, a lasting shift or a slow drift within
+        ``ANCHOR_SYNCS`` cycles.
+        """
+        previous = self._recent[-1] if self._recent else None
+        if previous is not None and previous[0] == index - 1:
+            self.last_sync_period_ns = t - previous[1]
+        self._recent.append((index, t))
+        anchor = min(a + (index - i) * CYCLE_NS for i, a in self._recent)
+        return self._anchor(anchor, index)
 
     def _anchor(self, t: int, index: int) -> list[Cycle]:
         cur = self.current
         cur.missing = cur._count_missing()
         self.anchor_ns, self.anchor_index = t, index
         self._candidate_ns = None
+        self._last_closed = cur
         self.current = Cycle(index + 1)
         return [cur]
 

@@ -28,6 +28,7 @@ class Health:
     garbled_frames: int = 0
     buffered_syncs: int = 0
     bad_payloads: int = 0
+    late_frames: int = 0
     replies: int = 0
 
     def period(self, period_ns: int) -> None:
@@ -65,4 +66,5 @@ class Health:
             buffered_syncs=self.buffered_syncs,
             bad_payloads=self.bad_payloads,
             detail=detail,
+            late_frames=self.late_frames,
         )
