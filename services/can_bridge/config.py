@@ -34,8 +34,9 @@ class BridgeConfig:
         sync_max_age_ms: a sync processed later than this after its arrival is not
             answered (it sat in a buffer: the reply could not reach the arm within the
             20 ms window) [ms].
-        slot_tolerance_ms: largest deviation of a frame's arrival from its 20 ms slot,
-            counted from the last sync, for the frame to belong to the cycle (< 10) [ms].
+        slot_tolerance_ms: how much earlier than its nominal time (20, 40, 60 ms after the
+            cycle's start, on the grid of the recent syncs) a frame may arrive and still
+            belong to that cycle; frames may be up to one cycle minus this late (< 10) [ms].
         clean_cycles_to_resume: clean cycles after a fault before commands reach the
             arm again [cycles].
         init_moves: the start-up moves of motors 4-6, one per sync (thesis 4.2.1: four
