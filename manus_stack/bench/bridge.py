@@ -205,6 +205,7 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
             "stale_commands",
             "dropped_frames",
             "duplicate_frames",
+            "late_frames",
             "garbled_frames",
             "buffered_syncs",
         )

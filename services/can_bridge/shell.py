@@ -32,7 +32,7 @@ from manus.node import Node, Publisher
 from manus.protocol import FrameId
 from manus.session import ZenohSettings
 from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
-from schemas.state import BridgeState
+from schemas.state import BridgeState, JointState
 from services.can_bridge.config import BridgeConfig
 from services.can_bridge.core import BridgeCore, Outputs
 
@@ -58,7 +58,7 @@ class BridgeShell:
         clock: wall clock [ns].
         on_reply: called in the loop after each reply to a sync with (sync arrival, sent)
             [ns] (benchmarks).
-        on_state: called in the loop after each joint state is published with (0x360
+        on_state: called after each joint state is published with (its stamp = 0x360
             arrival, published) [ns] (benchmarks).
     """
 
@@ -174,8 +174,6 @@ class BridgeShell:
         sync = frame.t_ns if frame.id == FrameId.SYNC else None
         self._send(out, sync)
         self._publish(out)
-        if self.on_state is not None and out.messages and out.messages[0][0] == "state/joints":
-            self.on_state(frame.t_ns, self.clock())
 
     def _send(self, out: Outputs, sync_ns: int | None) -> None:
         for frame in out.frames:
@@ -199,6 +197,8 @@ class BridgeShell:
                 log.error("core published on unknown key suffix %r", suffix)
                 continue
             pub.put(msg)
+            if self.on_state is not None and isinstance(msg, JointState):
+                self.on_state(msg.stamp_ns, self.clock())
             if isinstance(msg, BridgeState):
                 self._log_state(msg)
 
