@@ -552,3 +552,13 @@ def test_the_readme_task_file_parses_and_validates() -> None:
         "fold_out", "move", "move", "gripper", "wait", "pose", "fold_in",
     ]  # fmt: skip
     assert validate(task).errors == []
+
+
+def test_a_path_from_the_folded_arm_says_to_unfold_it_first() -> None:
+    folded = [math.radians(v) for v in (0.0, -90.0, -90.0, 0.0, -90.0, 0.0)]
+    errors = validate(task_from_args([SQUARE]), start=folded).errors
+    assert errors[0].startswith(f"{SQUARE}: step 1 (move): planner refused")
+    assert errors[1].endswith("the arm is folded there: unfold it first (a fold_out step; "
+                              "`manus run --fold-out ...` for the thesis form)")  # fmt: skip
+    unfolded_first = Task(steps=[TaskStep(kind="fold_out"), *task_from_args([SQUARE]).steps])
+    assert validate(unfolded_first, start=folded).errors == []

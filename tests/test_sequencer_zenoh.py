@@ -201,13 +201,23 @@ def test_manus_run_with_an_in_process_sequencer(zenoh_settings: ZenohSettings,
         FakeController(zenoh_settings, bridge, speedup=20.0),
     ):
         env = dict(os.environ, MANUS_ZENOH_CONNECT=router_endpoint, MANUS_PREFIX="test")
-        cmd = [sys.executable, "-m", "manus_stack.cli", "run", SQUARE, "40", "--plain"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "manus_stack.cli",
+            "run",
+            SQUARE,
+            "40",
+            "--plain",
+            "--fold-out",
+            "--fold-in",
+        ]
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "no sequencer is running: running one in this process" in proc.stderr
         lines = proc.stdout.splitlines()
-        assert lines[0].startswith("task ") and lines[0].endswith("(2 steps)")
-        assert any(line.startswith("step 2/2 gripper 40 mm: step_finished") for line in lines)
+        assert lines[0].startswith("task ") and lines[0].endswith("(4 steps)")
+        assert any(line.startswith("step 3/4 gripper 40 mm: step_finished") for line in lines)
         assert lines[-1].endswith(": succeeded")
 
         refused = subprocess.run([*cmd[:4], "95", SQUARE + ".missing"], capture_output=True,

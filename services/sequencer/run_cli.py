@@ -18,7 +18,7 @@ import sys
 
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import settings_from_env
-from schemas.sequencing import Task
+from schemas.sequencing import Task, TaskStep
 from services.sequencer.client import TaskClient
 from services.sequencer.config import REQUIRED_SERVICES
 from services.sequencer.progress import ProgressView
@@ -49,6 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         dest="control_mode",
         choices=("default", "thesis"),
         help="controller mode of the move steps (default: default)",
+    )
+    parser.add_argument(
+        "--fold-out", action="store_true", help="unfold the arm before the steps (thesis form)"
+    )
+    parser.add_argument(
+        "--fold-in", action="store_true", help="fold the arm after the steps (thesis form)"
     )
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
@@ -81,10 +87,20 @@ def load_task(items: list[str], mode: str | None) -> Task:
     return task_from_args(items, mode=mode or "default")
 
 
+def with_folds(task: Task, fold_out: bool, fold_in: bool) -> Task:
+    """``task`` with a fold_out step first and/or a fold_in step last."""
+    steps = list(task.steps)
+    if fold_out:
+        steps.insert(0, TaskStep(kind="fold_out", where="--fold-out"))
+    if fold_in:
+        steps.append(TaskStep(kind="fold_in", where="--fold-in"))
+    return Task(steps=steps, name=task.name, mode=task.mode)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the task; see the module docstring for exit codes."""
     try:
-        task = load_task(args.task, args.control_mode)
+        task = with_folds(load_task(args.task, args.control_mode), args.fold_out, args.fold_in)
     except TaskFileError as exc:
         _err("manus run: task refused:\n  " + "\n  ".join(exc.errors))
         return 2

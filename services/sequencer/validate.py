@@ -172,7 +172,17 @@ class Validator:
             message = reply.error.message if reply.error is not None else "no trajectory"
             reason = reply.error.reason if reply.error is not None else "invalid"
             self._problems[i].append(f"planner refused ({reason}): {message}")
+            if self._q is not None and _near(self._q, FOLD_END["fold_in"]):
+                self._problems[i].append(
+                    "the arm is folded there: unfold it first (a fold_out step; "
+                    "`manus run --fold-out ...` for the thesis form)"
+                )
             self._q, self._unknown = None, f"step {i + 1} could not be planned"
             return
         self.plans[i] = reply.trajectory
         self._q = list(reply.trajectory.positions[-1])
+
+
+def _near(q: list[float], ref: list[float], tol_deg: float = 5.0) -> bool:
+    """Every joint of ``q`` within ``tol_deg`` of ``ref``."""
+    return all(abs(a - b) <= math.radians(tol_deg) for a, b in zip(q, ref, strict=True))
