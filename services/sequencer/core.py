@@ -230,7 +230,8 @@ class SequencerCore:
             return self.status(False, "the task is not paused"), []
         self.state = "running"
         out = [self._event("resumed", step=self.step, progress=self._task_progress())]
-        return self.status(), out + self._continue()
+        out += self._continue()
+        return self.status(), out
 
     # -- inputs ------------------------------------------------------------------------------
 
