@@ -5,6 +5,7 @@ loopback router; the bridge and the controller are test fakes (tests/sequencer_f
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -43,9 +44,13 @@ class Stack:
         self.sequencer = SequencerShell(settings, query_timeout=2.0)
         self.client_node = Node("test_supervisor", settings, liveliness=False)
         self.client = TaskClient(self.client_node)
-        eventually(lambda: not self.sequencer.core.missing_services()
-                   and self.sequencer.core.bridge_phase == "running"
-                   and self.sequencer.core.latest is not None)  # fmt: skip
+        eventually(
+            lambda: (
+                not self.sequencer.core.missing_services()
+                and self.sequencer.core.bridge_phase == "running"
+                and self.sequencer.core.latest is not None
+            )
+        )
 
     def events(self, task_id: str, timeout: float = 20.0) -> list[TaskEvent]:
         got: list[TaskEvent] = []
@@ -76,8 +81,14 @@ def test_submit_runs_the_task_and_publishes_events(stack: Stack) -> None:
     reply = stack.client.submit(task)
     assert reply.accepted and reply.task_id and reply.errors == []
     events = stack.events(reply.task_id)
-    assert names(events) == ["accepted", "step_started", "step_finished", "step_started",
-                             "step_finished", "succeeded"]  # fmt: skip
+    assert names(events) == [
+        "accepted",
+        "step_started",
+        "step_finished",
+        "step_started",
+        "step_finished",
+        "succeeded",
+    ]
     progress = [e.progress for e in events if e.event == "step_progress" and e.step == 0]
     assert progress == sorted(progress) and len(progress) >= 3
     assert isinstance(stack.controller.goals[0], TrajectoryGoal)
@@ -141,8 +152,14 @@ def test_pause_and_resume_over_zenoh(stack: Stack) -> None:
     assert stack.controller.cancels == [first.goal_id]
     assert stack.client.control("resume", reply.task_id).ok
     events = stack.events(reply.task_id)
-    assert names(events) == ["accepted", "step_started", "paused", "resumed", "step_finished",
-                             "succeeded"]  # fmt: skip
+    assert names(events) == [
+        "accepted",
+        "step_started",
+        "paused",
+        "resumed",
+        "step_finished",
+        "succeeded",
+    ]
     second = stack.controller.goals[1]
     assert isinstance(second, TrajectoryGoal)
     # the rest of the path: fewer via points than the whole square, ending at its end
@@ -173,10 +190,25 @@ def test_missing_services_are_named(zenoh_settings: ZenohSettings) -> None:
 def test_example_supervisor_in_another_process(stack: Stack, router_endpoint: str) -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", router_endpoint,
-         "--prefix", "test", "--pause-after", "0.5", "--resume-after", "0.3", SQUARE, "40"],
-        capture_output=True, text=True, timeout=60, env=env,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "examples" / "supervisor.py"),
+            "--connect",
+            router_endpoint,
+            "--prefix",
+            "test",
+            "--pause-after",
+            "0.5",
+            "--resume-after",
+            "0.3",
+            SQUARE,
+            "40",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+    )
     out = proc.stdout
     assert proc.returncode == 0, out + proc.stderr
     assert "alive: can_bridge, controller, planner, sequencer" in out
@@ -185,16 +217,28 @@ def test_example_supervisor_in_another_process(stack: Stack, router_endpoint: st
     assert out.strip().endswith("event: succeeded step -1/2")
 
     bad = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", router_endpoint,
-         "--prefix", "test", SQUARE, "120"],
-        capture_output=True, text=True, timeout=60, env=env,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "examples" / "supervisor.py"),
+            "--connect",
+            router_endpoint,
+            "--prefix",
+            "test",
+            SQUARE,
+            "120",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+    )
     assert bad.returncode == 2
     assert "step 2 (gripper): gripper opening 120 mm is outside 0..90 mm" in bad.stdout
 
 
-def test_manus_run_with_an_in_process_sequencer(zenoh_settings: ZenohSettings,
-                                                router_endpoint: str) -> None:  # fmt: skip
+def test_manus_run_with_an_in_process_sequencer(
+    zenoh_settings: ZenohSettings, router_endpoint: str
+) -> None:
     with (
         PlannerShell(zenoh_settings),
         FakeBridge(zenoh_settings) as bridge,
@@ -220,8 +264,33 @@ def test_manus_run_with_an_in_process_sequencer(zenoh_settings: ZenohSettings,
         assert any(line.startswith("step 3/4 gripper 40 mm: step_finished") for line in lines)
         assert lines[-1].endswith(": succeeded")
 
-        refused = subprocess.run([*cmd[:4], "95", SQUARE + ".missing"], capture_output=True,
-                                 text=True, timeout=60, env=env)  # fmt: skip
+        refused = subprocess.run(
+            [*cmd[:4], "95", SQUARE + ".missing"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            env=env,
+        )
         assert refused.returncode == 2
         assert "argument 1 (95): step 1: gripper opening 95 mm" in refused.stderr
         assert "cannot read the file" in refused.stderr
+
+
+def test_ctrl_c_in_manus_run_cancels_the_task(stack: Stack, router_endpoint: str) -> None:
+    stack.controller.speedup = 1.0  # the square takes 19 s: interrupted long before
+    env = dict(os.environ, MANUS_ZENOH_CONNECT=router_endpoint, MANUS_PREFIX="test")
+    cmd = [sys.executable, "-m", "manus_stack.cli", "run", SQUARE, "40", "--plain"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        eventually(lambda: stack.sequencer.core._phase == "active", timeout=20.0)
+        os.kill(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, out + err
+    assert "interrupted: cancelling task" in err
+    assert "cancelled" in out.splitlines()[-1]
+    assert stack.client.control("status").state == "cancelled"
+    assert stack.controller.cancels == [stack.controller.goals[0].goal_id]
