@@ -41,7 +41,7 @@ from manus.protocol import BITRATE
 from manus.session import client_settings, open_session, router_settings
 from schemas.commands import JointVelocityCommand
 from schemas.state import JointState
-from services.can_bridge.main import open_arm_bus
+from services.can_bridge.main import GIL_SWITCH_S, open_arm_bus
 from services.can_bridge.shell import BridgeShell
 
 CYCLE_S = 0.060
@@ -115,6 +115,8 @@ def _sim_stats(err: str) -> dict[str, Any]:
 def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
     """Run the bench; ``cycles`` overrides the default count (5000, quick 200)."""
     n = cycles or (200 if quick else 5000)
+    switch_s = sys.getswitchinterval()
+    sys.setswitchinterval(GIL_SWITCH_S)  # as `manus bridge` does
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     load_before = os.getloadavg()
     router = open_session(router_settings(endpoint))
@@ -195,6 +197,7 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
             _stop_process(sim)
         router.close()
         tmp.cleanup()
+        sys.setswitchinterval(switch_s)
     done = h1["cycles"] - h0["cycles"]
     late = sum(1 for x in rep if x >= 20_000_000)
     not_latched = replies_sent - int(sim_stats.get("replies_latched", 0))

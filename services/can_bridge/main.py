@@ -37,6 +37,9 @@ from services.can_bridge.shell import BridgeShell
 
 DEFAULT_DEVICE_FILE = "/tmp/manus-sim.device"
 """Where ``manus bridge`` looks for the simulator's pty by default (see the module doc)."""
+GIL_SWITCH_S = 0.0005
+"""Interpreter thread switch interval in ``manus bridge`` [s] (Python's default is 5 ms):
+a Zenoh callback thread holding the interpreter delays the receive loop by at most this."""
 SLCAN_READ_TIMEOUT_S = 0.01
 """Serial read timeout of the slcan backend [s] (see :func:`open_arm_bus`)."""
 
@@ -109,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_bridge_config(args.config)
     settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
     stop = wait_for_signal()
+    sys.setswitchinterval(GIL_SWITCH_S)
     channel = resolve_channel(
         args.can_interface, args.can_channel, args.device_file, args.wait_device
     )
