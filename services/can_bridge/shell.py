@@ -44,6 +44,8 @@ TICK_NS = 20_000_000
 """Period of the core's timeout checks [ns]."""
 MAX_STAMP_AGE_NS = 60_000_000_000
 """A frame timestamp older than this is taken for another clock, not for a buffer [ns]."""
+HEALTH_LOG_NS = 60_000_000_000
+"""The health is logged at least this often while nothing changes [ns]."""
 SUFFIXES = ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx")
 
 
@@ -86,6 +88,7 @@ class BridgeShell:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_phase = ""
+        self._last_log_ns = 0
         self.node.subscribe(keys.joint_velocity, JointVelocityCommand, self._on_command)
         self.node.subscribe(keys.estop, EStop, self._on_estop)
         self.node.queryable(keys.bridge_command, ArmCommand, self._on_arm_command)
@@ -203,24 +206,33 @@ class BridgeShell:
                 self._log_state(msg)
 
     def _log_state(self, st: BridgeState) -> None:
+        """Log each change of phase or detail, and the health every ``HEALTH_LOG_NS``."""
         key = f"{st.phase}: {st.detail}"
-        if key == self._last_phase:
+        changed = key != self._last_phase
+        if not changed and st.stamp_ns - self._last_log_ns < HEALTH_LOG_NS:
             return
-        self._last_phase = key
-        level = logging.WARNING if st.phase in ("resync", "arm_error", "estopped") else logging.INFO
+        self._last_phase, self._last_log_ns = key, st.stamp_ns
+        warn = changed and st.phase in ("resync", "arm_error", "estopped")
         log.log(
-            level,
-            "phase %s (%s); cycles %d, resyncs %d, dropped %d, duplicate %d, "
-            "garbled %d, missed windows %d, reply latency max %.2f ms",
+            logging.WARNING if warn else logging.INFO,
+            "phase %s (%s); cycles %d, period %.1f ms, jitter max %.1f ms, reply latency "
+            "%.2f ms (max %.2f), missed windows %d, stale commands %d, resyncs %d, dropped "
+            "%d, duplicate %d, late %d, garbled %d, buffered syncs %d",
             st.phase,
             st.detail,
             st.cycles,
+            st.period_ms,
+            st.jitter_ms,
+            st.reply_latency_ms,
+            st.reply_latency_max_ms,
+            st.missed_windows,
+            st.stale_commands,
             st.resyncs,
             st.dropped_frames,
             st.duplicate_frames,
+            st.late_frames,
             st.garbled_frames,
-            st.missed_windows,
-            st.reply_latency_max_ms,
+            st.buffered_syncs,
         )
 
     def close(self) -> None:
