@@ -134,7 +134,7 @@ class BridgeCore:
         if cycle is not None:
             if p.kind == "status" and not p.duplicate:
                 self._on_status(frame, p, cycle, out)
-            elif p.kind == "position" and p.in_slot:
+            elif p.kind == "position" and p.accepted:
                 self._on_position(frame, cycle, out)
             if cycle.faults and self.assembler.anchor_ns is not None:
                 self._fault(cycle)
@@ -221,7 +221,7 @@ class BridgeCore:
         seq = self._seq["state/status"]
         self._seq["state/status"] += 1
         out.messages.append(("state/status", arm_status(st, stamp_ns=frame.t_ns, seq=seq)))
-        self._status = (cycle.index, frame) if p.in_slot else None
+        self._status = (cycle.index, frame) if p.accepted else None
         self.phases.on_status(st, frame.t_ns, cycle)
 
     def _on_position(self, frame: Frame, cycle: Cycle, out: Outputs) -> None:
@@ -276,7 +276,7 @@ class BridgeCore:
         last = self._last_reply_sync_ns
         if last is not None and frame.t_ns - last < WINDOW_NS:
             return
-        if p.in_slot and self.assembler.last_sync_period_ns is not None:
+        if p.accepted and self.assembler.last_sync_period_ns is not None:
             self.health.period(self.assembler.last_sync_period_ns)
         clean = bool(p.closed) and p.closed[-1].clean and p.closed[-1].sync is frame
         reply = self.phases.on_sync(frame.t_ns, clean, lambda: self._command_reply(frame.t_ns))

@@ -98,7 +98,7 @@ class Placement:
     Attributes:
         kind: what the frame is (:func:`classify`).
         cycle: the cycle it was put in (None for unknown ids).
-        in_slot: it arrived in its own slot (and filled it).
+        accepted: it took its place in its cycle, in order (its first of a kind).
         duplicate: its slot was already filled.
         late: it arrived out of order: after a later frame of its cycle, or after its
             cycle had closed.
@@ -110,7 +110,7 @@ class Placement:
 
     kind: Kind
     cycle: Cycle | None
-    in_slot: bool = False
+    accepted: bool = False
     duplicate: bool = False
     late: bool = False
     closed: tuple[Cycle, ...] = ()
@@ -121,18 +121,20 @@ class CycleAssembler:
     """Sorts frames into cycles (see the module docstring).
 
     Args:
-        tolerance_ns: largest deviation from a slot's time [ns] (< 10 ms).
+        tolerance_ns: how much earlier than its nominal time a frame may arrive [ns]
+            (< 10 ms; frames may be up to one cycle minus this late).
     """
 
     def __init__(self, tolerance_ns: int) -> None:
         self.tolerance_ns = tolerance_ns
         self.anchor_ns: int | None = None
-        """Arrival time of the sync the slots count from [ns]; None before the first."""
+        """Estimated undelayed arrival of the last sync [ns] (see the module docstring);
+        None before the first sync."""
         self.anchor_index = 0
         self.current = Cycle(0)
         """The cycle being assembled."""
         self.last_sync_period_ns: int | None = None
-        """Arrival spacing of the last two in-slot syncs of consecutive cycles [ns]."""
+        """Arrival spacing of the last two in-order syncs of consecutive cycles [ns]."""
         self._candidate_ns: int | None = None
         self._last_closed: Cycle | None = None
         self._recent: deque[tuple[int, int]] = deque(maxlen=ANCHOR_SYNCS)
@@ -184,7 +186,7 @@ class CycleAssembler:
         return Placement(
             kind,
             cur,
-            in_slot=accepted,
+            accepted=accepted,
             duplicate=duplicate,
             late=late,
             closed=tuple(closed),
@@ -209,6 +211,8 @@ class CycleAssembler:
                 candidate is not None
                 and abs(frame.t_ns - candidate - CYCLE_NS) <= self.tolerance_ns
             ):
+                self._recent.clear()
+                self._recent.append((cur.index, frame.t_ns))
                 closed = tuple(self._anchor(frame.t_ns, cur.index))
         return Placement(kind, cur, late=True, closed=closed)
 
