@@ -4,10 +4,10 @@ Inputs are method calls carrying frames and messages with their times; outputs a
 :class:`Outputs` (CAN frames to send now, in order, then messages to publish, the joint
 state first). The shell sends the frames first, so no publication ever delays a reply.
 
-Per frame from the arm: :mod:`services.can_bridge.cycle` puts it into its 20 ms slot;
+Per frame from the arm: :mod:`services.can_bridge.cycle` puts it into its cycle;
 a well-formed 0x350 becomes an ``ArmStatus`` and feeds the phase machine
 (:mod:`services.can_bridge.phases`); a 0x360 that completes a clean pair becomes a
-``JointState`` at once; a fault of the cycle (missing, duplicated, off-slot or garbled
+``JointState`` at once; a fault of the cycle (missing, duplicated, out-of-order, garbled
 frame, implausible jump) suppresses the joint state and sends the bridge to ``resync``;
 a current 0x37F gets exactly one reply, chosen by the phase. In ``running`` that is the
 newest velocity command if it is fresh (:func:`services.can_bridge.commands.is_fresh`),
@@ -91,7 +91,7 @@ class BridgeCore:
         self._last_reply_sync_ns: int | None = None
         self._last_arm_ns: int | None = None
         self._applied: tuple[tuple[int, ...], str, int] = (_NO_COUNTS, "none", -1)
-        self._status: tuple[int, Frame] | None = None  # (cycle index, 0x350) in its slot
+        self._status: tuple[int, Frame] | None = None  # (cycle index, accepted 0x350)
         self._ref: tuple[tuple[int, ...], int] | None = None  # plausible fields, cycle
         self._rejected: tuple[tuple[int, ...], int] | None = None
 
