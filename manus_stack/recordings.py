@@ -158,7 +158,8 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.write(
             f"{run.output}: {run.messages} messages, {size / 1024:.0f} KiB, "
             f"{run.simulated_s:.1f} s simulated, {run.status}, via mean "
-            f"{sum(run.via_errors_mm) / max(1, len(run.via_errors_mm)):.2f} mm\n"
+            f"{sum(run.via_errors_mm[1:]) / max(1, len(run.via_errors_mm) - 1):.2f} mm "
+            "(start pose not counted)\n"
         )
     return 0
 

@@ -100,7 +100,8 @@ def test_plot_writes_a_non_blank_png(tmp_path: Path, capsys: pytest.CaptureFixtu
     png = tmp_path / "square.png"
     assert main(["plot", str(SQUARE), "-o", str(png)]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["goals"] == 1 and summary["via_points"] == 17
+    # 17 via points, the start pose not scored
+    assert summary["goals"] == 1 and summary["via_points"] == 16
     assert 0.0 < summary["mean_mm"] <= summary["max_mm"] < 10.0
     with Image.open(png) as image:
         assert image.size[0] >= 800 and image.size[1] >= 600

@@ -160,7 +160,8 @@ class PlotSummary:
     Attributes:
         output: the PNG written.
         goals: trajectory results in the table.
-        via_errors_mm: every via-point error of every trajectory result [mm].
+        via_errors_mm: every via-point error of every trajectory result but the start
+            knots' (``GoalResult.path_via_errors``) [mm].
         mean_mm: their mean [mm] (nan when none).
         max_mm: their largest [mm] (nan when none).
     """
@@ -274,7 +275,7 @@ def _table_panel(a: Axes, data: PlotData) -> list[float]:
     for r in data.results:
         if r.kind != "trajectory":
             continue
-        errs = [e * 1e3 for e in r.via_errors]
+        errs = [e * 1e3 for e in r.path_via_errors]
         every.extend(errs)
         mean = f"{np.mean(errs):.2f}" if errs else "-"
         peak = f"{np.max(errs):.2f}" if errs else "-"
@@ -290,7 +291,7 @@ def _table_panel(a: Axes, data: PlotData) -> list[float]:
         return every
     table = a.table(
         cellText=rows[:30],
-        colLabels=["goal", "status", "via points", "mean [mm]", "max [mm]", "final [mm]"],
+        colLabels=["goal", "status", "scored vias", "mean [mm]", "max [mm]", "final [mm]"],
         loc="upper center",
     )
     table.scale(1.0, 1.4)
