@@ -46,8 +46,7 @@ class TaskStep(Message):
     path: Path | None = field("for move: the path", default=None)
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
     duration: float = field(
-        "for wait: how long; for pose: the shortest time of the move (the planner may "
-        "stretch it)",
+        "for wait: how long; for pose: the shortest time of the move (the planner may stretch it)",
         unit="s",
         default=0.0,
     )
