@@ -161,21 +161,30 @@ class ArmConfig:
         return replace(self, **changes)
 
 
+def read_json_object(file: Path, what: str) -> dict[str, Any]:
+    """The JSON object in ``file``; ``what`` names it in errors (e.g. "arm config").
+
+    Raises:
+        ConfigError: naming the file (and line): unreadable, not JSON, not an object.
+    """
+    try:
+        data = json.loads(file.read_text())
+    except OSError as exc:
+        raise ConfigError(f"{file}: cannot read {what}: {exc.strerror}") from exc
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{file}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError(f"{file}: {what} must be a JSON object")
+    return data
+
+
 def load_arm_config(path: str | os.PathLike[str] | None = None) -> ArmConfig:
     """Defaults, then a JSON file (``path`` or ``$MANUS_ARM_CONFIG``) in thesis units."""
     chosen = path if path is not None else os.environ.get("MANUS_ARM_CONFIG")
     if not chosen:
         return ArmConfig()
     file = Path(chosen)
-    try:
-        data = json.loads(file.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{file}: cannot read arm config: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{file}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
-    if not isinstance(data, dict):
-        raise ConfigError(f"{file}: arm config must be a JSON object")
-    return ArmConfig.from_mapping(data, source=str(file))
+    return ArmConfig.from_mapping(read_json_object(file, "arm config"), source=str(file))
 
 
 UNFOLDED_Q_DEG = (0.0, 30.0, -30.0, 0.0, -60.0, 0.0)

@@ -16,6 +16,7 @@ a lab network must never see this stack by accident.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -156,6 +157,18 @@ def build_config(settings: ZenohSettings) -> zenoh.Config:
     for key, value in settings.extra.items():
         config.insert_json5(key, json.dumps(value))
     return config
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """The bus options every service command takes (over the ``MANUS_ZENOH_*`` environment)."""
+    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
+    parser.add_argument("--mode", choices=MODES, help="zenoh mode")
+    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+
+
+def bus_settings(args: argparse.Namespace) -> ZenohSettings:
+    """Defaults < environment < the options of :func:`add_bus_arguments`."""
+    return settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
 
 
 def open_session(settings: ZenohSettings | None = None) -> zenoh.Session:

@@ -7,12 +7,12 @@ protocol's own constants (60 ms cycle, 20 ms slots and reply window) live in
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from manus.config import read_json_object
 from manus.errors import ConfigError
 from manus.protocol import JOINT_INC_MAX
 
@@ -127,12 +127,4 @@ def load_bridge_config(path: str | None) -> BridgeConfig:
     if not path:
         return BridgeConfig()
     file = Path(path)
-    try:
-        data = json.loads(file.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{file}: cannot read bridge config: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{file}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
-    if not isinstance(data, dict):
-        raise ConfigError(f"{file}: bridge config must be a JSON object")
-    return BridgeConfig.from_mapping(data, source=str(file))
+    return BridgeConfig.from_mapping(read_json_object(file, "bridge config"), source=str(file))

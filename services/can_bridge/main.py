@@ -31,7 +31,7 @@ from manus.canbus import open_bus
 from manus.errors import ConfigError
 from manus.node import wait_for_signal
 from manus.protocol import BITRATE
-from manus.session import settings_from_env
+from manus.session import add_bus_arguments, bus_settings
 from services.can_bridge.config import load_bridge_config
 from services.can_bridge.shell import BridgeShell
 
@@ -65,9 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--wait-device", type=float, default=10.0, help="wait this long for the device file [s]"
     )
     parser.add_argument("--config", help="bridge config JSON (BridgeConfig field names)")
-    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
-    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
-    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    add_bus_arguments(parser)
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
 
 
@@ -110,7 +108,7 @@ def open_arm_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
 def run(args: argparse.Namespace) -> int:
     """Bridge the arm until interrupted."""
     config = load_bridge_config(args.config)
-    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    settings = bus_settings(args)
     stop = wait_for_signal()
     sys.setswitchinterval(GIL_SWITCH_S)
     channel = resolve_channel(

@@ -12,16 +12,14 @@ import sys
 
 from manus.config import load_arm_config
 from manus.node import wait_for_signal
-from manus.session import settings_from_env
+from manus.session import add_bus_arguments, bus_settings
 from services.controller.config import QUANTIZERS, ControllerConfig
 from services.controller.shell import ControllerShell
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Bus settings (over the ``MANUS_ZENOH_*`` environment), arm config, loop options."""
-    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
-    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
-    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    add_bus_arguments(parser)
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     parser.add_argument(
         "--quantizer",
@@ -36,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve goals until interrupted."""
-    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    settings = bus_settings(args)
     config = ControllerConfig(
         arm=load_arm_config(args.arm_config),
         default_quantizer=args.quantizer,

@@ -12,22 +12,20 @@ import sys
 
 from manus.config import load_arm_config
 from manus.node import wait_for_signal
-from manus.session import settings_from_env
+from manus.session import add_bus_arguments, bus_settings
 from services.planner.config import PlannerConfig
 from services.planner.shell import PlannerShell
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Bus settings (over the ``MANUS_ZENOH_*`` environment) and the arm config."""
-    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
-    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
-    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    add_bus_arguments(parser)
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve plans until interrupted."""
-    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    settings = bus_settings(args)
     config = PlannerConfig(arm=load_arm_config(args.arm_config))
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:

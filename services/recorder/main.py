@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from manus.node import wait_for_signal
-from manus.session import settings_from_env
+from manus.session import add_bus_arguments, bus_settings
 from services.recorder.recover import recover
 from services.recorder.shell import RecorderShell
 from services.recorder.writer import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_NS
@@ -39,9 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_FLUSH_INTERVAL_NS / 1e6,
         help="close and flush a chunk at least this often [ms]: the most a crash loses",
     )
-    parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
-    parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
-    parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
+    add_bus_arguments(parser)
 
 
 def _recover(args: argparse.Namespace) -> int:
@@ -57,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     """Record until interrupted, or recover a file."""
     if args.recover:
         return _recover(args)
-    settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=args.prefix)
+    settings = bus_settings(args)
     output = args.output or time.strftime("manus-%Y%m%d-%H%M%S.mcap")
     stop = wait_for_signal()
     shell = RecorderShell(

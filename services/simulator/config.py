@@ -11,7 +11,6 @@ are the protocol's (:mod:`manus.protocol`), not settings.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field, fields, replace
@@ -20,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
+from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig, read_json_object
 from manus.errors import ConfigError
 from services.simulator.faults import FaultConfig
 
@@ -216,14 +215,7 @@ def load_sim_config(
     config = SimConfig()
     if chosen:
         file = Path(chosen)
-        try:
-            data = json.loads(file.read_text())
-        except OSError as exc:
-            raise ConfigError(f"{file}: cannot read simulator config: {exc.strerror}") from exc
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"{file}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
-        if not isinstance(data, dict):
-            raise ConfigError(f"{file}: simulator config must be a JSON object")
+        data = read_json_object(file, "simulator config")
         config = SimConfig.from_mapping(data, source=str(file))
     if seed is not None:
         config = config.with_overrides(seed=seed)
