@@ -112,6 +112,8 @@ def _plain(value: Any) -> Any:
     if isinstance(value, Message):
         return value.to_dict()
     if isinstance(value, list | tuple):
+        if all(type(v) is float or type(v) is int for v in value):
+            return list(value)  # numeric rows, the bulk of trajectories: no recursion
         return [_plain(v) for v in value]
     return value
 
@@ -161,6 +163,14 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
         length = meta.get("length") if meta else None
         if length is not None and get_origin(inner) is not list and len(value) != length:
             raise SchemaError(f"{path}: expected {length} values, got {len(value)}")
+        # Fast paths for numeric rows and tables (trajectories, previews); anything they
+        # do not accept goes through the item-by-item checks below, which name the item.
+        if inner is float and _finite_floats_in_range(value, meta):
+            return list(value)
+        if get_origin(inner) is list and get_args(inner) == (float,) and _float_table(
+            value, meta, length
+        ):
+            return [list(row) for row in value]
         return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]
     if isinstance(tp, type) and issubclass(tp, Message):
         return _build(tp, value, path)
@@ -204,6 +214,16 @@ def _finite_floats_in_range(values: list[Any] | tuple[Any, ...], meta: Any) -> b
         return False
     lo, hi = (meta.get("minimum"), meta.get("maximum")) if meta else (None, None)
     return (lo is None or min(values) >= lo) and (hi is None or max(values) <= hi)
+
+
+def _float_table(rows: list[Any] | tuple[Any, ...], meta: Any, length: int | None) -> bool:
+    """True when every row is a list of ``length`` (if set) finite floats in range."""
+    return all(
+        isinstance(row, list | tuple)
+        and (length is None or len(row) == length)
+        and _finite_floats_in_range(row, meta)
+        for row in rows
+    )
 
 
 def _range(path: str, value: float, meta: Any) -> None:

@@ -2,15 +2,19 @@
 
 In-process: the whole :meth:`PlannerCore.plan` (validation, IK of the 19 via points,
 clamped cubic spline, checks along the trajectory, preview), plus its IK and spline
-steps alone. Over Zenoh: a loopback router, the planner shell and a client node, all in
-this process, each on its own session; the client sends the same request many times
-(MessagePack both ways, the reply carrying the trajectory and its preview).
+steps alone. Over Zenoh, as deployed: ``manus planner`` as its own process, a client of
+a loopback router that runs in this process beside the client node; the client sends the
+same request many times (MessagePack both ways, the reply carrying the trajectory and its
+preview). ``planner_compute`` is the planner's own time per request (``compute_ms``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import signal
 import socket
+import subprocess
+import sys
 import time
 from pathlib import Path as FilePath
 from typing import Any
@@ -25,7 +29,6 @@ from manus.viapoints import load_path
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
 from services.planner.resolve import resolve_path
-from services.planner.shell import PlannerShell
 from services.planner.spline import PiecewisePolynomial, clamped_cubic_velocities
 
 CIRCLE = FilePath(__file__).resolve().parents[2] / "paths" / "thesis_circle.txt"
@@ -84,36 +87,51 @@ def _over_zenoh(request: PlanRequest, runs: int) -> dict[str, Any]:
     router = open_session(router_settings(endpoint))
     try:
         settings = client_settings(endpoint, prefix="bench")
-        with (
-            PlannerShell(settings) as shell,
-            Node("bench_client", settings, liveliness=False) as client,
-        ):
-            key = shell.node.keys.plan
-            deadline = time.monotonic() + 10.0
-            while True:  # the queryable takes a moment to propagate through the router
-                try:
-                    reply = client.query(key, request, PlanReply, timeout=1.0)
-                    break
-                except QueryError:
-                    if time.monotonic() > deadline:
-                        raise
-            assert reply.ok, reply.error
-            for _ in range(20):
-                client.query(key, request, PlanReply)
-            compute: list[float] = []
-
-            def query() -> None:
-                compute.append(client.query(key, request, PlanReply).compute_ms / 1e3)
-
-            samples = _timed(query, runs)
-            return {
-                **_stats_ms(samples),
-                "request_bytes": len(request.encode()),
-                "reply_bytes": len(reply.encode()),
-                "planner_compute": _stats_ms(compute),
-            }
+        command = ["planner", "--connect", endpoint, "--prefix", settings.prefix]
+        planner = subprocess.Popen(
+            [sys.executable, "-m", "manus_stack.cli", *command],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            with Node("bench_client", settings, liveliness=False) as client:
+                return _round_trips(client, client.keys.plan, request, runs)
+        finally:
+            planner.send_signal(signal.SIGTERM)
+            try:
+                planner.wait(timeout=10.0)
+            except subprocess.TimeoutExpired:
+                planner.kill()
+                planner.wait()
     finally:
         router.close()
+
+
+def _round_trips(client: Node, key: str, request: PlanRequest, runs: int) -> dict[str, Any]:
+    """Round-trip times of ``runs`` queries, after the queryable answers and a warm-up."""
+    deadline = time.monotonic() + 10.0
+    while True:  # the queryable takes a moment to propagate through the router
+        try:
+            reply = client.query(key, request, PlanReply, timeout=1.0)
+            break
+        except QueryError:
+            if time.monotonic() > deadline:
+                raise
+    assert reply.ok, reply.error
+    for _ in range(20):
+        client.query(key, request, PlanReply)
+    compute: list[float] = []
+
+    def query() -> None:
+        compute.append(client.query(key, request, PlanReply).compute_ms / 1e3)
+
+    samples = _timed(query, runs)
+    return {
+        **_stats_ms(samples),
+        "request_bytes": len(request.encode()),
+        "reply_bytes": len(reply.encode()),
+        "planner_compute": _stats_ms(compute),
+    }
 
 
 def run(quick: bool = False) -> dict[str, Any]:
