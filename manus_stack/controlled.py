@@ -23,6 +23,7 @@ from schemas.control import (
     GoalAck,
     GoalResult,
     GripperGoal,
+    Heartbeat,
     SpeedScale,
     TrajectoryGoal,
 )
@@ -46,7 +47,7 @@ QUERYABLES = (
 def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
     """Hand one bus message to the controller as its shell would; returns what it publishes.
 
-    ``state/joints``, ``state/status`` and ``state/bridge`` go to their handlers; a
+    ``state/joints``, ``state/status``, ``state/bridge`` and ``heartbeat`` go to their handlers; a
     ``trace/<queryable>/request`` goes to the queryable's method and its GoalAck comes back
     on ``trace/<queryable>/reply``. Anything else is ignored.
     """
@@ -56,6 +57,8 @@ def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
         return core.on_status(msg)
     if suffix == "state/bridge" and isinstance(msg, BridgeState):
         return core.on_bridge_state(msg)
+    if suffix == "heartbeat" and isinstance(msg, Heartbeat):
+        return core.on_heartbeat(msg)
     if suffix.startswith("trace/") and suffix.endswith("/request"):
         name = suffix.removeprefix("trace/").removesuffix("/request")
         ack: GoalAck | None = None
@@ -91,7 +94,7 @@ class ControlledArm:
         self.core = ControllerCore(config)
         self._results: list[GoalResult] = []
         self._scanned = 0
-        for suffix in ("state/joints", "state/status", "state/bridge"):
+        for suffix in ("state/joints", "state/status", "state/bridge", "heartbeat"):
             self.ls.subscribe(suffix, self._handler(suffix))
         for name in QUERYABLES:
             request = f"trace/{name}/request"

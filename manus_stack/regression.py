@@ -223,6 +223,7 @@ CONTROLLER_INPUTS = (
     "state/joints",
     "state/status",
     "state/bridge",
+    "heartbeat",
     *(f"trace/controller/{q}/request" for q in CONTROLLER_QUERIES),
 )
 

@@ -43,6 +43,7 @@ class TaskLockStep:
         ls = self.ls
         ls.subscribe("state/joints", self._on_joints)
         ls.subscribe("state/status", lambda m, t: self.controller.on_status(m))  # type: ignore[arg-type]
+        ls.subscribe("heartbeat", lambda m, t: self.controller.on_heartbeat(m))  # type: ignore[arg-type]
         ls.subscribe("state/bridge", lambda m, t: self.do(self.seq.on_bridge_state(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/feedback", lambda m, t: self.do(self.seq.on_feedback(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/result", lambda m, t: self.do(self.seq.on_result(m, t), t))  # type: ignore[arg-type]
@@ -79,8 +80,8 @@ class TaskLockStep:
         out: list[tuple[str, Message]] = []
         for action in actions:
             if isinstance(action, Publish):
-                assert isinstance(action.message, TaskEvent)
-                self.events.append(action.message)
+                if isinstance(action.message, TaskEvent):
+                    self.events.append(action.message)
                 out.append((action.suffix, action.message))
                 continue
             reply = self.answer(action.request)

@@ -53,6 +53,35 @@ class TrajectoryGoal(Message):
     speed_scale: float = field(
         "initial speed scaling (1: as planned)", default=1.0, minimum=0.05, maximum=1.0
     )
+    heartbeat_timeout: float = field(
+        "deadman: abort (zeros) when the newest Heartbeat refers to a joint state older than "
+        "this, judged on joint-state stamps (0: no heartbeat needed)",
+        unit="s",
+        default=0.0,
+        minimum=0.0,
+        maximum=10.0,
+    )
+
+
+@dataclass(frozen=True)
+class Heartbeat(Message):
+    """The supervisor's deadman signal (key ``heartbeat``), one per joint state it receives
+    while a task runs.
+
+    It echoes the newest joint state the sender has seen, so the controller (arm
+    computer) judges its age on the bridge's own stamps: a heartbeat proves that the link
+    carried that joint state to the sender and the heartbeat back. No clock of the sender
+    is compared with the arm's.
+    """
+
+    TYPE_NAME = "manus/Heartbeat/1"
+
+    stamp_ns: int = field("sender's clock when sent (informative only)", unit="ns")
+    seq: int = field("sequence number of the sender", minimum=0)
+    source: str = field("who sends it (e.g. 'sequencer')")
+    ref_seq: int = field("seq of the newest JointState the sender has received")
+    ref_stamp_ns: int = field("stamp of that JointState (the bridge's clock)", unit="ns")
+    task_id: str = field("the task running ('' when none)", default="")
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | can/rx, can/tx         | pub        | CanFrame                      | can_bridge |
 | cmd/joint_velocity     | pub        | JointVelocityCommand          | controller |
 | estop                  | pub        | EStop                         | anyone     |
+| heartbeat              | pub        | Heartbeat (deadman)           | sequencer  |
 | bridge/command         | queryable  | ArmCommand -> ArmCommandReply | can_bridge |
 | planner/plan           | queryable  | PlanRequest -> PlanReply      | planner    |
 | controller/goal        | queryable  | TrajectoryGoal -> GoalAck     | controller |
@@ -93,6 +94,11 @@ class Keys:
         return self("estop")
 
     @property
+    def heartbeat(self) -> str:
+        """The supervisor's deadman heartbeat (``schemas.control.Heartbeat``)."""
+        return self("heartbeat")
+
+    @property
     def bridge_command(self) -> str:
         return self("bridge/command")
 
@@ -167,6 +173,7 @@ def channel_types() -> dict[str, type[Message]]:
         "sim/truth": state.SimTruth,
         "cmd/joint_velocity": commands.JointVelocityCommand,
         "estop": commands.EStop,
+        "heartbeat": control.Heartbeat,
         "bridge/command#request": commands.ArmCommand,
         "bridge/command#reply": commands.ArmCommandReply,
         "planner/plan#request": planning.PlanRequest,

@@ -13,6 +13,12 @@ Contract (docs/architecture.md, Time; the team brief's contract 4):
   gap over ``max_stamp_gap_ms``) is answered with zeros (nothing is extrapolated) and
   the running trajectory's time waits over it; a gap longer than ``max_outage_ms``
   aborts every goal. A cancel decelerates at ``cancel_decel`` to rest, then reports.
+- Deadman: a trajectory goal with ``heartbeat_timeout`` > 0 runs only while the
+  supervisor's :class:`~schemas.control.Heartbeat` keeps coming. Each heartbeat echoes the
+  newest joint state its sender received; at every joint state the age of the newest echo
+  (or of the goal's first joint state, before any) is judged on the bridge's stamps, and
+  beyond the timeout every goal aborts ("lost the supervisor's heartbeat ...") with
+  zeros. Nothing restarts by itself when heartbeats return.
 - Time comes only from the messages' stamps; no clock, no randomness: replaying the same
   messages gives the same commands, bit for bit.
 """
@@ -32,6 +38,7 @@ from schemas.control import (
     GoalAck,
     GoalResult,
     GripperGoal,
+    Heartbeat,
     SpeedScale,
     TrajectoryGoal,
 )
@@ -93,6 +100,11 @@ class ControllerCore:
         """Motor increments of the last command sent, shape (6,)."""
         self.outbox = Outbox(cfg.arm)
         """Message numbering and the results waiting for their stamp."""
+        self.heartbeat_ref_ns: int | None = None
+        """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
+        self.heartbeat_since_ns = 0
+        """Stamp [ns] of the joint state at which the running goal started (the deadman's
+        reference until a heartbeat newer than it arrives)."""
 
     # -- requests --------------------------------------------------------------------------
 
@@ -200,6 +212,33 @@ class ControllerCore:
             return self._flush(bs.stamp_ns)
         return []
 
+    def on_heartbeat(self, hb: Heartbeat) -> Output:
+        """The supervisor's deadman heartbeat: remember the newest joint state it echoes.
+
+        Judged at the next joint state (:meth:`on_joint_state`); never publishes.
+        """
+        if self.heartbeat_ref_ns is None or hb.ref_stamp_ns > self.heartbeat_ref_ns:
+            self.heartbeat_ref_ns = hb.ref_stamp_ns
+        return []
+
+    def _heartbeat_lost(self, js: JointState) -> str | None:
+        """Why the running goal must stop for want of heartbeats (None: it need not)."""
+        run = self.run
+        if run is None or run.goal.heartbeat_timeout <= 0.0:
+            return None
+        ref = self.heartbeat_since_ns
+        if self.heartbeat_ref_ns is not None and self.heartbeat_ref_ns > ref:
+            ref = self.heartbeat_ref_ns
+        age_ns = js.stamp_ns - ref
+        limit = run.goal.heartbeat_timeout
+        if age_ns <= limit * 1e9:
+            return None
+        return (
+            f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
+            f"{age_ns / 1e6:.0f} ms before joint state seq {js.seq}, more than "
+            f"heartbeat_timeout {limit * 1000:.0f} ms (stopped; nothing resumes by itself)"
+        )
+
     def _active(self) -> bool:
         return self.pending is not None or self.run is not None or self.gripper is not None
 
@@ -239,7 +278,13 @@ class ControllerCore:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
         snap = js.stamp_ns - cfg.snapshot_age_ns
         q = np.asarray(js.position, dtype=float)
+        before = self.run
         self._start_pending(snap, q)
+        if self.run is not None and self.run is not before:
+            self.heartbeat_since_ns = js.stamp_ns
+        lost = self._heartbeat_lost(js)
+        if lost is not None:
+            self._abort_all(lost)
         step: Step | None = None
         run = self.run
         if run is not None:

@@ -1,7 +1,8 @@
 """The controller's live shell: :class:`ControllerCore` on Zenoh.
 
 Subscribes ``<prefix>/state/joints``, ``<prefix>/state/status`` and
-``<prefix>/state/bridge`` (goals run only while the bridge is ``running``); answers the
+``<prefix>/state/bridge`` (goals run only while the bridge is ``running``) and
+``<prefix>/heartbeat`` (the supervisor's deadman, for goals with ``heartbeat_timeout``); answers the
 queryables ``controller/goal`` (TrajectoryGoal), ``controller/gripper`` (GripperGoal),
 ``controller/cancel`` (CancelGoal) and ``controller/speed_scale`` (SpeedScale), each with
 a GoalAck; publishes what the core returns on ``cmd/joint_velocity``,
@@ -19,7 +20,7 @@ import zenoh
 from manus.node import Node, Publisher
 from manus.session import ZenohSettings
 from schemas.base import Message
-from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
+from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
@@ -57,6 +58,7 @@ class ControllerShell:
         self.node.subscribe(keys.joints, JointState, self._on_joint_state)
         self.node.subscribe(keys.status, ArmStatus, self._on_status)
         self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
+        self.node.subscribe(keys.heartbeat, Heartbeat, self._on_heartbeat)
         self.node.queryable(keys.goal, TrajectoryGoal, self._on_goal)
         self.node.queryable(keys.gripper_goal, GripperGoal, self.core.submit_gripper)
         self.node.queryable(keys.cancel, CancelGoal, self.core.cancel)
@@ -75,6 +77,9 @@ class ControllerShell:
 
     def _on_bridge(self, bs: BridgeState, rx_ns: int) -> None:
         self._publish(self.core.on_bridge_state(bs))
+
+    def _on_heartbeat(self, hb: Heartbeat, rx_ns: int) -> None:
+        self._publish(self.core.on_heartbeat(hb))
 
     def _on_goal(self, goal: TrajectoryGoal) -> Message:
         ack = self.core.submit(goal)

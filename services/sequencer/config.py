@@ -26,6 +26,12 @@ class SequencerConfig:
             (its bounded deceleration) before the sequencer asks the bridge to stop [s].
         progress_step: smallest change of a step's progress worth a ``step_progress``
             event (fraction, 0..1).
+        heartbeat_timeout_s: the deadman of every move: the ``heartbeat_timeout`` of its
+            controller goal [s] (0: none). While a task runs the sequencer answers each
+            joint state with a ``Heartbeat`` echoing it; the controller stops the arm when
+            the newest echo is older than this (docs/deployment.md, Faults).
+        link_timeout_s: no joint state for this long while a goal is active fails the task
+            ("no joint states from the arm ...": the link to the arm computer is down) [s].
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -35,11 +41,22 @@ class SequencerConfig:
     fold_timeout_s: float = 60.0
     cancel_timeout_s: float = 3.0
     progress_step: float = 0.02
+    heartbeat_timeout_s: float = 0.1
+    link_timeout_s: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("result_margin_s", "gripper_timeout_s", "fold_timeout_s", "cancel_timeout_s"):
             value = getattr(self, name)
             if not 0.1 <= value <= 3600.0:
                 raise ConfigError(f"sequencer {name} = {value!r} s is outside 0.1..3600 s")
+        if not 0.0 <= self.heartbeat_timeout_s <= 10.0:
+            raise ConfigError(
+                f"sequencer heartbeat_timeout_s = {self.heartbeat_timeout_s!r} s is outside "
+                "0..10 s (0: no deadman)"
+            )
+        if not 0.1 <= self.link_timeout_s <= 3600.0:
+            raise ConfigError(
+                f"sequencer link_timeout_s = {self.link_timeout_s!r} s is outside 0.1..3600 s"
+            )
         if not 0.0 < self.progress_step <= 1.0:
             raise ConfigError(f"sequencer progress_step = {self.progress_step!r} outside (0, 1]")

@@ -3,8 +3,9 @@
 Inputs are method calls carrying messages and the time they arrived (``now_ns``); outputs
 are :data:`Action` values: :class:`Query` (a request the shell sends with
 ``Node.query``; it feeds the answer back through :meth:`SequencerCore.on_reply` with the
-query's ``token``) and :class:`Publish` (a message to publish, the task events). No
-Zenoh, no threads, no clock: the same inputs give the same outputs.
+query's ``token``) and :class:`Publish` (a message to publish: the task events, and while
+a task runs one deadman :class:`~schemas.control.Heartbeat` per joint state). No Zenoh,
+no threads, no clock: the same inputs give the same outputs.
 
 Steps (SPEC 7, thesis 4.2.2):
 
@@ -18,7 +19,8 @@ Steps (SPEC 7, thesis 4.2.2):
 
 The task stops at the first failure, with the reason from the service that failed
 (planner refusal, controller refusal or result, bridge phase, e-stop, a service whose
-liveliness token vanished, or a timeout).
+liveliness token vanished, no joint states for ``link_timeout_s`` while a goal is active,
+or a timeout).
 
 **Pause** stops the arm and keeps the task: a running trajectory or gripper goal is
 cancelled (the controller decelerates within the arm's limits) and, on **resume**, the
@@ -45,6 +47,7 @@ from schemas.control import (
     GoalAck,
     GoalResult,
     GripperGoal,
+    Heartbeat,
     TrajectoryGoal,
 )
 from schemas.planning import Path, PlanReply, Trajectory
@@ -56,6 +59,8 @@ from services.sequencer.validate import plan_request, step_label
 
 NS = 1_000_000_000
 EVENTS_SUFFIX = "sequencer/events"
+HEARTBEAT_SUFFIX = "heartbeat"
+"""Key suffix of the deadman heartbeat (``schemas.control.Heartbeat``)."""
 ACTIVE_STATES = ("running", "paused")
 
 
@@ -101,6 +106,8 @@ class SequencerCore:
         self._token = 0
         self._goals = 0
         self._now = 0
+        self._heartbeats = 0
+        self._js_rx: int | None = None  # receive time of the newest joint state [ns]
         self._reset_step()
 
     def _reset_step(self) -> None:
@@ -236,11 +243,25 @@ class SequencerCore:
     # -- inputs ------------------------------------------------------------------------------
 
     def on_joint_state(self, js: JointState, now_ns: int) -> list[Action]:
-        """Newest joint state: the start of the next plan."""
+        """Newest joint state: the start of the next plan; while a task runs, answered
+        with a :class:`Heartbeat` echoing it (the controller's deadman)."""
         self._now = now_ns
+        self._js_rx = now_ns
         if js.valid:
             self.latest = js
-        return self._check_deadline()
+        out: list[Action] = []
+        if self.busy:
+            self._heartbeats += 1
+            beat = Heartbeat(
+                stamp_ns=now_ns,
+                seq=self._heartbeats,
+                source="sequencer",
+                ref_seq=js.seq,
+                ref_stamp_ns=js.stamp_ns,
+                task_id=self.task_id,
+            )
+            out.append(Publish(HEARTBEAT_SUFFIX, beat))
+        return out + self._check_deadline()
 
     def on_bridge_state(self, bs: BridgeState, now_ns: int) -> list[Action]:
         """Bridge phase: fold progress, arm errors, e-stop."""
@@ -323,7 +344,22 @@ class SequencerCore:
                 self._deadline = None
                 return self._step_done()
             return self._report(1.0 - left / step.duration if step.duration > 0 else 1.0)
-        return self._check_deadline()
+        return self._check_link() + self._check_deadline()
+
+    def _check_link(self) -> list[Action]:
+        """Fail the task when joint states stop while a controller goal is active."""
+        if self.state != "running" or self._phase not in ("acking", "active", "pausing"):
+            return []
+        if self._js_rx is None:
+            return []
+        silent = self._now - self._js_rx
+        if silent <= self.config.link_timeout_s * NS:
+            return []
+        return self._fail(
+            f"no joint states from the arm for {silent / 1e6:.0f} ms (more than link_timeout_s "
+            f"{self.config.link_timeout_s:g} s): the link to the arm computer is down; the "
+            "controller stops the arm itself when it loses the supervisor's heartbeat"
+        )
 
     def on_reply(self, token: int, reply: Message | None, error: str, now_ns: int) -> list[Action]:
         """The answer to the :class:`Query` with ``token`` (None and ``error``: no answer)."""
@@ -432,7 +468,10 @@ class SequencerCore:
         self._t = 0.0
         assert self.task is not None
         goal = TrajectoryGoal(
-            goal_id=self._goal_id, trajectory=reply.trajectory, mode=self.task.mode
+            goal_id=self._goal_id,
+            trajectory=reply.trajectory,
+            mode=self.task.mode,
+            heartbeat_timeout=self.config.heartbeat_timeout_s,
         )
         span = reply.trajectory.times[-1] + goal.goal_time_tolerance + self.config.result_margin_s
         self._deadline = self._now + int(span * NS)

@@ -4,7 +4,8 @@ Queryables (``schemas.sequencing``): ``<prefix>/sequencer/submit`` (Task -> Subm
 validates the whole task, asking the planner for every move, before anything moves),
 ``<prefix>/sequencer/control`` (TaskControl -> TaskStatus: cancel, pause, resume,
 status) and ``<prefix>/sequencer/status``. Publishes ``<prefix>/sequencer/events``
-(TaskEvent). Follows ``state/joints``, ``state/bridge``, ``controller/feedback``,
+(TaskEvent) and, while a task runs, ``<prefix>/heartbeat`` (the controller's deadman, one
+per joint state). Follows ``state/joints``, ``state/bridge``, ``controller/feedback``,
 ``controller/result``, ``estop`` and the liveliness tokens.
 
 The core's queries run one at a time, in order, on a worker thread (never under the node
@@ -21,7 +22,7 @@ import uuid
 
 import zenoh
 
-from manus.node import Node, QueryError, now_ns
+from manus.node import Node, Publisher, QueryError, now_ns
 from manus.session import ZenohSettings
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult
@@ -29,7 +30,14 @@ from schemas.planning import PlanReply
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskStatus
 from schemas.state import BridgeState, JointState
 from services.sequencer.config import SequencerConfig
-from services.sequencer.core import Action, Publish, Query, SequencerCore
+from services.sequencer.core import (
+    EVENTS_SUFFIX,
+    HEARTBEAT_SUFFIX,
+    Action,
+    Publish,
+    Query,
+    SequencerCore,
+)
 from services.sequencer.validate import Validator
 
 log = logging.getLogger("manus.sequencer")
@@ -62,7 +70,10 @@ class SequencerShell:
         self.submitted = 0
         self.refused = 0
         keys = self.node.keys
-        self._events = self.node.publisher(keys("sequencer/events"))
+        self._pubs: dict[str, Publisher] = {
+            suffix: self.node.publisher(keys(suffix))
+            for suffix in (EVENTS_SUFFIX, HEARTBEAT_SUFFIX)
+        }
         self._queries: queue.Queue[Query | None] = queue.Queue()
         self._stop = threading.Event()
         self.node.subscribe(keys.joints, JointState, self._on_joints)
@@ -148,9 +159,15 @@ class SequencerShell:
     def _do(self, actions: list[Action]) -> None:
         for action in actions:
             if isinstance(action, Publish):
-                self._events.put(action.message)
+                self._publisher(action.suffix).put(action.message)
             else:
                 self._queries.put(action)
+
+    def _publisher(self, suffix: str) -> Publisher:
+        pub = self._pubs.get(suffix)
+        if pub is None:
+            pub = self._pubs[suffix] = self.node.publisher(self.node.keys(suffix))
+        return pub
 
     def _work(self) -> None:
         while True:
