@@ -1,7 +1,9 @@
 """The thin Zenoh shell around a service core: typed publish, subscribe and query.
 
 A :class:`Node` owns one session (from :mod:`manus.session`), declares a liveliness token
-``<prefix>/alive/<name>`` while it lives, and turns payloads into typed messages. A
+``<prefix>/alive/<name>`` while it lives, and a second one,
+``<prefix>/where/<name>/<host>/<pid>``, that says on which computer and process it runs
+(``manus status``); it turns payloads into typed messages. A
 payload that fails to decode is counted per key and logged (at most once a second per
 key), never raised into the core: one bad publisher must not take a service down.
 
@@ -18,7 +20,9 @@ with its request (the recorder stores it as the MCAP publish time).
 from __future__ import annotations
 
 import logging
+import os
 import signal
+import socket
 import threading
 import time
 from collections import Counter
@@ -88,6 +92,13 @@ class Node:
         self._entities: list[Any] = []
         self._token = (
             self.session.liveliness().declare_token(self.keys.alive(name)) if liveliness else None
+        )
+        self._where = (
+            self.session.liveliness().declare_token(
+                self.keys.where(name, socket.gethostname(), os.getpid())
+            )
+            if liveliness
+            else None
         )
 
     # -- publish / subscribe -------------------------------------------------------------
@@ -248,6 +259,17 @@ class Node:
                 names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix("alive/"))
         return names
 
+    def service_hosts(self, timeout: float = 1.0) -> dict[str, list[tuple[str, int]]]:
+        """Service name -> [(host name, pid), ...] of every node alive now (``where``)."""
+        found: dict[str, list[tuple[str, int]]] = {}
+        for reply in self.session.liveliness().get(self.keys.where_all, timeout=timeout):
+            if reply.ok is None:
+                continue
+            parts = self.keys.suffix(str(reply.ok.key_expr)).split("/")
+            if len(parts) == 4 and parts[3].isdigit():
+                found.setdefault(parts[1], []).append((parts[2], int(parts[3])))
+        return found
+
     def watch_liveliness(self, callback: Callable[[str, bool], None]) -> None:
         """Call ``callback(service, alive)`` when a service's token appears or vanishes."""
 
@@ -278,9 +300,10 @@ class Node:
 
     def close(self) -> None:
         """Undeclare everything; close the session if the node opened it."""
-        if self._token is not None:
-            self._token.undeclare()
-            self._token = None
+        for token in (self._token, self._where):
+            if token is not None:
+                token.undeclare()
+        self._token = self._where = None
         for entity in reversed(self._entities):
             try:
                 entity.undeclare()

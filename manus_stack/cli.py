@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),
     "up": ("manus_stack.commands.up", "start the whole stack locally until Ctrl-C"),
+    "status": ("manus_stack.commands.status", "services alive and where, bridge health, arm"),
     "demo": ("manus_stack.commands.demo", "the stack, the thesis path, an error table and a plot"),
     "record": ("services.recorder.main", "record the bus to MCAP (or --recover a crashed file)"),
     "replay": ("manus_stack.commands.replay", "replay an MCAP onto the bus, or --check a core"),

@@ -24,6 +24,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | sequencer/...          | (see schemas.sequencing)                   | sequencer  |
 | sim/truth              | pub        | SimTruth                      | simulator  |
 | alive/<service>        | liveliness | (no payload)                  | each one   |
+| where/<service>/<host>/<pid> | liveliness | (no payload): where it runs | each one |
 | trace/<q>/request      | pub        | request type of queryable <q> | its server |
 | trace/<q>/reply        | pub        | reply type of queryable <q>   | its server |
 
@@ -37,6 +38,7 @@ pairs with its request. :func:`channel_type` maps these keys to the ``<q>#reques
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from manus.session import DEFAULT_PREFIX
@@ -141,6 +143,16 @@ class Keys:
     @property
     def alive_all(self) -> str:
         return self("alive/**")
+
+    def where(self, service: str, host: str, pid: int) -> str:
+        """Liveliness token saying on which computer (host name) and process a service
+        runs; characters a key cannot hold are replaced by ``_``."""
+        safe = re.sub(r"[^A-Za-z0-9_.\-]", "_", host) or "unknown"
+        return self(f"where/{service}/{safe}/{pid}")
+
+    @property
+    def where_all(self) -> str:
+        return self("where/**")
 
     def trace(self, suffix: str, part: str) -> str:
         """Mirror of queryable ``suffix`` (e.g. ``planner/plan``); ``part`` is ``request``
