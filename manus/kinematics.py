@@ -23,6 +23,7 @@ R_36 = R_03^T R, a ZYZ-like spherical wrist (two wrist branches).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -113,6 +114,71 @@ def jacobian(q: np.ndarray, cfg: ArmConfig | None = None) -> np.ndarray:
         J[:3, i] = np.cross(z, p_e - p)
         J[3:, i] = z
     return J
+
+
+Vec3 = tuple[float, float, float]
+"""A 3-vector as plain floats (the scalar functions below)."""
+
+
+class Chain(NamedTuple):
+    """Joint axes and frame origins of one configuration, base frame, plain floats.
+
+    Attributes:
+        axes: z_0..z_5, the axis of each joint [-] (unit vectors).
+        origins: p_0..p_6, the origin of each frame [m]; ``origins[-1]`` is the gripper.
+    """
+
+    axes: list[Vec3]
+    origins: list[Vec3]
+
+    @property
+    def position(self) -> Vec3:
+        """Gripper position [m] (what :func:`fk_position` gives)."""
+        return self.origins[-1]
+
+    def jacobian(self) -> np.ndarray:
+        """Geometric Jacobian (what :func:`jacobian` gives), shape (6, 6).
+
+        Column i: z_i x (p_e - p_i) [m/rad] over z_i [-].
+        """
+        ex, ey, ez = self.origins[-1]
+        columns = []
+        for (zx, zy, zz), (px, py, pz) in zip(self.axes, self.origins, strict=False):
+            dx, dy, dz = ex - px, ey - py, ez - pz
+            columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
+        return np.array(columns).T
+
+
+def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Chain:
+    """Joint axes and origins for DH angles ``q`` [rad], shape (6,), with :mod:`math`.
+
+    The scalar twin of :func:`joint_frames` for the controller's cycle, where NumPy's
+    per-call overhead on 4x4 products dominates (a test keeps the two equal). Each
+    A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) turns the frame's x and y axes by theta about
+    its z, moves the origin d along that z and a along the new x, then turns y and z by
+    alpha about the new x.
+    """
+    cfg = cfg or DEFAULT_ARM
+    x: Vec3 = (1.0, 0.0, 0.0)
+    y: Vec3 = (0.0, 1.0, 0.0)
+    z: Vec3 = (0.0, 0.0, 1.0)
+    p: Vec3 = (0.0, 0.0, 0.0)
+    axes, origins = [], [p]
+    for (a, alpha, d), theta in zip(dh_table(cfg), q, strict=True):
+        axes.append(z)
+        ct, st = math.cos(theta), math.sin(theta)
+        ca, sa = math.cos(alpha), math.sin(alpha)
+        x, w = (
+            (ct * x[0] + st * y[0], ct * x[1] + st * y[1], ct * x[2] + st * y[2]),
+            (ct * y[0] - st * x[0], ct * y[1] - st * x[1], ct * y[2] - st * x[2]),
+        )
+        p = (p[0] + d * z[0] + a * x[0], p[1] + d * z[1] + a * x[1], p[2] + d * z[2] + a * x[2])
+        y, z = (
+            (ca * w[0] + sa * z[0], ca * w[1] + sa * z[1], ca * w[2] + sa * z[2]),
+            (ca * z[0] - sa * w[0], ca * z[1] - sa * w[1], ca * z[2] - sa * w[2]),
+        )
+        origins.append(p)
+    return Chain(axes, origins)
 
 
 class IkSolutions(NamedTuple):

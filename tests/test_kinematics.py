@@ -13,12 +13,14 @@ from manus.config import DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.errors import KinematicsError
 from manus.kinematics import (
     branch_of,
+    chain,
     fk,
     fk_batch,
     ik_all,
     ik_batch,
     ik_nearest,
     jacobian,
+    joint_frames,
     wrap,
 )
 from manus.orientation import pose_matrix
@@ -93,6 +95,21 @@ def test_jacobian_equals_finite_differences(q: np.ndarray) -> None:
         w = np.array([dR[2, 1], dR[0, 2], dR[1, 0]])
         assert J[:3, j] == pytest.approx(v, abs=1e-7)
         assert J[3:, j] == pytest.approx(w, abs=1e-7)
+
+
+@given(configs)
+def test_scalar_chain_equals_the_frames_and_the_jacobian(q: np.ndarray) -> None:
+    # The controller's scalar twin of joint_frames / jacobian, on other arm lengths too.
+    arm = ArmConfig(l1=0.09, l2=0.41, l3=0.33, l4=0.15)
+    for cfg in (None, arm):
+        frames = joint_frames(q, cfg or ArmConfig())
+        c = chain(q.tolist(), cfg)
+        assert np.array(c.origins) == pytest.approx(np.array([T[:3, 3] for T in frames]), abs=1e-12)
+        assert np.array(c.axes) == pytest.approx(
+            np.array([T[:3, 2] for T in frames[:6]]), abs=1e-12
+        )
+        assert c.position == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
+        assert c.jacobian() == pytest.approx(jacobian(q, cfg), abs=1e-12)
 
 
 def test_nearest_branch_is_the_reference_branch_and_unwrapped() -> None:

@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from manus.joint_map import dh_to_encoder
+from manus.kinematics import Vec3, chain
 from manus.quantize import COUNT_RAD_S
 from manus.trajectory import TrajectoryError
 from schemas.control import (
@@ -266,7 +267,7 @@ class ControllerCore:
             if not usable:
                 self._abort_all(f"joint state not usable (valid={js.valid}, mode {js.mode})")
         if not usable:
-            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
+            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         dt = 0.0 if last is None or gap else (js.stamp_ns - last.stamp_ns) / 1e9
         applied = np.asarray(js.applied, dtype=float)
         if js.applied_kind != "joint":
@@ -275,7 +276,7 @@ class ControllerCore:
         self.play.update(motors)
         self.grip.update(np.array([js.gripper]), applied[7:8] * 0.005, dt)
         if self.arm_error is not None:
-            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, False)
+            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         snap = js.stamp_ns - cfg.snapshot_age_ns
         q = np.asarray(js.position, dtype=float)
         before = self.run
@@ -287,18 +288,21 @@ class ControllerCore:
             self._abort_all(lost)
         step: Step | None = None
         run = self.run
-        if run is not None:
+        had_gripper = self.gripper is not None
+        # The gripper position of the measured angles: one forward kinematics per cycle,
+        # shared by the via points, the verdicts and the feedback.
+        xyz = chain(js.position, cfg.arm).position if run is not None or had_gripper else None
+        if run is not None and xyz is not None:
             if gap:
                 run.pause(snap)  # the reference waits for the arm over the gap
-            step = run.step(snap, q, self.joints, self.last_counts, self.play)
+            step = run.step(snap, q, xyz, self.joints, self.last_counts, self.play)
             if step.ended is not None:
                 self._end_run(run, *step.ended)
-        had_gripper = self.gripper is not None
         grip = self._gripper_cycle(js, snap)
         counts = step.counts if step is not None else np.zeros(6, dtype=np.int64)
         if gap:  # stop for this cycle: nothing is known of the cycle(s) missed
             counts, grip = np.zeros(6, dtype=np.int64), 0
-        return self._answer(js, counts, grip, step, run, had_gripper)
+        return self._answer(js, counts, grip, step, run, xyz)
 
     def _outage(self, js: JointState, last: JointState) -> int:
         """How long the joint states were missing [ns] (0: none)."""
@@ -417,15 +421,16 @@ class ControllerCore:
         grip: int,
         step: Step | None,
         run: TrajectoryRun | None,
-        had_gripper: bool,
+        xyz: Vec3 | None,
     ) -> Output:
-        """The command, the feedback (while a goal ran this cycle) and queued results."""
+        """The command, the feedback (while a goal ran this cycle: ``xyz`` is the gripper
+        position of the measured angles [m], None when none ran) and queued results."""
         counts = np.asarray(counts, dtype=np.int64)
         self.last_counts = counts
         cmd = self.outbox.command(js, counts, grip)
         out: Output = [("cmd/joint_velocity", cmd)]
-        if step is not None or had_gripper:
-            fb = self.outbox.feedback(js, step, run, self.gripper, np.asarray(cmd.velocity))
+        if xyz is not None:
+            fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
             out.append(("controller/feedback", fb))
         return out + self._flush(js.stamp_ns)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder
-from manus.kinematics import jacobian
+from manus.kinematics import chain
 from manus.quantize import (
     COUNT_RAD_S,
     JOINT_COUNT_MAX,
@@ -55,12 +55,14 @@ def cartesian_rounding(
         config: controller settings.
     """
     lo = np.floor(wanted)
-    cand = np.clip(lo + _CORNERS, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
-    err_motor = miss + gain * cand  # (64, 6)
-    err_dh = err_motor @ M_ENCODER_TO_DH.T
-    J = jacobian(q_target, config.arm)
+    cand = np.clip(lo + _CORNERS, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)  # (64, 6)
+    # Gripper error per motor error: the weighted Jacobian at the target, coupling included.
+    J = chain(q_target, config.arm).jacobian()
     J[3:] *= config.rounding_rotation_m
-    cost = np.sum((err_dh @ J.T) ** 2, axis=1)
+    G = J @ M_ENCODER_TO_DH
+    # The gripper error of each choice, (64, 6): G (miss + gain cand), all in one product.
+    err = G @ miss + gain * (cand @ G.T)
+    cost = np.sum(err * err, axis=1)
     # Rounding a joint away from its own nearest count costs too (no wrist chatter).
     cost += (config.rounding_joint_m * gain) ** 2 * np.sum((cand - wanted) ** 2, axis=1)
     return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)

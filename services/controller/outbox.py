@@ -8,11 +8,12 @@ with the stamp of the message that is being answered when they leave
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from manus.config import ArmConfig
-from manus.kinematics import fk_position
+from manus.kinematics import Vec3, chain
 from manus.quantize import counts_to_joint_rates
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
@@ -72,16 +73,17 @@ class Outbox:
     def feedback(
         self,
         js: JointState,
+        act_xyz: Vec3,
         step: Step | None,
         run: TrajectoryRun | None,
         grip: GripperRun | None,
-        velocity: np.ndarray,
+        velocity: list[float],
     ) -> ControllerFeedback:
-        """One cycle's reference vs actual (``velocity``: the commanded DH rates [rad/s])."""
+        """One cycle's reference vs actual (``act_xyz``: the gripper position of the
+        measured angles [m]; ``velocity``: the commanded DH rates [rad/s])."""
         q = np.asarray(js.position, dtype=float)
         ref = step.reference.q if step is not None else q
-        ref_xyz = fk_position(ref, self.arm)
-        act_xyz = fk_position(q, self.arm)
+        ref_xyz = chain(ref, self.arm).position if step is not None else act_xyz
         fb = ControllerFeedback(
             stamp_ns=js.stamp_ns,
             seq=self._fb_seq,
@@ -92,10 +94,10 @@ class Outbox:
             reference=[float(v) for v in ref],
             actual=[float(v) for v in q],
             error=[float(v) for v in ref - q],
-            command=[float(v) for v in velocity],
-            reference_xyz=[float(v) for v in ref_xyz],
-            actual_xyz=[float(v) for v in act_xyz],
-            position_error=float(np.linalg.norm(ref_xyz - act_xyz)),
+            command=list(velocity),
+            reference_xyz=list(ref_xyz),
+            actual_xyz=list(act_xyz),
+            position_error=math.dist(ref_xyz, act_xyz),
             gripper_goal_id=grip.goal.goal_id if grip is not None else "",
             gripper_target=grip.goal.opening if grip is not None else 0.0,
             gripper=js.gripper,

@@ -28,11 +28,12 @@ ends.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from manus.kinematics import fk_position
+from manus.kinematics import Vec3, chain
 from manus.quantize import (
     COUNT_RAD_S,
     Quantizer,
@@ -158,11 +159,13 @@ class TrajectoryRun:
         self,
         snap_ns: int,
         q: np.ndarray,
+        xyz: Vec3,
         est: DriveEstimator,
         last_counts: np.ndarray,
         play: PlayModel | None = None,
     ) -> Step:
-        """Advance to the snapshot at ``snap_ns`` with measured DH angles ``q`` [rad]."""
+        """Advance to the snapshot at ``snap_ns`` with measured DH angles ``q`` [rad] and
+        their gripper position ``xyz`` [m]."""
         dt = (snap_ns - self.last_ns) / 1e9
         self.last_ns = snap_ns
         self.tau += self.scale * dt
@@ -172,7 +175,6 @@ class TrajectoryRun:
         self.scale += float(np.clip(self.scale_target - self.scale, -rate, rate))
         if self.cancelling:
             return self._decelerate(last_counts)
-        xyz = fk_position(q, self.config.arm)
         if self.thesis:
             self._thesis_segments(snap_ns, xyz)
         else:
@@ -251,19 +253,19 @@ class TrajectoryRun:
                 frac = min(1.0, max(0.0, (times[i] - prev[0]) / (self.tau - prev[0])))
                 q_i = prev[1] + frac * (q - prev[1])
                 stamp = prev[2] + round(frac * (snap_ns - prev[2]))
-            xyz = fk_position(q_i, self.config.arm)
-            self._record(float(np.linalg.norm(xyz - self.ref.via_xyz[i])), stamp)
+            xyz = chain(q_i, self.config.arm).position
+            self._record(math.dist(xyz, self.ref.via_xyz[i]), stamp)
         self.prev = (self.tau, q.copy(), snap_ns)
 
-    def _thesis_segments(self, snap_ns: int, xyz: np.ndarray) -> None:
+    def _thesis_segments(self, snap_ns: int, xyz: Vec3) -> None:
         ref = self.ref
         if not self.via_errors:
-            self._record(float(np.linalg.norm(xyz - ref.via_xyz[0])), snap_ns)
+            self._record(math.dist(xyz, ref.via_xyz[0]), snap_ns)
         last = len(ref.times) - 1
         if self.segment >= last:
             return
         nxt = self.segment + 1
-        distance = float(np.linalg.norm(xyz - ref.via_xyz[nxt]))
+        distance = math.dist(xyz, ref.via_xyz[nxt])
         if distance < self.config.thesis_via_threshold_m or self.tau >= ref.times[nxt]:
             self._record(distance, snap_ns)
             self.segment = nxt
@@ -273,7 +275,7 @@ class TrajectoryRun:
         self,
         snap_ns: int,
         q: np.ndarray,
-        xyz: np.ndarray,
+        xyz: Vec3,
         at_rest: bool,
     ) -> tuple[str, str] | None:
         """Success, abort, or None (keep going), once the reference has ended.
@@ -281,7 +283,7 @@ class TrajectoryRun:
         ``at_rest``: nothing is in flight, so zeros from now on leave the arm where it is.
         """
         goal, end = self.goal, self.ref.end
-        self.final_error = float(np.linalg.norm(xyz - self.ref.via_xyz[-1]))
+        self.final_error = math.dist(xyz, self.ref.via_xyz[-1])
         joints = violation(end - q, self.goal_tol, "goal")
         close = self.final_error <= goal.position_tolerance and joints is None
         if close and at_rest:
