@@ -22,6 +22,7 @@ R_36 = R_03^T R, a ZYZ-like spherical wrist (two wrist branches).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -149,6 +150,12 @@ class Chain(NamedTuple):
         return np.array(columns).T
 
 
+@functools.lru_cache(maxsize=8)
+def _dh_terms(cfg: ArmConfig) -> tuple[tuple[float, float, float, float], ...]:
+    """(a, cos alpha, sin alpha, d) of each joint [m, -, -, m] (:func:`chain`'s constants)."""
+    return tuple((a, math.cos(alpha), math.sin(alpha), d) for a, alpha, d in dh_table(cfg))
+
+
 def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Chain:
     """Joint axes and origins for DH angles ``q`` [rad], shape (6,), with :mod:`math`.
 
@@ -158,26 +165,34 @@ def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Chai
     its z, moves the origin d along that z and a along the new x, then turns y and z by
     alpha about the new x.
     """
-    cfg = cfg or DEFAULT_ARM
-    x: Vec3 = (1.0, 0.0, 0.0)
-    y: Vec3 = (0.0, 1.0, 0.0)
-    z: Vec3 = (0.0, 0.0, 1.0)
-    p: Vec3 = (0.0, 0.0, 0.0)
-    axes, origins = [], [p]
-    for (a, alpha, d), theta in zip(dh_table(cfg), q, strict=True):
-        axes.append(z)
+    angles = q.tolist() if isinstance(q, np.ndarray) else q
+    x0, x1, x2 = 1.0, 0.0, 0.0
+    y0, y1, y2 = 0.0, 1.0, 0.0
+    z0, z1, z2 = 0.0, 0.0, 1.0
+    p0, p1, p2 = 0.0, 0.0, 0.0
+    axes: list[Vec3] = []
+    origins: list[Vec3] = [(p0, p1, p2)]
+    for (a, ca, sa, d), theta in zip(_dh_terms(cfg or DEFAULT_ARM), angles, strict=True):
+        axes.append((z0, z1, z2))
         ct, st = math.cos(theta), math.sin(theta)
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        x, w = (
-            (ct * x[0] + st * y[0], ct * x[1] + st * y[1], ct * x[2] + st * y[2]),
-            (ct * y[0] - st * x[0], ct * y[1] - st * x[1], ct * y[2] - st * x[2]),
+        x0, x1, x2, w0, w1, w2 = (
+            ct * x0 + st * y0,
+            ct * x1 + st * y1,
+            ct * x2 + st * y2,
+            ct * y0 - st * x0,
+            ct * y1 - st * x1,
+            ct * y2 - st * x2,
         )
-        p = (p[0] + d * z[0] + a * x[0], p[1] + d * z[1] + a * x[1], p[2] + d * z[2] + a * x[2])
-        y, z = (
-            (ca * w[0] + sa * z[0], ca * w[1] + sa * z[1], ca * w[2] + sa * z[2]),
-            (ca * z[0] - sa * w[0], ca * z[1] - sa * w[1], ca * z[2] - sa * w[2]),
+        p0, p1, p2 = p0 + d * z0 + a * x0, p1 + d * z1 + a * x1, p2 + d * z2 + a * x2
+        y0, y1, y2, z0, z1, z2 = (
+            ca * w0 + sa * z0,
+            ca * w1 + sa * z1,
+            ca * w2 + sa * z2,
+            ca * z0 - sa * w0,
+            ca * z1 - sa * w1,
+            ca * z2 - sa * w2,
         )
-        origins.append(p)
+        origins.append((p0, p1, p2))
     return Chain(axes, origins)
 
 

@@ -24,13 +24,10 @@ class PlayModel:
     def __init__(self, width: np.ndarray, dead_zone: float) -> None:
         self.half = np.asarray(width, dtype=float) / 2.0
         self.dead_zone = dead_zone
+        self.active = bool(np.any(self.half > 0.0))
+        """Some belt has play."""
         self.output: np.ndarray | None = None
         """Estimated belt outputs at the last snapshot [rad] (None: not known yet)."""
-
-    @property
-    def active(self) -> bool:
-        """Some belt has play."""
-        return bool(np.any(self.half > 0.0))
 
     def reset(self) -> None:
         """Forget the outputs (after a gap)."""

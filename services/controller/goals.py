@@ -103,6 +103,8 @@ def violation(error: np.ndarray, tol: np.ndarray, what: str) -> str | None:
         tol: tolerances [rad], shape (6,) (0: unchecked).
         what: ``path`` or ``goal``.
     """
+    if not tol.any():
+        return None  # nothing checked (the default)
     over = (tol > 0.0) & (np.abs(error) > tol)
     if not over.any():
         return None

@@ -63,9 +63,9 @@ class Outbox:
             seq=self._cmd_seq,
             source="controller",
             ref_seq=js.seq,
-            velocity=[float(v) for v in velocity],
+            velocity=velocity.tolist(),
             gripper_velocity=gripper_speed(grip),
-            counts=[0, *(int(c) for c in counts), int(grip)],
+            counts=[0, *counts.tolist(), int(grip)],
         )
         self._cmd_seq += 1
         return cmd
@@ -91,9 +91,9 @@ class Outbox:
             state=step.state if step is not None else "idle",
             segment=step.segment if step is not None else -1,
             t=run.tau if run is not None else 0.0,
-            reference=[float(v) for v in ref],
-            actual=[float(v) for v in q],
-            error=[float(v) for v in ref - q],
+            reference=ref.tolist(),
+            actual=q.tolist(),
+            error=(ref - q).tolist(),
             command=list(velocity),
             reference_xyz=list(ref_xyz),
             actual_xyz=list(act_xyz),

@@ -172,7 +172,7 @@ class TrajectoryRun:
         if self.settle is not None:
             self.settle_tau += self.scale * dt
         rate = self.config.speed_scale_rate * dt
-        self.scale += float(np.clip(self.scale_target - self.scale, -rate, rate))
+        self.scale += min(rate, max(-rate, self.scale_target - self.scale))
         if self.cancelling:
             return self._decelerate(last_counts)
         if self.thesis:
@@ -192,7 +192,7 @@ class TrajectoryRun:
             counts = self._thesis_law(q)
         else:
             counts = self._default_law(q, est, play)
-            at_rest = not np.any(est.u)  # nothing in flight: a zero now stops the arm here
+            at_rest = not est.u.any()  # nothing in flight: a zero now stops the arm here
             verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
         if verdict is not None:
             zero = np.zeros(6, dtype=np.int64)
