@@ -14,6 +14,7 @@ reason, brings the link back, checks that nothing resumes and that a new task ru
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import random
@@ -106,14 +107,38 @@ class Net:
         return [name for name, proc, _ in self.procs if proc.poll() is not None]
 
 
-def _env(config: str, prefix: str) -> dict[str, str]:
+SERVICES_DIR = ZENOH / "services"
+"""Per-service identities (user names; TLS and access control between the routers),
+when the deployment has them: the lab credentials are then made for the test."""
+
+
+def _env(who: str, prefix: str, lab: Path | None) -> dict[str, str]:
+    """Environment of one process: ``who`` is a router file (``router-arm``) or a
+    service's Zenoh user (``controller``); with ``lab``, its identity from the lab."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("MANUS_")}
-    env.update(
-        MANUS_ZENOH_CONFIG=str(ZENOH / config),
-        MANUS_PREFIX=prefix,
-        PYTHONUNBUFFERED="1",
-    )
+    env.update(MANUS_PREFIX=prefix, PYTHONUNBUFFERED="1")
+    if who.startswith("router-"):
+        env["MANUS_ZENOH_CONFIG"] = str(ZENOH / f"{who}.json5")
+    elif lab is None:
+        env["MANUS_ZENOH_CONFIG"] = str(ZENOH / "client.json5")
+    else:
+        env["MANUS_ZENOH_CONFIG"] = str(SERVICES_DIR / f"{who}.json5")
+    if lab is not None:
+        env["MANUS_LAB_DIR"] = str(lab)
+        for name, var in ((f"{who}.usrpwd", "MANUS_ZENOH_CREDENTIALS"),
+                          (f"{who}.password", "MANUS_ZENOH_PASSWORD_FILE")):  # fmt: skip
+            if (lab / name).is_file():
+                env[var] = str(lab / name)
     return env
+
+
+def _lab(run_dir: Path) -> Path | None:
+    """Fresh lab credentials (``manus certs``) when deploy/zenoh has identities."""
+    if not SERVICES_DIR.is_dir():
+        return None
+    lab = run_dir / "lab"
+    importlib.import_module("manus.certs").write_lab(lab)
+    return lab
 
 
 @pytest.fixture
@@ -198,29 +223,35 @@ def _moves(probe: Path, since_ns: int) -> list[tuple[int, bool]]:
 def test_cut_link_between_the_computers(net: Net) -> None:
     t0 = time.monotonic()
     prefix = "netns"
-    arm_env = _env("client.json5", prefix)
-    base_env = _env("client.json5", prefix)
+    lab = _lab(net.run_dir)
+
+    def env(who: str) -> dict[str, str]:
+        return _env(who, prefix, lab)
+
+    base_env = env("supervisor")  # manus status, manus run
     net.run_dir.joinpath("sim.json").write_text(json.dumps({"start_pose": "unfolded"}))
     device = net.run_dir / "sim.device"
     cli = ["-m", "manus_stack.cli"]
 
     # ---- the arm computer
     net.spawn(net.arm, "router-arm", ["-m", "tests.netns_helper", "router"],
-              _env("router-arm.json5", prefix))  # fmt: skip
+              env("router-arm"))  # fmt: skip
     time.sleep(1.0)
     net.spawn(net.arm, "sim", [*cli, "sim", "--device-file", str(device), "--config",
-                               str(net.run_dir / "sim.json")], arm_env)  # fmt: skip
+                               str(net.run_dir / "sim.json")], env("simulator"))  # fmt: skip
     net.spawn(net.arm, "bridge", [*cli, "bridge", "--device-file", str(device),
-                                  "--wait-device", "20"], arm_env)  # fmt: skip
-    net.spawn(net.arm, "controller", [*cli, "controller"], arm_env)
+                                  "--wait-device", "20"], env("can_bridge"))  # fmt: skip
+    net.spawn(net.arm, "controller", [*cli, "controller"], env("controller"))
     probe = net.run_dir / "probe.txt"
     probe.touch()
-    net.spawn(net.arm, "probe", ["-m", "tests.netns_helper", "probe", str(probe)], arm_env)
+    net.spawn(
+        net.arm, "probe", ["-m", "tests.netns_helper", "probe", str(probe)], env("controller")
+    )
     # ---- the base computer
     net.spawn(net.base, "router-base", ["-m", "tests.netns_helper", "router"],
-              _env("router-base.json5", prefix))  # fmt: skip
-    net.spawn(net.base, "planner", [*cli, "planner"], base_env)
-    net.spawn(net.base, "sequencer", [*cli, "sequencer"], base_env)
+              env("router-base"))  # fmt: skip
+    net.spawn(net.base, "planner", [*cli, "planner"], env("planner"))
+    net.spawn(net.base, "sequencer", [*cli, "sequencer"], env("sequencer"))
     everything = {"can_bridge", "controller", "planner", "sequencer"}
     _wait_status(net, net.base, base_env, everything, 40.0)
     up_s = time.monotonic() - t0
