@@ -43,7 +43,7 @@ def _vector6(values: np.ndarray, what: str) -> np.ndarray:
     arr = np.asarray(values, dtype=float)
     if arr.shape != (6,):
         raise QuantizeError(f"{what}: shape {arr.shape}, expected (6,)")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
         raise QuantizeError(f"{what}: joint {bad + 1} is {arr[bad]}, expected a finite number")
     return arr
@@ -81,7 +81,7 @@ def saturate(counts: np.ndarray, limit: float = float(JOINT_COUNT_MAX)) -> np.nd
     if not limit > 0:
         raise QuantizeError(f"saturate: limit {limit} must be > 0")
     c = _vector6(counts, "motor counts")
-    peak = float(np.max(np.abs(c)))
+    peak = float(np.abs(c).max())
     if peak <= limit:
         return c.copy()
     return np.asarray(c * (limit / peak))

@@ -12,6 +12,7 @@ the last position (velocity and acceleration zero there if the knots say so).
 
 from __future__ import annotations
 
+import bisect
 from typing import NamedTuple
 
 import numpy as np
@@ -81,6 +82,10 @@ class JointTrajectory:
             raise TrajectoryError("trajectory holds a NaN or infinite value")
         self.n_joints = n
         self.msg = msg
+        self._knots: list[float] = self.times.tolist()
+        """The knot times as plain floats (the per-sample search)."""
+        self._quintics: dict[int, np.ndarray] = {}
+        """Quintic coefficients of the segments sampled so far, by segment."""
 
     @property
     def duration(self) -> float:
@@ -99,11 +104,12 @@ class JointTrajectory:
 
     def segment(self, t: float) -> int:
         """Index i of the interval [t_i, t_{i+1}) holding ``t`` (-1 before, k-1 after)."""
-        if t < self.times[0]:
+        knots = self._knots
+        if t < knots[0]:
             return -1
-        if t >= self.times[-1]:
-            return len(self.times) - 1
-        return int(np.searchsorted(self.times, t, side="right")) - 1
+        if t >= knots[-1]:
+            return len(knots) - 1
+        return bisect.bisect_right(knots, t) - 1
 
     def sample(self, t: float) -> Sample:
         """Positions, velocities and accelerations at time ``t`` [s]."""
@@ -115,19 +121,21 @@ class JointTrajectory:
             return Sample(
                 self.q[last].copy(), np.zeros(self.n_joints), np.zeros(self.n_joints), last
             )
-        h = float(self.times[i + 1] - self.times[i])
-        s = (t - float(self.times[i])) / h
+        h = self._knots[i + 1] - self._knots[i]
+        s = (t - self._knots[i]) / h
         if self.quintic:
-            q, qd, qdd = _quintic(
-                self.q[i],
-                self.qd[i],
-                self.qdd[i],
-                self.q[i + 1],
-                self.qd[i + 1],
-                self.qdd[i + 1],
-                h,
-                s,
-            )
+            c = self._quintics.get(i)
+            if c is None:
+                c = self._quintics[i] = quintic_coefficients(
+                    self.q[i],
+                    self.qd[i],
+                    self.qdd[i],
+                    self.q[i + 1],
+                    self.qd[i + 1],
+                    self.qdd[i + 1],
+                    h,
+                )
+            q, qd, qdd = _quintic(c, s * h)
         else:
             q, qd, qdd = _cubic(self.q[i], self.qd[i], self.q[i + 1], self.qd[i + 1], h, s)
         return Sample(q, qd, qdd, i)
@@ -147,21 +155,16 @@ def _cubic(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cubic Hermite on [0, h] at normalised time s in [0, 1]."""
     s2, s3 = s * s, s * s * s
-    h00 = 2 * s3 - 3 * s2 + 1
-    h10 = s3 - 2 * s2 + s
-    h01 = -2 * s3 + 3 * s2
-    h11 = s3 - s2
-    q = h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1
-    d00 = (6 * s2 - 6 * s) / h
-    d10 = 3 * s2 - 4 * s + 1
-    d01 = (-6 * s2 + 6 * s) / h
-    d11 = 3 * s2 - 2 * s
-    qd = d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1
-    a00 = (12 * s - 6) / (h * h)
-    a10 = (6 * s - 4) / h
-    a01 = (-12 * s + 6) / (h * h)
-    a11 = (6 * s - 2) / h
-    qdd = a00 * p0 + a10 * v0 + a01 * p1 + a11 * v1
+    # Weights of (p0, v0, p1, v1) in the position, velocity and acceleration: one row
+    # each, so that the three come out of the same four products.
+    w = np.array(
+        [
+            [2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h, -2 * s3 + 3 * s2, (s3 - s2) * h],
+            [(6 * s2 - 6 * s) / h, 3 * s2 - 4 * s + 1, (-6 * s2 + 6 * s) / h, 3 * s2 - 2 * s],
+            [(12 * s - 6) / (h * h), (6 * s - 4) / h, (-12 * s + 6) / (h * h), (6 * s - 2) / h],
+        ]
+    )
+    q, qd, qdd = w[:, 0:1] * p0 + w[:, 1:2] * v0 + w[:, 2:3] * p1 + w[:, 3:4] * v1
     return q, qd, qdd
 
 
@@ -193,18 +196,9 @@ def quintic_coefficients(
     return np.asarray(np.linalg.solve(A, b))
 
 
-def _quintic(
-    p0: np.ndarray,
-    v0: np.ndarray,
-    a0: np.ndarray,
-    p1: np.ndarray,
-    v1: np.ndarray,
-    a1: np.ndarray,
-    h: float,
-    s: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    c = quintic_coefficients(p0, v0, a0, p1, v1, a1, h)
-    t = s * h
+def _quintic(c: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration at ``t`` [s] of the quintic with coefficients
+    ``c``, shape (6, n) (:func:`quintic_coefficients`)."""
     q = c[0] + t * (c[1] + t * (c[2] + t * (c[3] + t * (c[4] + t * c[5]))))
     qd = c[1] + t * (2 * c[2] + t * (3 * c[3] + t * (4 * c[4] + t * 5 * c[5])))
     qdd = 2 * c[2] + t * (6 * c[3] + t * (12 * c[4] + t * 20 * c[5]))

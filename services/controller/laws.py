@@ -62,9 +62,9 @@ def cartesian_rounding(
     G = J @ M_ENCODER_TO_DH
     # The gripper error of each choice, (64, 6): G (miss + gain cand), all in one product.
     err = G @ miss + gain * (cand @ G.T)
-    cost = np.sum(err * err, axis=1)
+    cost = (err * err).sum(axis=1)
     # Rounding a joint away from its own nearest count costs too (no wrist chatter).
-    cost += (config.rounding_joint_m * gain) ** 2 * np.sum((cand - wanted) ** 2, axis=1)
+    cost += (config.rounding_joint_m * gain) ** 2 * ((cand - wanted) ** 2).sum(axis=1)
     return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)
 
 
