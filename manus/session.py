@@ -12,6 +12,13 @@ Environment: ``MANUS_ZENOH_CONFIG`` (a Zenoh JSON5 config file), ``MANUS_ZENOH_M
 endpoints), ``MANUS_ZENOH_LEASE_MS``, ``MANUS_PREFIX``. Scouting stays off whatever the
 config file says unless ``MANUS_ZENOH_SCOUTING=1`` (or ``scouting=True``) asks for it:
 a lab network must never see this stack by accident.
+
+Identity (two-computer deployment, ``docs/deployment.md``): ``MANUS_ZENOH_CREDENTIALS``
+names a file whose first line is ``user:password`` (made by ``manus certs``, never in
+the repository); the session logs in with it (``transport/auth/usrpwd``). A config file
+of ``deploy/zenoh/`` that says ``metadata: { user: NAME }`` accepts only NAME's
+credentials. ``MANUS_LAB_DIR`` points the config's ``/etc/manus/lab/...`` paths
+(certificates, password tables) at another directory (a host without containers, a test).
 """
 
 from __future__ import annotations
@@ -34,6 +41,19 @@ DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
 DEFAULT_PREFIX = "manus"
 """Root of every key expression of one arm."""
 
+LAB_MOUNT = "/etc/manus/lab"
+"""Where the deploy/zenoh files expect the lab credentials (``manus certs --out DIR``)."""
+
+LAB_PATH_KEYS = (
+    "transport/link/tls/root_ca_certificate",
+    "transport/link/tls/listen_certificate",
+    "transport/link/tls/listen_private_key",
+    "transport/link/tls/connect_certificate",
+    "transport/link/tls/connect_private_key",
+    "transport/auth/usrpwd/dictionary_file",
+)
+"""Config entries that name lab files (moved by ``lab_dir``)."""
+
 MODES = ("client", "peer", "router")
 _PREFIX_RE = re.compile(r"^[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*$")
 
@@ -51,6 +71,8 @@ class ZenohSettings:
         scouting: allow multicast scouting and gossip (off: loopback and explicit
             endpoints only).
         prefix: root of the key expressions (one arm per prefix).
+        credentials_file: file whose first line is ``user:password`` (Zenoh usrpwd login).
+        lab_dir: directory that replaces ``/etc/manus/lab`` in the config file's paths.
     """
 
     mode: str = "client"
@@ -61,6 +83,8 @@ class ZenohSettings:
     scouting: bool = False
     prefix: str = DEFAULT_PREFIX
     extra: dict[str, Any] = field(default_factory=dict)
+    credentials_file: str | None = None
+    lab_dir: str | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -104,6 +128,10 @@ def settings_from_env(env: dict[str, str] | None = None, **overrides: Any) -> Ze
         values["scouting"] = env["MANUS_ZENOH_SCOUTING"].strip().lower() in ("1", "true", "yes")
     if env.get("MANUS_PREFIX"):
         values["prefix"] = env["MANUS_PREFIX"]
+    if env.get("MANUS_ZENOH_CREDENTIALS"):
+        values["credentials_file"] = env["MANUS_ZENOH_CREDENTIALS"]
+    if env.get("MANUS_LAB_DIR"):
+        values["lab_dir"] = env["MANUS_LAB_DIR"]
     for key, value in overrides.items():
         if value is not None:
             values[key] = tuple(value) if key in ("connect", "listen") else value
@@ -156,7 +184,50 @@ def build_config(settings: ZenohSettings) -> zenoh.Config:
     config.insert_json5("transport/link/tx/keep_alive", "4")
     for key, value in settings.extra.items():
         config.insert_json5(key, json.dumps(value))
+    _apply_identity(config, settings)
     return config
+
+
+def _lab_path(path: str, settings: ZenohSettings) -> str:
+    if settings.lab_dir and (path == LAB_MOUNT or path.startswith(LAB_MOUNT + "/")):
+        return str(Path(settings.lab_dir) / path[len(LAB_MOUNT) :].lstrip("/"))
+    return path
+
+
+def _apply_identity(config: zenoh.Config, settings: ZenohSettings) -> None:
+    """Move lab paths to ``settings.lab_dir``; add the password of the configured user."""
+    where = settings.config_file or "the zenoh settings"
+    for key in LAB_PATH_KEYS:
+        value = json.loads(config.get_json(key) or "null")
+        if isinstance(value, str):
+            moved = _lab_path(value, settings)
+            if not Path(moved).is_file():
+                raise ConfigError(
+                    f"{where}: {key} = {moved!r}: file not found "
+                    "(make the lab files with `manus certs --out DIR`)"
+                )
+            config.insert_json5(key, json.dumps(moved))
+    wanted = json.loads(config.get_json("metadata") or "null")
+    wanted = wanted.get("user") if isinstance(wanted, dict) else None
+    if not settings.credentials_file:
+        if wanted:
+            raise ConfigError(
+                f"{where}: metadata.user = {wanted!r} needs its credentials: set "
+                "MANUS_ZENOH_CREDENTIALS (a USER.usrpwd file made by `manus certs --out DIR`)"
+            )
+        return
+    path = Path(_lab_path(settings.credentials_file, settings))
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as exc:
+        raise ConfigError(f"{path}: zenoh credentials file: {exc}") from exc
+    user, sep, password = (lines[0] if lines else "").strip().partition(":")
+    if not (user and sep and password):
+        raise ConfigError(f"{path}:1: expected 'user:password' (zenoh credentials)")
+    if wanted and user != wanted:
+        raise ConfigError(f"{path}:1: user {user!r}, but {where} is the identity of {wanted!r}")
+    config.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
+    config.insert_json5("transport/auth/usrpwd/password", json.dumps(password))
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:

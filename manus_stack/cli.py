@@ -27,6 +27,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "task": ("services.sequencer.task_cli", "pause, resume, cancel or show the running task"),
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),
+    "certs": ("manus_stack.commands.certs", "lab CA, router certificates, Zenoh passwords"),
     "up": ("manus_stack.commands.up", "start the whole stack locally until Ctrl-C"),
     "status": ("manus_stack.commands.status", "services alive and where, bridge health, arm"),
     "demo": ("manus_stack.commands.demo", "the stack, the thesis path, an error table and a plot"),

@@ -2,6 +2,9 @@
 
 Listens on ``--listen`` (default ``tcp/127.0.0.1:7447``, loopback only), scouting off,
 until SIGINT/SIGTERM. Prints ``router: listening on ENDPOINT`` on stderr when ready.
+``--config FILE`` runs a router of the two-computer deployment instead (endpoints, TLS,
+access control from ``deploy/zenoh/router-*.json5``; ``MANUS_ZENOH_CREDENTIALS`` and
+``MANUS_LAB_DIR`` as for every service, see :mod:`manus.session`).
 """
 
 from __future__ import annotations
@@ -10,7 +13,13 @@ import argparse
 import sys
 
 from manus.node import wait_for_signal
-from manus.session import DEFAULT_ROUTER_ENDPOINT, open_session, router_settings
+from manus.session import (
+    DEFAULT_ROUTER_ENDPOINT,
+    build_config,
+    open_session,
+    router_settings,
+    settings_from_env,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,14 +30,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ENDPOINT",
         help=f"endpoint (default {DEFAULT_ROUTER_ENDPOINT})",
     )
+    parser.add_argument(
+        "--config",
+        metavar="FILE",
+        help="a Zenoh router config file (deploy/zenoh/router-*.json5); replaces --listen",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Route until interrupted."""
     stop = wait_for_signal()
-    session = open_session(router_settings(args.listen))
+    if args.config:
+        settings = settings_from_env(config_file=args.config, mode="router")
+        listen = build_config(settings).get_json("listen/endpoints")
+    else:
+        settings = router_settings(args.listen)
+        listen = args.listen
+    session = open_session(settings)
     try:
-        print(f"router: listening on {args.listen}", file=sys.stderr, flush=True)
+        print(f"router: listening on {listen}", file=sys.stderr, flush=True)
         stop.wait()
     finally:
         session.close()
