@@ -70,10 +70,10 @@ class DriveEstimator:
         self.half_cell = half_cell
         self.gain_error = gain_error
         self.n = n
-        self.lo = np.zeros(n)
-        """Smallest position consistent with every reading so far, shape (n,)."""
-        self.hi = np.zeros(n)
-        """Largest position consistent with every reading so far, shape (n,)."""
+        self.lo = [0.0] * n
+        """Smallest position consistent with every reading so far, n values."""
+        self.hi = [0.0] * n
+        """Largest position consistent with every reading so far, n values."""
         self.x: np.ndarray | None = None
         """Estimated positions at the last snapshot, shape (n,) (None: no reading yet)."""
         self.v = np.zeros(n)
@@ -98,21 +98,34 @@ class DriveEstimator:
         Returns:
             The estimated positions at this snapshot, shape (n,).
         """
-        reading = np.asarray(reading, dtype=float)
-        lo, hi = reading - self.half_cell, reading + self.half_cell
+        # Axis by axis on plain floats: with six values, NumPy's per-call overhead would
+        # cost more than the arithmetic (the same operations as lag_advance).
+        half = self.half_cell
+        readings = np.asarray(reading, dtype=float).tolist()
+        targets = np.asarray(applied, dtype=float).tolist()
         if self.x is None:
-            v = np.asarray(applied, dtype=float).copy()
+            lo = [r - half for r in readings]
+            hi = [r + half for r in readings]
+            v = targets
         else:
-            x, v = lag_advance(self.x, self.v, self.u, dt_s, self.tau_s)
-            moved = x - self.x
-            # The model's own uncertainty: the drives' speed gain error on the motion.
-            slack = self.gain_error * np.abs(moved) + 1e-9
-            lo_m, hi_m = self.lo + moved - slack, self.hi + moved + slack
-            consistent = (lo_m <= hi) & (hi_m >= lo)
-            lo = np.where(consistent, np.maximum(lo, lo_m), lo)
-            hi = np.where(consistent, np.minimum(hi, hi_m), hi)
+            c = lag_factor(self.tau_s, dt_s)
+            decay = math.exp(-dt_s / self.tau_s) if self.tau_s > 0.0 else 0.0
+            lo, hi, v = [], [], []
+            last = (self.x.tolist(), self.v.tolist(), self.u.tolist(), self.lo, self.hi)
+            for r, x0, v0, u, lo0, hi0 in zip(readings, *last, strict=True):
+                moved = x0 + u * dt_s + (v0 - u) * c - x0
+                v.append(u + (v0 - u) * decay)
+                # The model's own uncertainty: the drives' speed gain error on the motion.
+                slack = self.gain_error * abs(moved) + 1e-9
+                lo_r, hi_r = r - half, r + half
+                lo_m, hi_m = lo0 + moved - slack, hi0 + moved + slack
+                if lo_m <= hi_r and hi_m >= lo_r:  # consistent: intersect
+                    lo_r, hi_r = max(lo_r, lo_m), min(hi_r, hi_m)
+                lo.append(lo_r)
+                hi.append(hi_r)
         self.lo, self.hi = lo, hi
-        self.x, self.v, self.u = (lo + hi) / 2.0, v, np.asarray(applied, dtype=float).copy()
+        self.x = np.array([(a + b) / 2.0 for a, b in zip(lo, hi, strict=True)])
+        self.v, self.u = np.array(v), np.array(targets)
         return self.x
 
     def predict(self, horizon_s: float) -> tuple[np.ndarray, np.ndarray]:
