@@ -158,13 +158,18 @@ def _write(path: Path, data: bytes, secret: bool) -> None:
     path.chmod(0o600 if secret else 0o644)
 
 
-def write_lab(out: Path, days: int = 365, ca: Identity | None = None) -> list[Path]:
+def write_lab(
+    out: Path, days: int = 365, ca: Identity | None = None, arm_names: Iterable[str] = ()
+) -> list[Path]:
     """Write a fresh lab set into ``out`` (created if missing); the paths written.
 
     Args:
         out: target directory (existing files of the same names are replaced).
         days: certificate validity [days].
         ca: sign with this authority instead of a new one (e.g. to add a computer).
+        arm_names: more names (host names, IP addresses) of the arm computer for its
+            router's certificate, when the base router reaches it by another name than
+            manus-arm (the base verifies the name it connects to).
     """
     if not 1 <= days <= 3650:
         raise ConfigError(f"certificate validity {days} days outside 1..3650")
@@ -179,7 +184,8 @@ def write_lab(out: Path, days: int = 365, ca: Identity | None = None) -> list[Pa
     put("ca.pem", ca.cert_pem, secret=False)
     put("ca.key", ca.key_pem, secret=True)
     for router, names in ROUTER_NAMES.items():
-        ident = issue(ca, router, names, days=days)
+        extra = tuple(arm_names) if router == "router-arm" else ()
+        ident = issue(ca, router, (*names, *extra), days=days)
         put(f"{router}.pem", ident.cert_pem, secret=False)
         put(f"{router}.key", ident.key_pem, secret=True)
     for table, users in (("users-arm.txt", ARM_USERS), ("users-base.txt", BASE_USERS)):

@@ -208,7 +208,9 @@ def test_only_sequencer_and_supervisor_submit_tasks(lab: Lab) -> None:
     assert len(keep) == 3
 
 
-def test_routers_linked_over_tls_pass_samples_both_ways(lab: Lab) -> None:
+@pytest.mark.parametrize("host", ["localhost", "127.0.0.1"])
+def test_routers_linked_over_tls_pass_samples_both_ways(lab: Lab, host: str) -> None:
+    lab.arm_tls = lab.arm_tls.replace("localhost", host)  # a DNS name and an IP address SAN
     arm = lab.router_arm()
     lab.router_base()
     assert _until(lambda: len(list(arm.info.routers_zid())) == 1), "no TLS link"
@@ -261,3 +263,19 @@ def test_lab_files_missing_are_named(tmp_path: Path) -> None:
                 credentials_file=str(empty),
             )
         )
+
+
+def test_manus_certs_writes_the_lab_with_extra_arm_names(tmp_path: Path) -> None:
+    from cryptography import x509
+
+    from manus_stack.cli import main
+
+    out = tmp_path / "lab"
+    assert main(["certs", "--out", str(out), "--days", "2", "--arm-name", "arm.lab.test"]) == 0
+    cert = x509.load_pem_x509_certificate((out / "router-arm.pem").read_bytes())
+    names = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert "arm.lab.test" in names.get_values_for_type(x509.DNSName)
+    assert cert.subject.get_attributes_for_oid(x509.NameOID.COMMON_NAME)[0].value == "router-arm"
+    users = (out / "users-arm.txt").read_text().splitlines()
+    assert (out / "controller.usrpwd").read_text().strip() in users
+    assert (out / "ca.key").stat().st_mode & 0o077 == 0, "private key readable by others"

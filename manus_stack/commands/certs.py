@@ -21,11 +21,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--days", type=int, default=365, help="certificate validity [days] (default 365)"
     )
+    parser.add_argument(
+        "--arm-name",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="another host name or IP address of the arm computer (repeatable)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Write the files; print each path."""
-    for path in write_lab(args.out, days=args.days):
+    for path in write_lab(args.out, days=args.days, arm_names=args.arm_name):
         print(path)
     print(f"certs: lab credentials in {args.out} (mount it as /etc/manus/lab)", file=sys.stderr)
     return 0
