@@ -55,7 +55,7 @@ def cartesian_rounding(
         config: controller settings.
     """
     lo = np.floor(wanted)
-    cand = np.clip(lo + _CORNERS, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)  # (64, 6)
+    cand = (lo + _CORNERS).clip(-JOINT_COUNT_MAX, JOINT_COUNT_MAX)  # (64, 6)
     # Gripper error per motor error: the weighted Jacobian at the target, coupling included.
     J = chain(q_target, config.arm).jacobian()
     J[3:] *= config.rounding_rotation_m
