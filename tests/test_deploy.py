@@ -138,3 +138,12 @@ def test_clients_stay_on_loopback_and_only_routers_cross_the_network() -> None:
         assert _get(config, "mode") == "client", path.name
         assert _get(config, "connect/endpoints") == ["tcp/127.0.0.1:7447"], path.name
         assert _get(config, "listen/endpoints") == [], path.name
+
+
+def test_no_credentials_in_the_repository() -> None:
+    for path in (ROOT / "deploy").rglob("*"):
+        if path.is_file():
+            assert path.suffix not in (".key", ".usrpwd", ".pem"), f"{path}: credentials in git"
+            assert "PRIVATE KEY" not in path.read_text(errors="replace"), path
+    ignored = (ROOT / ".gitignore").read_text().split()
+    assert "/lab/" in ignored, "./lab (manus certs --out ./lab) must stay out of git"
