@@ -222,6 +222,16 @@ def test_routers_linked_over_tls_pass_samples_both_ways(lab: Lab, host: str) -> 
     heartbeat = Inbox(bridge, "manus/heartbeat")
     sequencer = lab.client("sequencer", lab.base_tcp)
     assert _put_until_received(sequencer, heartbeat, "manus/heartbeat", b"alive")
+    # Liveliness (alive/, where/: `manus status`) crosses the link and the access control.
+    token = controller.liveliness().declare_token("manus/where/controller/arm/1")
+    supervisor = lab.client("supervisor", lab.base_tcp)
+
+    def alive() -> list[str]:
+        replies = supervisor.liveliness().get("manus/where/**", timeout=0.5)
+        return [str(r.ok.key_expr) for r in replies if r.ok is not None]
+
+    assert _until(lambda: alive() == ["manus/where/controller/arm/1"])
+    token.undeclare()
     # A base service cannot command the arm, whatever router it goes through.
     arm_commands = Inbox(bridge, CMD)
     lab.client("planner", lab.base_tcp).put(CMD, b"rogue from base")
