@@ -150,6 +150,33 @@ class Chain(NamedTuple):
         return np.array(columns).T
 
 
+def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Vec3:
+    """Gripper position [m] for DH angles ``q`` [rad], shape (6,), in closed form.
+
+    What :func:`fk_position` gives (a test keeps the two equal), with :mod:`math` for the
+    controller's cycle: the wrist centre of the module docstring plus ``l4`` along the
+    approach axis z_6 = R_03 (c4 s5, s4 s5, c5).
+    """
+    cfg = cfg or DEFAULT_ARM
+    q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
+    c1, s1 = math.cos(q1), math.sin(q1)
+    c2, s2 = math.cos(q2), math.sin(q2)
+    c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
+    s5 = math.sin(q5)
+    a0, a1, a2 = math.cos(q4) * s5, math.sin(q4) * s5, math.cos(q5)
+    u = cfg.l2 * c2 + cfg.l3 * s23
+    v = cfg.l2 * s2 - cfg.l3 * c23
+    # R_03 = [[c1 c23, -s1, c1 s23], [s1 c23, c1, s1 s23], [-s23, 0, c23]]
+    zx = c1 * c23 * a0 - s1 * a1 + c1 * s23 * a2
+    zy = s1 * c23 * a0 + c1 * a1 + s1 * s23 * a2
+    zz = -s23 * a0 + c23 * a2
+    return (
+        c1 * u - s1 * cfg.l1 + cfg.l4 * zx,
+        s1 * u + c1 * cfg.l1 + cfg.l4 * zy,
+        -v + cfg.l4 * zz,
+    )
+
+
 @functools.lru_cache(maxsize=8)
 def _dh_terms(cfg: ArmConfig) -> tuple[tuple[float, float, float, float], ...]:
     """(a, cos alpha, sin alpha, d) of each joint [m, -, -, m] (:func:`chain`'s constants)."""

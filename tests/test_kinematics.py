@@ -16,6 +16,7 @@ from manus.kinematics import (
     chain,
     fk,
     fk_batch,
+    gripper_position,
     ik_all,
     ik_batch,
     ik_nearest,
@@ -98,8 +99,8 @@ def test_jacobian_equals_finite_differences(q: np.ndarray) -> None:
 
 
 @given(configs)
-def test_scalar_chain_equals_the_frames_and_the_jacobian(q: np.ndarray) -> None:
-    # The controller's scalar twin of joint_frames / jacobian, on other arm lengths too.
+def test_scalar_chain_and_closed_form_equal_the_frames_and_the_jacobian(q: np.ndarray) -> None:
+    # The controller's scalar twins of joint_frames / jacobian / fk, other arm lengths too.
     arm = ArmConfig(l1=0.09, l2=0.41, l3=0.33, l4=0.15)
     for cfg in (None, arm):
         frames = joint_frames(q, cfg or ArmConfig())
@@ -110,6 +111,7 @@ def test_scalar_chain_equals_the_frames_and_the_jacobian(q: np.ndarray) -> None:
         )
         assert c.position == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
         assert c.jacobian() == pytest.approx(jacobian(q, cfg), abs=1e-12)
+        assert gripper_position(q, cfg) == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
 
 
 def test_nearest_branch_is_the_reference_branch_and_unwrapped() -> None:

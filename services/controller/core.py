@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from manus.joint_map import dh_to_encoder
-from manus.kinematics import Vec3, chain
+from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S
 from manus.trajectory import TrajectoryError
 from schemas.control import (
@@ -291,7 +291,7 @@ class ControllerCore:
         had_gripper = self.gripper is not None
         # The gripper position of the measured angles: one forward kinematics per cycle,
         # shared by the via points, the verdicts and the feedback.
-        xyz = chain(js.position, cfg.arm).position if run is not None or had_gripper else None
+        xyz = gripper_position(js.position, cfg.arm) if run is not None or had_gripper else None
         if run is not None and xyz is not None:
             if gap:
                 run.pause(snap)  # the reference waits for the arm over the gap

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from manus.config import ArmConfig
-from manus.kinematics import Vec3, chain
+from manus.kinematics import Vec3, gripper_position
 from manus.quantize import counts_to_joint_rates
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
@@ -83,7 +83,7 @@ class Outbox:
         measured angles [m]; ``velocity``: the commanded DH rates [rad/s])."""
         q = np.asarray(js.position, dtype=float)
         ref = step.reference.q if step is not None else q
-        ref_xyz = chain(ref, self.arm).position if step is not None else act_xyz
+        ref_xyz = gripper_position(ref, self.arm) if step is not None else act_xyz
         fb = ControllerFeedback(
             stamp_ns=js.stamp_ns,
             seq=self._fb_seq,

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from manus.kinematics import Vec3, chain
+from manus.kinematics import Vec3, gripper_position
 from manus.quantize import (
     COUNT_RAD_S,
     Quantizer,
@@ -253,7 +253,7 @@ class TrajectoryRun:
                 frac = min(1.0, max(0.0, (times[i] - prev[0]) / (self.tau - prev[0])))
                 q_i = prev[1] + frac * (q - prev[1])
                 stamp = prev[2] + round(frac * (snap_ns - prev[2]))
-            xyz = chain(q_i, self.config.arm).position
+            xyz = gripper_position(q_i, self.config.arm)
             self._record(math.dist(xyz, self.ref.via_xyz[i]), stamp)
         self.prev = (self.tau, q.copy(), snap_ns)
 
