@@ -65,7 +65,8 @@ def cartesian_rounding(
     cost = (err * err).sum(axis=1)
     # Rounding a joint away from its own nearest count costs too (no wrist chatter).
     cost += (config.rounding_joint_m * gain) ** 2 * ((cand - wanted) ** 2).sum(axis=1)
-    return np.asarray(cand[int(np.argmin(cost))], dtype=np.int64)
+    best: np.ndarray = cand[int(cost.argmin())]
+    return best.astype(np.int64)
 
 
 def make_quantizer(name: str) -> Quantizer:
