@@ -167,8 +167,10 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
         # do not accept goes through the item-by-item checks below, which name the item.
         if inner is float and _finite_floats_in_range(value, meta):
             return list(value)
-        if get_origin(inner) is list and get_args(inner) == (float,) and _float_table(
-            value, meta, length
+        if (
+            get_origin(inner) is list
+            and get_args(inner) == (float,)
+            and _float_table(value, meta, length)
         ):
             return [list(row) for row in value]
         return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]

@@ -124,6 +124,8 @@ def test_cancel_mid_path_stops_the_real_arm(live: LiveStack) -> None:
     assert live.client.control("cancel", reply.task_id).ok
     events = live.follow(reply.task_id)
     assert names(events)[-1] == "cancelled"
+    # the result reaches this test's own subscriber on another thread: wait for it
+    eventually(lambda: len(live.results) >= 1, timeout=3.0)
     assert [r.status for r in live.results] == ["cancelled"]
     eventually(lambda: live.at_rest_since(0.5), timeout=3.0)
 
@@ -142,6 +144,7 @@ def test_pause_resume_with_the_real_controller(live: LiveStack) -> None:
     events = live.follow(reply.task_id)
     assert names(events) == ["accepted", "step_started", "paused", "resumed", "step_finished",
                              "step_started", "step_finished", "succeeded"]  # fmt: skip
+    eventually(lambda: len([r for r in live.results if r.kind == "trajectory"]) >= 2, 3.0)
     paths = [r for r in live.results if r.kind == "trajectory"]
     assert [r.status for r in paths] == ["cancelled", "succeeded"]
     # the arm ends where the uninterrupted path would have: start + (0, 100, 50) mm
@@ -164,4 +167,5 @@ def test_supervisor_process_runs_a_task_on_the_real_stack(
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "alive: can_bridge, controller, planner, sequencer" in proc.stdout
     assert proc.stdout.strip().endswith("event: succeeded step -1/2")
+    eventually(lambda: len(live.results) >= 2, timeout=3.0)
     assert [r.status for r in live.results] == ["succeeded", "succeeded"]

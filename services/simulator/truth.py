@@ -31,4 +31,3 @@ def make_truth(model: ArmModel, state: ArmState, t_ns: int, seq: int) -> SimTrut
         xyz=[float(v) for v in T[:3, 3]],
         ypr=[float(v) for v in matrix_to_ypr(T[:3, :3])],
     )
-
