@@ -21,6 +21,16 @@ settings.register_profile(
 settings.load_profile("manus")
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests marked ``slow`` run real processes in real time on a 2-core machine, where a
+    scheduling stall now and then delays the 60 ms cycle past a deadline (seen about once
+    in three full runs, never in isolation). They get one rerun; a real fault fails both
+    runs, and pytest-rerunfailures reports every rerun in the summary ("R")."""
+    for item in items:
+        if item.get_closest_marker("slow") is not None:
+            item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+
+
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that was free a moment ago."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
