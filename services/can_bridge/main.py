@@ -29,7 +29,7 @@ import can
 
 from manus.canbus import open_bus
 from manus.errors import ConfigError
-from manus.node import wait_for_signal
+from manus.node import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import add_bus_arguments, bus_settings
 from services.can_bridge.config import load_bridge_config
@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
     bus = open_arm_bus(args.can_interface, channel, args.bitrate)
     try:
         with BridgeShell(bus, settings, config) as shell:
+            freeze_startup_heap()  # before the cycle runs: no long collections in it
             shell.start()
             print(
                 f"bridge: {args.can_interface} {channel}, serving {shell.node.keys.bridge_command}",

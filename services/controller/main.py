@@ -11,7 +11,7 @@ import json
 import sys
 
 from manus.config import load_arm_config
-from manus.node import wait_for_signal
+from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.controller.config import QUANTIZERS, ControllerConfig
 from services.controller.shell import ControllerShell
@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     )
     stop = wait_for_signal()
     with ControllerShell(settings, config) as shell:
+        freeze_startup_heap()
         print(f"controller: serving {shell.node.keys.goal}", file=sys.stderr, flush=True)
         stop.wait()
         with shell.node.lock:

@@ -11,7 +11,7 @@ import json
 import sys
 
 from manus.config import load_arm_config
-from manus.node import wait_for_signal
+from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.planner.config import PlannerConfig
 from services.planner.shell import PlannerShell
@@ -29,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     config = PlannerConfig(arm=load_arm_config(args.arm_config))
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:
+        freeze_startup_heap()
         print(f"planner: serving {shell.node.keys.plan}", file=sys.stderr, flush=True)
         stop.wait()
         stats = {

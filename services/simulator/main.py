@@ -24,7 +24,7 @@ from pathlib import Path
 import can
 
 from manus.canbus import open_bus
-from manus.node import Node, wait_for_signal
+from manus.node import Node, freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import settings_from_env
 from services.simulator.config import load_sim_config
@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(bus, SlcanPtyBus) and args.wait_client:
             wait_for_client(bus, stop, deadline)
         if not stop.is_set():
+            freeze_startup_heap()
             live.start()
             stop.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
             live.stop()
