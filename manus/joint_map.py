@@ -13,6 +13,7 @@ on arrays of shape (..., 6).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -56,3 +57,19 @@ def dh_increments_to_encoder(dq: np.ndarray) -> np.ndarray:
 def encoder_increments_to_dh(de: np.ndarray) -> np.ndarray:
     """DH increments (or rates) from motor increments (or rates), shape (..., 6)."""
     return np.asarray(np.asarray(de, dtype=float) @ M_ENCODER_TO_DH.T)
+
+
+# Scalar twins for the controller's cycle, where NumPy's per-call overhead on six values
+# costs more than the arithmetic (tests keep them equal to the matrix forms above).
+
+
+def dh_to_encoder_list(q: Sequence[float]) -> list[float]:
+    """Encoder angles [rad] from six DH joint angles [rad], as plain floats."""
+    q1, q2, q3, q4, q5, q6 = q
+    return [q1 + 0.0, 0.0 - q2, (q3 - _OFFSET_Q3) - q2, q4 - _OFFSET_Q4, q5 + 0.0, q6 + 0.0]
+
+
+def encoder_increments_to_dh_list(de: Sequence[float]) -> list[float]:
+    """DH increments (or rates) from six motor increments (or rates), as plain floats."""
+    e1, e2, e3, e4, e5, e6 = de
+    return [e1 + 0.0, 0.0 - e2, e3 - e2, e4 + 0.0, e5 + 0.0, e6 + 0.0]

@@ -137,8 +137,8 @@ class Chain(NamedTuple):
         """Gripper position [m] (what :func:`fk_position` gives)."""
         return self.origins[-1]
 
-    def jacobian(self) -> np.ndarray:
-        """Geometric Jacobian (what :func:`jacobian` gives), shape (6, 6).
+    def columns(self) -> list[tuple[float, float, float, float, float, float]]:
+        """The geometric Jacobian's columns as plain floats, one per joint.
 
         Column i: z_i x (p_e - p_i) [m/rad] over z_i [-].
         """
@@ -147,7 +147,11 @@ class Chain(NamedTuple):
         for (zx, zy, zz), (px, py, pz) in zip(self.axes, self.origins, strict=False):
             dx, dy, dz = ex - px, ey - py, ez - pz
             columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
-        return np.array(columns).T
+        return columns
+
+    def jacobian(self) -> np.ndarray:
+        """Geometric Jacobian (what :func:`jacobian` gives), shape (6, 6)."""
+        return np.array(self.columns()).T
 
 
 def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Vec3:
@@ -175,6 +179,57 @@ def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = No
         s1 * u + c1 * cfg.l1 + cfg.l4 * zy,
         -v + cfg.l4 * zz,
     )
+
+
+def jacobian_columns(
+    q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None
+) -> list[tuple[float, float, float, float, float, float]]:
+    """The geometric Jacobian's columns (what :func:`jacobian` gives) in closed form.
+
+    For the controller's cycle (half the work of :func:`chain`), from the DH table's
+    structure: z_0 = e_z; z_1 = z_2 = (-s1, c1, 0); z_3 = R_03 e_z = (c1 s23, s1 s23, c23);
+    z_4 = R_03 (-s4, c4, 0); z_5 = R_03 (c4 s5, s4 s5, c5); origins p_0 = p_1 = 0,
+    p_2 = p_3 (the elbow) = R_01 (L2 c2, L2 s2, L1), p_4 = p_5 (the wrist centre)
+    = p_2 + L3 z_3, and the gripper p_e = p_4 + L4 z_5. Column i is z_i x (p_e - p_i)
+    [m/rad] over z_i [-]; column 5's linear part is z_5 x L4 z_5 = 0. A test keeps it
+    equal to :func:`jacobian`.
+    """
+    cfg = cfg or DEFAULT_ARM
+    q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
+    c1, s1 = math.cos(q1), math.sin(q1)
+    c2, s2 = math.cos(q2), math.sin(q2)
+    c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
+    c4, s4 = math.cos(q4), math.sin(q4)
+    c5, s5 = math.cos(q5), math.sin(q5)
+    # R_03 = [[c1 c23, -s1, c1 s23], [s1 c23, c1, s1 s23], [-s23, 0, c23]]
+    z1 = (-s1, c1, 0.0)
+    z3 = (c1 * s23, s1 * s23, c23)
+    a, b = -s4, c4
+    z4 = (c1 * c23 * a - s1 * b, s1 * c23 * a + c1 * b, -s23 * a)
+    a, b, c = c4 * s5, s4 * s5, c5
+    z5 = (
+        c1 * c23 * a - s1 * b + c1 * s23 * c,
+        s1 * c23 * a + c1 * b + s1 * s23 * c,
+        c23 * c - s23 * a,
+    )
+    r2 = cfg.l2 * c2
+    elbow = (c1 * r2 - s1 * cfg.l1, s1 * r2 + c1 * cfg.l1, -cfg.l2 * s2)
+    wrist = tuple(p + cfg.l3 * z for p, z in zip(elbow, z3, strict=True))
+    ex, ey, ez = (p + cfg.l4 * z for p, z in zip(wrist, z5, strict=True))
+
+    def column(z: Vec3, p: Sequence[float]) -> tuple[float, float, float, float, float, float]:
+        zx, zy, zz = z
+        dx, dy, dz = ex - p[0], ey - p[1], ez - p[2]
+        return (zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz)
+
+    return [
+        (-ey, ex, 0.0, 0.0, 0.0, 1.0),
+        column(z1, (0.0, 0.0, 0.0)),
+        column(z1, elbow),
+        column(z3, elbow),
+        column(z4, wrist),
+        (0.0, 0.0, 0.0, *z5),
+    ]
 
 
 @functools.lru_cache(maxsize=8)

@@ -14,6 +14,7 @@ to the next call so that the running mean of the counts equals the wanted rate.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
@@ -85,6 +86,24 @@ def saturate(counts: np.ndarray, limit: float = float(JOINT_COUNT_MAX)) -> np.nd
     if peak <= limit:
         return c.copy()
     return np.asarray(c * (limit / peak))
+
+
+def saturate_values(counts: Sequence[float], limit: float = float(JOINT_COUNT_MAX)) -> list[float]:
+    """:func:`saturate` on six plain floats (the controller's cycle; a test keeps the two
+    equal): the same checks, the same operations, a list back."""
+    if not limit > 0:
+        raise QuantizeError(f"saturate: limit {limit} must be > 0")
+    c = [float(v) for v in counts]
+    if len(c) != 6:
+        raise QuantizeError(f"motor counts: shape ({len(c)},), expected (6,)")
+    if not math.isfinite(sum(c)):  # a NaN or an infinity (six counts cannot overflow)
+        i, v = next((i, v) for i, v in enumerate(c) if not math.isfinite(v))
+        raise QuantizeError(f"motor counts: joint {i + 1} is {v}, expected a finite number")
+    peak = max(abs(v) for v in c)
+    if peak <= limit:
+        return c
+    k = limit / peak
+    return [v * k for v in c]
 
 
 def _round_half_away(x: np.ndarray) -> np.ndarray:

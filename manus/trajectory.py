@@ -86,6 +86,13 @@ class JointTrajectory:
         """The knot times as plain floats (the per-sample search)."""
         self._quintics: dict[int, np.ndarray] = {}
         """Quintic coefficients of the segments sampled so far, by segment."""
+        self._rows: tuple[list[list[float]], list[list[float]]] = (
+            self.q.tolist(),
+            self.qd.tolist(),
+        )
+        """Knot positions and velocities as plain floats (:meth:`position`)."""
+        self._quintic_rows: dict[int, list[list[float]]] = {}
+        """:attr:`_quintics` as plain floats, by segment."""
 
     @property
     def duration(self) -> float:
@@ -139,6 +146,38 @@ class JointTrajectory:
         else:
             q, qd, qdd = _cubic(self.q[i], self.qd[i], self.q[i + 1], self.qd[i + 1], h, s)
         return Sample(q, qd, qdd, i)
+
+    def position(self, t: float) -> list[float]:
+        """Positions at time ``t`` [s] as plain floats: ``sample(t).q``, the same operations
+        in the same order on Python floats (the controller's cycle, where NumPy's per-call
+        overhead on six values costs more than the arithmetic; a test keeps them equal)."""
+        knots = self._knots
+        positions = self._rows[0]
+        i = self.segment(t)
+        if i < 0:
+            return list(positions[0])
+        if i >= len(knots) - 1:
+            return list(positions[-1])
+        h = knots[i + 1] - knots[i]
+        s = (t - knots[i]) / h
+        if self.quintic:
+            c = self._quintic_rows.get(i)
+            if c is None:
+                self.sample(t)  # solves and caches the segment's coefficients
+                c = self._quintic_rows[i] = self._quintics[i].tolist()
+            x = s * h
+            return [
+                c0 + x * (c1 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
+                for c0, c1, c2, c3, c4, c5 in zip(*c, strict=True)
+            ]
+        s2, s3 = s * s, s * s * s
+        w0, w1 = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h
+        w2, w3 = -2 * s3 + 3 * s2, (s3 - s2) * h
+        p0, p1 = positions[i], positions[i + 1]
+        v0, v1 = self._rows[1][i], self._rows[1][i + 1]
+        return [
+            w0 * a + w1 * b + w2 * c + w3 * d for a, b, c, d in zip(p0, v0, p1, v1, strict=True)
+        ]
 
     def sample_many(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities, accelerations at each of ``ts``, each shape (m, n)."""

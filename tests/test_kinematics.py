@@ -21,6 +21,7 @@ from manus.kinematics import (
     ik_batch,
     ik_nearest,
     jacobian,
+    jacobian_columns,
     joint_frames,
     wrap,
 )
@@ -111,6 +112,8 @@ def test_scalar_chain_and_closed_form_equal_the_frames_and_the_jacobian(q: np.nd
         )
         assert c.position == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
         assert c.jacobian() == pytest.approx(jacobian(q, cfg), abs=1e-12)
+        closed = np.array(jacobian_columns(q, cfg)).T
+        assert closed == pytest.approx(jacobian(q, cfg), abs=1e-12)
         assert gripper_position(q, cfg) == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
 
 

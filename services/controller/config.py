@@ -8,6 +8,7 @@ before its stamp, and the command computed from it acts on the arm from
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -141,27 +142,27 @@ class ControllerConfig:
         if not isinstance(self.max_settles, int):
             raise ConfigError(f"`max_settles` must be an integer, got {self.max_settles!r}")
 
-    @property
+    @functools.cached_property
     def cycle_s(self) -> float:
         """The cycle [s]."""
         return self.cycle_ms / 1000.0
 
-    @property
+    @functools.cached_property
     def cycle_ns(self) -> int:
         """The cycle [ns]."""
         return round(self.cycle_ms * MS)
 
-    @property
+    @functools.cached_property
     def snapshot_age_ns(self) -> int:
         """Stamp minus snapshot time [ns]."""
         return round(self.snapshot_age_ms * MS)
 
-    @property
+    @functools.cached_property
     def command_delay_ns(self) -> int:
         """Snapshot to the start of the command's action [ns]."""
         return round(self.command_delay_ms * MS)
 
-    @property
+    @functools.cached_property
     def max_stamp_gap_ns(self) -> int:
         """Largest stamp difference of consecutive joint states [ns]."""
         return round(self.max_stamp_gap_ms * MS)

@@ -30,9 +30,9 @@ import math
 
 import numpy as np
 
-from manus.joint_map import dh_to_encoder
+from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
-from manus.quantize import COUNT_RAD_S
+from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.trajectory import TrajectoryError
 from schemas.control import (
     CancelGoal,
@@ -269,16 +269,18 @@ class ControllerCore:
         if not usable:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         dt = 0.0 if last is None or gap else (js.stamp_ns - last.stamp_ns) / 1e9
-        applied = np.asarray(js.applied, dtype=float)
-        if js.applied_kind != "joint":
-            applied = np.zeros(8)
-        motors = self.joints.update(_motor_angles(js), applied[1:7] * COUNT_RAD_S, dt)
-        self.play.update(motors)
-        self.grip.update(np.array([js.gripper]), applied[7:8] * 0.005, dt)
+        applied = [float(v) for v in js.applied] if js.applied_kind == "joint" else [0.0] * 8
+        position = [float(v) for v in js.position]
+        motors = self.joints.update(
+            dh_to_encoder_list(position), [c * COUNT_RAD_S for c in applied[1:7]], dt
+        )
+        if self.play.active:
+            self.play.update(np.array(motors))
+        self.grip.update([js.gripper], [applied[7] * GRIPPER_COUNT_M_S], dt)
         if self.arm_error is not None:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         snap = js.stamp_ns - cfg.snapshot_age_ns
-        q = np.asarray(js.position, dtype=float)
+        q = np.array(position)
         before = self.run
         self._start_pending(snap, q)
         if self.run is not None and self.run is not before:
@@ -291,7 +293,7 @@ class ControllerCore:
         had_gripper = self.gripper is not None
         # The gripper position of the measured angles: one forward kinematics per cycle,
         # shared by the via points, the verdicts and the feedback.
-        xyz = gripper_position(js.position, cfg.arm) if run is not None or had_gripper else None
+        xyz = gripper_position(position, cfg.arm) if run is not None or had_gripper else None
         if run is not None and xyz is not None:
             if gap:
                 run.pause(snap)  # the reference waits for the arm over the gap
@@ -433,11 +435,6 @@ class ControllerCore:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
             out.append(("controller/feedback", fb))
         return out + self._flush(js.stamp_ns)
-
-
-def _motor_angles(js: JointState) -> np.ndarray:
-    """Motor angles [rad] of a joint state's DH angles (the map of SPEC 2.2), shape (6,)."""
-    return dh_to_encoder(np.asarray(js.position, dtype=float))
 
 
 def _with_scale(goal: TrajectoryGoal, scale: float) -> TrajectoryGoal:

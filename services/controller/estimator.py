@@ -10,13 +10,14 @@ error) with the new reading's quantization cell (a set-membership observer). The
 estimate is the middle of that interval: finer than the encoder once a few readings have
 crossed cell boundaries, and never further than half a unit from the reading.
 
-All angles here are motor (encoder) angles in rad, speeds in rad/s, and arrays have
-shape (n,) (6 motors, or 1 for the gripper in m and m/s).
+All angles here are motor (encoder) angles in rad, speeds in rad/s, n values per
+quantity (6 motors, or 1 for the gripper in m and m/s).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -46,18 +47,22 @@ def lag_advance(
 
 
 def deadbeat_speed(
-    x: np.ndarray, v: np.ndarray, target: np.ndarray, dt_s: float, tau_s: float
-) -> np.ndarray:
+    x: Sequence[float], v: Sequence[float], target: Sequence[float], dt_s: float, tau_s: float
+) -> list[float]:
     """The constant target speed that brings the lagged drive from (x, v) to ``target`` in ``dt_s``.
 
-    Inverts :func:`lag_advance` for ``u``.
+    Inverts :func:`lag_advance` for ``u``, axis by axis on plain floats.
     """
     c = lag_factor(tau_s, dt_s)
-    return np.asarray((target - x - v * c) / (dt_s - c))
+    span = dt_s - c
+    return [(t - x0 - v0 * c) / span for x0, v0, t in zip(x, v, target, strict=True)]
 
 
 class DriveEstimator:
     """Estimated true positions and speeds at the last snapshot (see the module docstring).
+
+    Axis by axis on plain floats: with six values, NumPy's per-call overhead would cost
+    more than the arithmetic (the same operations as :func:`lag_advance`).
 
     Args:
         tau_s: the drives' time constant [s].
@@ -74,66 +79,81 @@ class DriveEstimator:
         """Smallest position consistent with every reading so far, n values."""
         self.hi = [0.0] * n
         """Largest position consistent with every reading so far, n values."""
-        self.x: np.ndarray | None = None
-        """Estimated positions at the last snapshot, shape (n,) (None: no reading yet)."""
-        self.v = np.zeros(n)
-        """Estimated speeds at the last snapshot, shape (n,)."""
-        self.u = np.zeros(n)
-        """Target speeds acting from the last snapshot on (the applied command), shape (n,)."""
+        self.x: list[float] | None = None
+        """Estimated positions at the last snapshot, n values (None: no reading yet)."""
+        self.v = [0.0] * n
+        """Estimated speeds at the last snapshot, n values."""
+        self.u = [0.0] * n
+        """Target speeds acting from the last snapshot on (the applied command), n values."""
 
     def reset(self) -> None:
         """Forget everything (after a gap in the readings)."""
         self.x = None
-        self.v = np.zeros(self.n)
-        self.u = np.zeros(self.n)
+        self.v = [0.0] * self.n
+        self.u = [0.0] * self.n
 
-    def update(self, reading: np.ndarray, applied: np.ndarray, dt_s: float) -> np.ndarray:
+    @property
+    def in_flight(self) -> bool:
+        """A non-zero command acts from the last snapshot on (zeros now would not stop
+        the drives where they are)."""
+        return any(self.u)
+
+    def update(
+        self, reading: Sequence[float], applied: Sequence[float], dt_s: float
+    ) -> list[float]:
         """Take a new snapshot ``dt_s`` [s] after the last one.
 
         Args:
-            reading: the reported positions, shape (n,).
-            applied: target speeds acting from this snapshot on, shape (n,).
+            reading: the reported positions, n values.
+            applied: target speeds acting from this snapshot on, n values.
             dt_s: time since the previous snapshot [s].
 
         Returns:
-            The estimated positions at this snapshot, shape (n,).
+            The estimated positions at this snapshot, n values.
         """
-        # Axis by axis on plain floats: with six values, NumPy's per-call overhead would
-        # cost more than the arithmetic (the same operations as lag_advance).
         half = self.half_cell
-        readings = np.asarray(reading, dtype=float).tolist()
-        targets = np.asarray(applied, dtype=float).tolist()
+        targets = [float(u) for u in applied]
         if self.x is None:
-            lo = [r - half for r in readings]
-            hi = [r + half for r in readings]
+            lo = [r - half for r in reading]
+            hi = [r + half for r in reading]
             v = targets
         else:
             c = lag_factor(self.tau_s, dt_s)
             decay = math.exp(-dt_s / self.tau_s) if self.tau_s > 0.0 else 0.0
+            gain_error = self.gain_error
             lo, hi, v = [], [], []
-            last = (self.x.tolist(), self.v.tolist(), self.u.tolist(), self.lo, self.hi)
-            for r, x0, v0, u, lo0, hi0 in zip(readings, *last, strict=True):
+            last = (self.x, self.v, self.u, self.lo, self.hi)
+            for r, x0, v0, u, lo0, hi0 in zip(reading, *last, strict=True):
                 moved = x0 + u * dt_s + (v0 - u) * c - x0
                 v.append(u + (v0 - u) * decay)
                 # The model's own uncertainty: the drives' speed gain error on the motion.
-                slack = self.gain_error * abs(moved) + 1e-9
+                slack = gain_error * abs(moved) + 1e-9
                 lo_r, hi_r = r - half, r + half
                 lo_m, hi_m = lo0 + moved - slack, hi0 + moved + slack
                 if lo_m <= hi_r and hi_m >= lo_r:  # consistent: intersect
-                    lo_r, hi_r = max(lo_r, lo_m), min(hi_r, hi_m)
+                    # max(lo_r, lo_m) and min(hi_r, hi_m), without the calls
+                    lo_r = lo_m if lo_m > lo_r else lo_r
+                    hi_r = hi_m if hi_m < hi_r else hi_r
                 lo.append(lo_r)
                 hi.append(hi_r)
         self.lo, self.hi = lo, hi
-        self.x = np.array([(a + b) / 2.0 for a, b in zip(lo, hi, strict=True)])
-        self.v, self.u = np.array(v), np.array(targets)
+        self.x = [(a + b) / 2.0 for a, b in zip(lo, hi, strict=True)]
+        self.v, self.u = v, targets
         return self.x
 
-    def predict(self, horizon_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and speeds ``horizon_s`` [s] after the last snapshot under the applied command.
+    def predict(self, horizon_s: float) -> tuple[list[float], list[float]]:
+        """Positions and speeds ``horizon_s`` [s] after the last snapshot under the applied
+        command (:func:`lag_advance`), n values each.
 
         Raises:
             RuntimeError: no reading has been taken.
         """
         if self.x is None:
             raise RuntimeError("DriveEstimator.predict before the first update")
-        return lag_advance(self.x, self.v, self.u, horizon_s, self.tau_s)
+        c = lag_factor(self.tau_s, horizon_s)
+        decay = math.exp(-horizon_s / self.tau_s) if self.tau_s > 0.0 else 0.0
+        x, v = [], []
+        for x0, v0, u in zip(self.x, self.v, self.u, strict=True):
+            x.append(x0 + u * horizon_s + (v0 - u) * c)
+            v.append(u + (v0 - u) * decay)
+        return x, v

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from manus.quantize import GRIPPER_COUNT_M_S, gripper_counts
 from schemas.control import GripperGoal
 from services.controller.config import ControllerConfig
@@ -50,10 +48,10 @@ def gripper_command(
         return 0
     tau = config.drive_tau_ms / 1000.0
     delay = config.command_delay_ms / 1000.0
-    x1, v1 = est.predict(delay)
-    aim = x1 + (np.array([target_m]) - x1) * min(1.0, config.gripper_gain * config.cycle_s)
-    u = deadbeat_speed(x1, v1, aim, config.cycle_s, tau)
-    return gripper_counts(float(u[0]))
+    (x1,), v1 = est.predict(delay)
+    aim = x1 + (target_m - x1) * min(1.0, config.gripper_gain * config.cycle_s)
+    (u,) = deadbeat_speed([x1], v1, [aim], config.cycle_s, tau)
+    return gripper_counts(u)
 
 
 def gripper_speed(counts: int) -> float:

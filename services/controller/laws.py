@@ -7,15 +7,18 @@
 - :func:`thesis_law`: qdot = qdot_ref + K (q_ref - q), uniform saturation, rounding
   (thesis 4.2.3.4 with its sign corrected).
 
-Motor angles in rad, DH angles in rad, counts in 0.1 deg per 20 ms; arrays shape (6,).
+Motor angles in rad, DH angles in rad, counts in 0.1 deg per 20 ms; six values each.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 
-from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder
-from manus.kinematics import chain
+from manus.joint_map import dh_to_encoder_list
+from manus.kinematics import jacobian_columns
 from manus.quantize import (
     COUNT_RAD_S,
     JOINT_COUNT_MAX,
@@ -24,6 +27,7 @@ from manus.quantize import (
     RoundingQuantizer,
     joint_rates_to_counts,
     saturate,
+    saturate_values,
 )
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
@@ -31,39 +35,80 @@ from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_fa
 from services.controller.reference import Reference
 
 _CORNERS = np.array([[(k >> j) & 1 for j in range(6)] for k in range(64)], dtype=float)
-"""Every floor/ceil choice of six joints, shape (64, 6)."""
+"""Every floor/ceil choice of six joints, shape (64, 6): row k holds the bits of k."""
+_ONES = np.ones(6)
+
+
+def rounding_gains(q_target: Sequence[float], config: ControllerConfig) -> np.ndarray:
+    """Gripper error per motor error at ``q_target`` [rad]: G = J M, shape (6, 6).
+
+    J is the geometric Jacobian with its rotation rows weighted by ``rounding_rotation_m``
+    [m/rad], M the motor-to-DH map of SPEC 2.2 (dq2 = -de2, dq3 = de3 - de2), so column j
+    is the gripper's (position [m], weighted rotation [m]) change per radian of motor j.
+    Built on plain floats from the closed-form Jacobian (NumPy's 6x6 calls cost more here).
+    """
+    w = config.rounding_rotation_m
+    cols = [
+        (a, b, c, zx * w, zy * w, zz * w)
+        for a, b, c, zx, zy, zz in jacobian_columns(q_target, config.arm)
+    ]
+    c2, c3 = cols[1], cols[2]
+    cols[1] = tuple(-x - y for x, y in zip(c2, c3, strict=True))  # type: ignore[assignment]
+    return np.array(cols).T
 
 
 def cartesian_rounding(
-    wanted: np.ndarray,
-    miss: np.ndarray,
+    wanted: Sequence[float],
+    miss: Sequence[float],
     gain: float,
-    q_target: np.ndarray,
+    q_target: Sequence[float],
     config: ControllerConfig,
 ) -> np.ndarray:
     """Round each joint up or down so that the gripper, not each joint, lands nearest.
 
-    Of the 64 floor/ceil choices, take the one whose predicted motor error at the end of
-    the command's cycle, mapped to the gripper through the Jacobian at the target, is
-    smallest (position in m, orientation weighted by ``rounding_rotation_m`` [m/rad]).
+    Of the 64 floor/ceil choices lo + b (b in {0, 1}^6), take the one whose predicted
+    motor error at the end of the command's cycle, mapped to the gripper through the
+    Jacobian at the target, is smallest (position in m, orientation weighted by
+    ``rounding_rotation_m`` [m/rad]), plus ``rounding_joint_m`` times each joint's own
+    deviation from its ideal count. With b binary that second term is linear in b
+    (b_j^2 = b_j), so every choice's cost is one row of two small products.
 
     Args:
-        wanted: ideal float counts, shape (6,), within the range.
-        miss: predicted motor error at the cycle's end with zero counts [rad], shape (6,).
+        wanted: ideal float counts, 6 values, within the range.
+        miss: predicted motor error at the cycle's end with zero counts [rad], 6 values.
         gain: motor angle one count adds by the cycle's end [rad].
-        q_target: DH target angles [rad], shape (6,).
+        q_target: DH target angles [rad], 6 values.
         config: controller settings.
+
+    Returns:
+        The counts, shape (6,) int64.
     """
-    lo = np.floor(wanted)
-    cand = (lo + _CORNERS).clip(-JOINT_COUNT_MAX, JOINT_COUNT_MAX)  # (64, 6)
-    # Gripper error per motor error: the weighted Jacobian at the target, coupling included.
-    J = chain(q_target, config.arm).jacobian()
-    J[3:] *= config.rounding_rotation_m
-    G = J @ M_ENCODER_TO_DH
-    # The gripper error of each choice, (64, 6): G (miss + gain cand), all in one product.
+    lo = [math.floor(v) for v in wanted]
+    if max(lo) >= JOINT_COUNT_MAX or min(lo) < -JOINT_COUNT_MAX:
+        return _clipped_rounding(wanted, miss, gain, q_target, config)
+    G = rounding_gains(q_target, config)
+    # The gripper error of each choice, (64, 6): G (miss + gain lo) + gain G b.
+    err = _CORNERS @ (gain * G.T) + G @ [m + gain * low for m, low in zip(miss, lo, strict=True)]
+    # sum_j (lo_j + b_j - wanted_j)^2 = sum_j b_j (1 + 2 (lo_j - wanted_j)) + a constant.
+    k = (config.rounding_joint_m * gain) ** 2
+    lin = [k * (1.0 + 2.0 * (low - v)) for low, v in zip(lo, wanted, strict=True)]
+    best = int(((err * err) @ _ONES + _CORNERS @ lin).argmin())
+    return np.array([low + ((best >> j) & 1) for j, low in enumerate(lo)], dtype=np.int64)
+
+
+def _clipped_rounding(
+    wanted: Sequence[float],
+    miss: Sequence[float],
+    gain: float,
+    q_target: Sequence[float],
+    config: ControllerConfig,
+) -> np.ndarray:
+    """:func:`cartesian_rounding` when a ceiling leaves the range (a count at exactly
+    the limit): the candidates clipped, some of them twice."""
+    cand = (_CORNERS + np.floor(wanted)).clip(-JOINT_COUNT_MAX, JOINT_COUNT_MAX)
+    G = rounding_gains(q_target, config)
     err = G @ miss + gain * (cand @ G.T)
     cost = (err * err).sum(axis=1)
-    # Rounding a joint away from its own nearest count costs too (no wrist chatter).
     cost += (config.rounding_joint_m * gain) ** 2 * ((cand - wanted) ** 2).sum(axis=1)
     best: np.ndarray = cand[int(cost.argmin())]
     return best.astype(np.int64)
@@ -79,13 +124,16 @@ def default_law(
     ref: Reference,
     taus: tuple[float, float],
     scale: float,
-    q: np.ndarray,
+    q: Sequence[float] | np.ndarray,
     est: DriveEstimator,
     play: PlayModel | None,
     quantizer: Quantizer,
     holding: bool,
 ) -> np.ndarray:
-    """Counts for this cycle in the default mode.
+    """Counts for this cycle in the default mode, shape (6,) int64.
+
+    Six values per quantity, on plain floats up to the rounding's 64 candidates (NumPy's
+    per-call overhead on six values costs more than the arithmetic).
 
     Args:
         cfg: controller settings.
@@ -103,31 +151,33 @@ def default_law(
     tau_cmd, tau_snap = taus
     if cfg.delay_compensation and est.x is not None:
         x1, v1 = est.predict(cfg.command_delay_ms / 1000.0)
-        q_target = ref.sample(tau_cmd + scale * period).q
-        target = dh_to_encoder(q_target)
+        q_target = ref.position(tau_cmd + scale * period)
+        target = dh_to_encoder_list(q_target)
         if play is not None and play.active:
-            target = play.motor_target(target, x1)
+            target = play.motor_target(np.array(target), np.array(x1)).tolist()
         if holding:
             return hold_pulses(cfg, x1, v1, target, q_target)
         u = deadbeat_speed(x1, v1, target, period, tau_s)
         if cfg.default_quantizer == "cartesian":
-            wanted = saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX))
-            gain = (period - lag_factor(tau_s, period)) * COUNT_RAD_S
-            miss = x1 + v1 * lag_factor(tau_s, period) - target  # at zero counts
+            wanted = saturate_values([v / COUNT_RAD_S for v in u], float(JOINT_COUNT_MAX))
+            lag = lag_factor(tau_s, period)
+            gain = (period - lag) * COUNT_RAD_S
+            miss = [x + v * lag - t for x, v, t in zip(x1, v1, target, strict=True)]  # 0 counts
             return cartesian_rounding(wanted, miss, gain, q_target, cfg)
     else:
         # For comparison only: aim from the reading as if the command acted at once.
-        target = dh_to_encoder(ref.sample(tau_snap + scale * period).q)
-        u = (target - dh_to_encoder(q)) / period
-    return quantizer(saturate(u / COUNT_RAD_S, float(JOINT_COUNT_MAX)))
+        target = dh_to_encoder_list(ref.position(tau_snap + scale * period))
+        now = dh_to_encoder_list([float(v) for v in q])
+        u = [(t - e) / period for t, e in zip(target, now, strict=True)]
+    return quantizer(np.array(saturate_values([v / COUNT_RAD_S for v in u])))
 
 
 def hold_pulses(
     cfg: ControllerConfig,
-    x1: np.ndarray,
-    v1: np.ndarray,
-    target: np.ndarray,
-    q_target: np.ndarray,
+    x1: Sequence[float],
+    v1: Sequence[float],
+    target: Sequence[float],
+    q_target: Sequence[float],
 ) -> np.ndarray:
     """Holding the end: one-cycle pulses between rests, so no limit cycle.
 
@@ -136,10 +186,13 @@ def hold_pulses(
     the pulses (Cartesian-aware) that bring that rest nearest the target: at the optimum
     the best pulse is zero, and the arm stays.
     """
-    rest = x1 + v1 * (cfg.drive_tau_ms / 1000.0)
+    tau = cfg.drive_tau_ms / 1000.0
+    rest = [x + v * tau for x, v in zip(x1, v1, strict=True)]
     gain = cfg.cycle_s * COUNT_RAD_S
-    wanted = np.clip((target - rest) / gain, -JOINT_COUNT_MAX, JOINT_COUNT_MAX)
-    return cartesian_rounding(wanted, rest - target, gain, q_target, cfg)
+    top = float(JOINT_COUNT_MAX)
+    wanted = [min(max((t - r) / gain, -top), top) for t, r in zip(target, rest, strict=True)]
+    miss = [r - t for r, t in zip(rest, target, strict=True)]
+    return cartesian_rounding(wanted, miss, gain, q_target, cfg)
 
 
 def thesis_law(

@@ -13,8 +13,9 @@ import math
 import numpy as np
 
 from manus.config import ArmConfig
+from manus.joint_map import encoder_increments_to_dh_list
 from manus.kinematics import Vec3, gripper_position
-from manus.quantize import counts_to_joint_rates
+from manus.quantize import COUNT_RAD_S
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
 from schemas.control import ControllerFeedback, GoalResult
@@ -57,15 +58,17 @@ class Outbox:
 
     def command(self, js: JointState, counts: np.ndarray, grip: int) -> JointVelocityCommand:
         """The command answering ``js``: motor ``counts`` (6,) and gripper ``grip`` counts."""
-        velocity = counts_to_joint_rates(counts.astype(float))
+        motor: list[int] = counts.tolist()
+        # counts_to_joint_rates on plain floats (the same products; a zero rate is +0.0)
+        velocity = [r * COUNT_RAD_S for r in encoder_increments_to_dh_list(motor)]
         cmd = JointVelocityCommand(
             stamp_ns=js.stamp_ns,
             seq=self._cmd_seq,
             source="controller",
             ref_seq=js.seq,
-            velocity=velocity.tolist(),
+            velocity=velocity,
             gripper_velocity=gripper_speed(grip),
-            counts=[0, *counts.tolist(), int(grip)],
+            counts=[0, *motor, int(grip)],
         )
         self._cmd_seq += 1
         return cmd
@@ -81,8 +84,8 @@ class Outbox:
     ) -> ControllerFeedback:
         """One cycle's reference vs actual (``act_xyz``: the gripper position of the
         measured angles [m]; ``velocity``: the commanded DH rates [rad/s])."""
-        q = np.asarray(js.position, dtype=float)
-        ref = step.reference.q if step is not None else q
+        q = [float(v) for v in js.position]
+        ref = step.reference if step is not None else q
         ref_xyz = gripper_position(ref, self.arm) if step is not None else act_xyz
         fb = ControllerFeedback(
             stamp_ns=js.stamp_ns,
@@ -91,9 +94,9 @@ class Outbox:
             state=step.state if step is not None else "idle",
             segment=step.segment if step is not None else -1,
             t=run.tau if run is not None else 0.0,
-            reference=ref.tolist(),
-            actual=q.tolist(),
-            error=(ref - q).tolist(),
+            reference=list(ref),
+            actual=q,
+            error=[r - a for r, a in zip(ref, q, strict=True)],
             command=list(velocity),
             reference_xyz=list(ref_xyz),
             actual_xyz=list(act_xyz),

@@ -79,6 +79,14 @@ class Reference:
         qdd = 2 * c[2] + tau * (6 * c[3] + tau * (12 * c[4] + tau * 20 * c[5]))
         return Sample(s.q + q, s.qd + qd, s.qdd + qdd, s.segment)
 
+    def position(self, tau: float) -> list[float]:
+        """Positions at trajectory time ``tau`` [s] as plain floats (``sample(tau).q``;
+        :meth:`manus.trajectory.JointTrajectory.position` outside a splice's blend)."""
+        if self.blend is None or tau >= self.blend_s:
+            return self.traj.position(tau)
+        out: list[float] = self.sample(tau).q.tolist()
+        return out
+
     def spliced(self, msg: Trajectory, tau: float, blend_s: float) -> Reference:
         """The reference that leaves this one at ``tau`` [s] for ``msg`` (its time 0 there).
 

@@ -38,7 +38,6 @@ from manus.quantize import (
     COUNT_RAD_S,
     Quantizer,
 )
-from manus.trajectory import Sample
 from schemas.control import TrajectoryGoal
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
@@ -54,14 +53,14 @@ class Step:
 
     Attributes:
         counts: motor increments to send, shape (6,) int.
-        reference: the reference at the snapshot.
+        reference: the reference positions at the snapshot [rad], 6 values.
         segment: knot interval being tracked (-1: none).
         state: tracking, settling, decelerating or holding.
         ended: (status, reason) when the goal ended this cycle, else None.
     """
 
     counts: np.ndarray
-    reference: Sample
+    reference: list[float]
     segment: int
     state: str
     ended: tuple[str, str] | None = None
@@ -81,6 +80,7 @@ class TrajectoryRun:
         scale: speed scale in use.
         scale_target: speed scale asked for (reached at ``speed_scale_rate``).
         tau: trajectory time at the last snapshot [s].
+        path_checked: some joint has a path tolerance (checked every cycle).
     """
 
     goal: TrajectoryGoal
@@ -104,6 +104,7 @@ class TrajectoryRun:
     settles: int = 0
     cancelling: bool = False
     final_error: float = 0.0
+    path_checked: bool = False
 
     @classmethod
     def start(
@@ -119,6 +120,7 @@ class TrajectoryRun:
         quantizer = make_quantizer(config.default_quantizer)
         run = cls(goal, ref, config, tols[0], tols[1], snap_ns, scale, goal.speed_scale, quantizer)
         run.last_ns = snap_ns
+        run.path_checked = bool(run.path_tol.any())
         if goal.mode == "default":
             run.tau = -scale * config.command_delay_ms / 1000.0
         return run
@@ -179,10 +181,12 @@ class TrajectoryRun:
             self._thesis_segments(snap_ns, xyz)
         else:
             self._default_vias(snap_ns, q)
-        ref = self.ref.sample(self.tau)
+        ref = self.ref.position(self.tau)
         moving = self.end_ns is None
         if moving:
-            broken = violation(ref.q - q, self.path_tol, "path")
+            broken = (
+                violation(np.subtract(ref, q), self.path_tol, "path") if self.path_checked else None
+            )
             if broken is not None:
                 return self._abort(ref, f"{broken} at t = {self.tau:.2f} s")
             if self.tau >= self._end_tau():
@@ -192,7 +196,7 @@ class TrajectoryRun:
             counts = self._thesis_law(q)
         else:
             counts = self._default_law(q, est, play)
-            at_rest = not est.u.any()  # nothing in flight: a zero now stops the arm here
+            at_rest = not est.in_flight  # a zero now stops the arm here
             verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
         if verdict is not None:
             zero = np.zeros(6, dtype=np.int64)
@@ -224,7 +228,7 @@ class TrajectoryRun:
     def _decelerate(self, last: np.ndarray) -> Step:
         step = self.config.cancel_decel * self.config.cycle_s / COUNT_RAD_S
         peak = float(np.max(np.abs(last)))
-        ref = self.ref.sample(self.tau)
+        ref = self.ref.position(self.tau)
         if peak <= step:
             zero = np.zeros(6, dtype=np.int64)
             return Step(zero, ref, self._segment(), "decelerating", ("cancelled", "cancelled"))
@@ -232,7 +236,7 @@ class TrajectoryRun:
         mag = np.minimum(np.abs(last), np.floor(wanted + 0.5))
         return Step(np.asarray(np.sign(last) * mag, dtype=np.int64), ref, -1, "decelerating")
 
-    def _abort(self, ref: Sample, reason: str) -> Step:
+    def _abort(self, ref: list[float], reason: str) -> Step:
         zero = np.zeros(6, dtype=np.int64)
         return Step(zero, ref, self._segment(), "holding", ("aborted", reason))
 
