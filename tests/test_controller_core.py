@@ -156,6 +156,9 @@ def test_reference_splice_is_continuous_in_position_velocity_acceleration() -> N
     plain = Reference(new_msg)
     for t in (0.8, 1.0, 2.5):
         np.testing.assert_allclose(new.sample(t).q, plain.sample(t).q, atol=1e-12)
+    # The cycle's scalar positions are sample().q, inside the blend, after it, before 0.
+    for t in (-0.06, 0.0, 0.3, 0.79, 0.8, 1.0, 2.5, 9.0):
+        assert new.position(t) == new.sample(t).q.tolist()
 
 
 def test_replace_while_moving_splices_without_a_jump() -> None:

@@ -119,6 +119,11 @@ def test_evaluation_agrees_with_the_shared_joint_trajectory(quintic: bool) -> No
     assert curve.evaluate(ts) == pytest.approx(q_s, abs=1e-9)
     assert curve.evaluate(ts, 1) == pytest.approx(qd_s, abs=1e-9)
     assert curve.evaluate(ts, 2) == pytest.approx(qdd_s, abs=1e-7)
+    # The controller's scalar twin gives the same positions to the last bit, before the
+    # start and after the end too (a second instance: its quintic cache starts empty).
+    twin = JointTrajectory(msg)
+    for t in [-1.0, *ts.tolist(), float(times[-1]), float(times[-1]) + 1.0]:
+        assert twin.position(t) == shared.sample(t).q.tolist()
 
 
 @given(st.integers(0, 10_000), st.integers(2, 8), st.booleans(), st.integers(0, 2))

@@ -21,6 +21,7 @@ from manus.quantize import (
     gripper_counts,
     joint_rates_to_counts,
     saturate,
+    saturate_values,
 )
 
 rates = st.lists(st.floats(-3.0, 3.0, allow_nan=False), min_size=6, max_size=6).map(np.array)
@@ -80,6 +81,11 @@ def test_saturation_keeps_direction_and_limit(c: np.ndarray, limit: float) -> No
         assert s == pytest.approx(c * k, abs=1e-12)
         assert np.max(np.abs(s)) == pytest.approx(limit)
         assert np.all(s * c >= 0.0)  # no joint reverses
+
+
+@given(counts_any, st.floats(0.5, 10.0))
+def test_scalar_saturation_equals_the_array_one(c: np.ndarray, limit: float) -> None:
+    assert saturate_values(c.tolist(), limit) == saturate(c, limit).tolist()
 
 
 def test_saturate_does_not_alias_its_input() -> None:
@@ -183,6 +189,10 @@ def test_gripper_known_values() -> None:
         (lambda: joint_rates_to_counts(np.zeros(5)), "shape (5,), expected (6,)"),
         (lambda: joint_rates_to_counts(np.array([0, 0, np.nan, 0, 0, 0])), "joint 3 is nan"),
         (lambda: saturate(np.zeros(6), 0.0), "limit 0.0 must be > 0"),
+        (lambda: saturate_values([0.0] * 6, 0.0), "limit 0.0 must be > 0"),
+        (lambda: saturate_values([0.0] * 5), "shape (5,), expected (6,)"),
+        (lambda: saturate_values([1.0, 2.0, math.nan, math.inf, 0, 0]), "joint 3 is nan"),
+        (lambda: saturate_values([1.0, 2.0, 3.0, -math.inf, 0, 0]), "joint 4 is -inf"),
         (lambda: RoundingQuantizer(limit=11), "limit 11 outside 1..10"),
         (lambda: RoundingQuantizer()(np.array([np.inf, 0, 0, 0, 0, 0])), "joint 1 is inf"),
         (lambda: gripper_counts(math.nan), "gripper speed nan"),
