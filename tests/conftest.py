@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -29,6 +30,36 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("slow") is not None:
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+
+
+LOG_TAIL_LINES = 40
+"""Lines of each child log shown when a slow test fails."""
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
+    """When a ``slow`` test fails, print the tail of every log its processes wrote under
+    its ``tmp_path`` (``logs/<service>.log`` of ``manus up``/``manus demo``, netns logs).
+
+    Printed at once, not attached to the report: a failure that passes on its rerun is
+    otherwise reported only as "R", and CI keeps nothing but what the run printed.
+    """
+    outcome = yield
+    report = outcome.get_result()  # type: ignore[attr-defined]
+    if report.when != "call" or not report.failed or item.get_closest_marker("slow") is None:
+        return
+    tmp = getattr(item, "funcargs", {}).get("tmp_path")
+    reporter = item.config.pluginmanager.get_plugin("terminalreporter")
+    if tmp is None or reporter is None:
+        return
+    logs = sorted(Path(tmp).rglob("*.log"))
+    reporter.write_line("")
+    reporter.write_sep("-", f"{item.nodeid} failed: {len(logs)} child log(s) under {tmp}")
+    for log in logs:
+        lines = log.read_text(errors="replace").splitlines()[-LOG_TAIL_LINES:]
+        reporter.write_sep(".", f"{log.relative_to(tmp)} (last {len(lines)} lines)")
+        for line in lines:
+            reporter.write_line(line)
 
 
 def free_port() -> int:
