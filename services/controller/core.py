@@ -64,6 +64,9 @@ __all__ = ["STOPPING_PHASES", "ControllerCore", "Output"]
 STOPPING_PHASES = ("stopped", "estopped", "arm_error", "folding_in", "folding_out", "shutdown")
 """Bridge phases in which no goal can run: entering one aborts every goal."""
 
+_NO_COUNTS = (0.0,) * 8
+"""``JointState.applied`` when the command in flight is not a joint move."""
+
 GRIPPER_UNIT_M = 1e-4
 """Resolution of the gripper reading [m] (0.1 mm)."""
 
@@ -269,7 +272,7 @@ class ControllerCore:
         if not usable:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         dt = 0.0 if last is None or gap else (js.stamp_ns - last.stamp_ns) / 1e9
-        applied = [float(v) for v in js.applied] if js.applied_kind == "joint" else [0.0] * 8
+        applied = js.applied if js.applied_kind == "joint" else _NO_COUNTS
         position = [float(v) for v in js.position]
         motors = self.joints.update(
             dh_to_encoder_list(position), [c * COUNT_RAD_S for c in applied[1:7]], dt

@@ -47,7 +47,7 @@ from services.controller.laws import default_law, make_quantizer, thesis_law
 from services.controller.reference import Reference, rest_to_rest
 
 
-@dataclass
+@dataclass(slots=True)
 class Step:
     """The outcome of one cycle of a goal.
 
