@@ -282,6 +282,19 @@ class Node:
             self.session.liveliness().declare_subscriber(self.keys.alive_all, handler, history=True)
         )
 
+    def watch_tokens(self, key: str, callback: Callable[[str, bool, int], None]) -> None:
+        """Call ``callback(token_key, alive, receive_ns)`` for each liveliness token
+        matching ``key`` that appears (those up now included, at once) or vanishes.
+
+        Not serialised with :attr:`lock` (recorders, tools)."""
+
+        def handler(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT, now_ns())
+
+        self._entities.append(
+            self.session.liveliness().declare_subscriber(key, handler, history=True)
+        )
+
     # -- housekeeping --------------------------------------------------------------------
 
     def _bad(self, key: str, exc: Exception) -> None:

@@ -7,6 +7,11 @@ publishes them on Zenoh, under the recording's prefix or another one.
 ``as_service`` stands in for one service: only the keys that service publishes
 (:data:`SERVICE_OUTPUTS`) are replayed, so, for example, ``can_bridge`` feeds a live
 controller with the recorded arm state while the controller's own outputs stay live.
+
+The ``liveliness`` channel (token changes the recorder saw) is a record, not traffic: it
+is never published back, neither as samples (nobody listens on that key) nor as tokens
+(a replay must not make a live stack, ``manus status`` or the sequencer, believe that the
+recorded services run).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas.liveliness import LIVELINESS
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
 
@@ -56,11 +62,12 @@ def selected_suffixes(
 ) -> list[str]:
     """Key suffixes to replay: all, or those matching ``only`` (a suffix, or a prefix
     ending in ``/``, or ``**`` patterns ``state/**``), intersected with ``as_service``'s.
+    The ``liveliness`` channel is never replayed (see the module docstring).
 
     Raises:
         RecordingError: an unknown service, or a selection that matches no channel.
     """
-    suffixes = sorted({c.suffix for c in recording.info.channels.values()})
+    suffixes = sorted({c.suffix for c in recording.info.channels.values()} - {LIVELINESS})
     if as_service is not None:
         outputs = SERVICE_OUTPUTS.get(as_service)
         if outputs is None:
