@@ -5,12 +5,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
+from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
+from services.recorder.replay import SERVICE_OUTPUTS, SERVICE_QUERYABLES, schedule
 
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
@@ -133,3 +136,14 @@ def test_exchanges_of_the_thesis_recording() -> None:
     (reply,) = recording.messages(["trace/planner/plan/reply"])
     assert PlanRequest.decode(request.payload).encode() == request.payload
     assert answers.answer("planner/plan", request.payload) == Answer(reply.payload, True, 0, "")
+
+
+def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None:
+    recording = Recording(SQUARE)
+    assert SERVICE_OUTPUTS["planner"] == ()
+    assert schedule(recording, as_service="planner") == []
+    assert set(SERVICE_QUERYABLES) <= set(SERVICE_OUTPUTS)
+    with pytest.raises(RecordingError, match="nothing to replay"):
+        schedule(recording, ["state/**"], as_service="planner")  # asked for, not there
+    with pytest.raises(RecordingError, match="'dancer': not one of"):
+        schedule(recording, as_service="dancer")
