@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
 from services.recorder.errors import RecordingError
@@ -147,3 +148,15 @@ def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None
         schedule(recording, ["state/**"], as_service="planner")  # asked for, not there
     with pytest.raises(RecordingError, match="'dancer': not one of"):
         schedule(recording, as_service="dancer")
+
+
+def test_the_stand_in_tables_cover_every_key_of_the_schemas() -> None:
+    """Every published key has one publishing service (estop: anyone; liveliness: the
+    recorder's channel), every queryable one serving service."""
+    names = set(channel_types())
+    published = {n for n in names if "#" not in n} - {"estop", "liveliness"}
+    outputs = [s for out in SERVICE_OUTPUTS.values() for s in out]
+    assert sorted(outputs) == sorted(published)
+    queryables = {n.split("#")[0] for n in names if "#" in n}
+    served = [q for qs in SERVICE_QUERYABLES.values() for q in qs]
+    assert sorted(served) == sorted(queryables)

@@ -41,7 +41,7 @@ SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
     "can_bridge": ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx"),
     "controller": ("cmd/joint_velocity", "controller/feedback", "controller/result"),
     "simulator": ("sim/truth",),
-    "sequencer": ("sequencer/events",),
+    "sequencer": ("sequencer/events", "heartbeat"),
     "planner": (),
 }
 """Key suffixes each service publishes (schemas/keys.py, the publisher column); the
