@@ -7,11 +7,11 @@ recorder turns each change it sees into a :class:`LivelinessChange` and writes t
 in the order received, on one channel, ``<prefix>/liveliness`` (:data:`LIVELINESS`).
 
 One channel rather than one per token key: a fault is read as a sequence (the bridge's
-``where`` token vanished at 12.3 s, a new pid appeared at 14.1 s) and one channel keeps
-that sequence in one list (Foxglove's Raw Messages or Log-style panels,
-``manus export --info`` shows one line); ``where`` keys hold a pid, so a channel per key
-would add channels with every restart. Per service in Foxglove: a message path filter,
-``/manus/liveliness{service=="can_bridge"}{kind=="alive"}.alive``.
+``where`` token vanished at 12.3 s, a new pid appeared at 14.1 s), and one channel keeps
+that sequence in one list (Foxglove's Raw Messages panel; one line in
+``manus export --info``); ``where`` keys hold a pid, so a channel per key would add
+channels with every restart. One token in Foxglove (a plot or state transitions): a
+message path filter, ``/manus/liveliness{key=="manus/alive/can_bridge"}.alive``.
 
 Zenoh merges tokens with the same key: ``alive/<service>`` appears with the first process
 that declares it and vanishes with the last, while every process has its own
