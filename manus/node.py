@@ -71,7 +71,7 @@ class Node:
         name: service name (liveliness token ``<prefix>/alive/<name>``).
         settings: how to reach the bus; its ``prefix`` roots every key.
         session: an already open session to use instead (not closed by :meth:`close`).
-        liveliness: declare the liveliness token.
+        liveliness: declare the liveliness tokens now (else with :meth:`announce`).
     """
 
     def __init__(
@@ -91,16 +91,21 @@ class Node:
         self.bad_payloads: Counter[str] = Counter()
         self._last_bad_log: dict[str, float] = {}
         self._entities: list[Any] = []
-        self._token = (
-            self.session.liveliness().declare_token(self.keys.alive(name)) if liveliness else None
-        )
-        self._where = (
-            self.session.liveliness().declare_token(
-                self.keys.where(name, socket.gethostname(), os.getpid())
+        self._token: zenoh.LivelinessToken | None = None
+        self._where: zenoh.LivelinessToken | None = None
+        if liveliness:
+            self.announce()
+
+    def announce(self) -> None:
+        """Declare the liveliness tokens (``alive/<name>``, ``where/<name>/<host>/<pid>``)
+        if they are not up yet: a node made with ``liveliness=False`` calls it once its
+        queryables are declared, so that whoever sees it alive can query it."""
+        if self._token is None:
+            live = self.session.liveliness()
+            self._token = live.declare_token(self.keys.alive(self.name))
+            self._where = live.declare_token(
+                self.keys.where(self.name, socket.gethostname(), os.getpid())
             )
-            if liveliness
-            else None
-        )
 
     # -- publish / subscribe -------------------------------------------------------------
 
@@ -281,6 +286,19 @@ class Node:
 
         self._entities.append(
             self.session.liveliness().declare_subscriber(self.keys.alive_all, handler, history=True)
+        )
+
+    def watch_tokens(self, key: str, callback: Callable[[str, bool, int], None]) -> None:
+        """Call ``callback(token_key, alive, receive_ns)`` for each liveliness token
+        matching ``key`` that appears (those up now included, at once) or vanishes.
+
+        Not serialised with :attr:`lock` (recorders, tools)."""
+
+        def handler(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT, now_ns())
+
+        self._entities.append(
+            self.session.liveliness().declare_subscriber(key, handler, history=True)
         )
 
     # -- housekeeping --------------------------------------------------------------------

@@ -27,6 +27,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | where/<service>/<host>/<pid> | liveliness | (no payload): where it runs | each one |
 | trace/<q>/request      | pub        | request type of queryable <q> | its server |
 | trace/<q>/reply        | pub        | reply type of queryable <q>   | its server |
+| liveliness             | recording  | LivelinessChange              | recorder   |
 
 Queries are invisible to subscribers, so :meth:`manus.node.Node.queryable` mirrors each
 decoded request and each reply of queryable ``<q>`` (e.g. ``planner/plan``) on
@@ -34,6 +35,9 @@ decoded request and each reply of queryable ``<q>`` (e.g. ``planner/plan``) on
 same attachment, the query's receive time [ns] as 8 bytes little-endian, so a reply
 pairs with its request. :func:`channel_type` maps these keys to the ``<q>#request`` and
 ``<q>#reply`` entries of :func:`channel_types`.
+
+``liveliness`` is not a bus key but a recording channel: the recorder writes every change
+of the tokens under the prefix there (``schemas.liveliness``); nobody publishes on it.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ from dataclasses import dataclass
 
 from manus.session import DEFAULT_PREFIX
 from schemas.base import Message
+from schemas.liveliness import LIVELINESS, LivelinessChange
 
 SERVICES = ("simulator", "can_bridge", "planner", "controller", "sequencer", "recorder")
 """Names used for liveliness tokens (``<prefix>/alive/<name>``)."""
@@ -154,6 +159,12 @@ class Keys:
     def where_all(self) -> str:
         return self("where/**")
 
+    @property
+    def liveliness(self) -> str:
+        """The recording channel of liveliness changes (``schemas.liveliness``; not a bus
+        key: nobody publishes on it)."""
+        return self(LIVELINESS)
+
     def trace(self, suffix: str, part: str) -> str:
         """Mirror of queryable ``suffix`` (e.g. ``planner/plan``); ``part`` is ``request``
         or ``reply``: ``<prefix>/trace/<suffix>/<part>``."""
@@ -168,7 +179,8 @@ class Keys:
 
 
 def channel_types() -> dict[str, type[Message]]:
-    """Key suffix -> message type of every published (non-query) channel.
+    """Key suffix -> message type of every published (non-query) channel, and of the
+    recorder's ``liveliness`` channel.
 
     Queryables are listed with their request type under ``<suffix>#request`` and their
     reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
@@ -200,6 +212,7 @@ def channel_types() -> dict[str, type[Message]]:
         "controller/speed_scale#reply": control.GoalAck,
         "controller/feedback": control.ControllerFeedback,
         "controller/result": control.GoalResult,
+        LIVELINESS: LivelinessChange,
     }
     table.update(sequencing.CHANNELS)
     return table

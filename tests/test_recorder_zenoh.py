@@ -25,6 +25,7 @@ from manus_stack.cli import main
 from manus_stack.regression import check_planner
 from schemas.commands import EStop
 from schemas.control import GoalAck, TrajectoryGoal
+from schemas.liveliness import LivelinessChange
 from schemas.planning import PlanReply, PlanRequest
 from services.controller.shell import ControllerShell
 from services.planner.shell import PlannerShell
@@ -54,10 +55,11 @@ def test_no_message_lost_at_ten_times_the_bus_rate(
         suffixes = sorted({i.rec.suffix for i in items})
         assert replayer.wait_for_subscribers(suffixes), "the recorder did not subscribe"
         stats = replayer.play(items, rate=10.0)
-        eventually(lambda: recorder.recorded >= len(items), what="every message recorded")
+        eventually(lambda: recorder.samples_recorded >= len(items), what="every message recorded")
     assert stats.messages == len(items) > 3000
     got = Recording(out)
-    assert recorder.received == got.info.messages == len(items)
+    samples = [r for r in got.messages() if r.suffix != "liveliness"]
+    assert recorder.received == len(samples) == len(items)
     assert got.info.prefix == "test"
     for suffix in suffixes:  # every message, byte for byte, in order, on its own channel
         sent = [i.rec.payload for i in items if i.rec.suffix == suffix]
@@ -91,8 +93,8 @@ def test_live_planner_queries_are_recorded_and_replay_through_the_core(
 
         eventually(answered, what="planner answers")
         client.query(client.keys.plan, PlanRequest(path=square), PlanReply)  # refused: no state
-        eventually(lambda: recorder.recorded >= 4, what="mirrors recorded")
-        assert recorder.recorded == 4
+        eventually(lambda: recorder.samples_recorded >= 4, what="mirrors recorded")
+        assert recorder.samples_recorded == 4
     rec = Recording(out)
     requests = list(rec.messages(["trace/planner/plan/request"]))
     replies = list(rec.messages(["trace/planner/plan/reply"]))
@@ -192,8 +194,15 @@ def test_manus_record_process_stops_cleanly_and_survives_kill(
             proc.kill()
             proc.wait()
     assert proc.returncode == 0, err
-    assert "recorder: recording test/** to" in err and '"messages": 100' in err
-    assert Recording(clean).info.messages == 100
+    assert "recorder: recording test/** to" in err and '"received": 100' in err
+    got = Recording(clean)
+    assert Counter(r.suffix for r in got.messages()) == {"estop": 100, "liveliness": 2}
+    # its own tokens, up from the start: which process wrote the file
+    own = [c for r in got.messages(["liveliness"]) if isinstance(c := decode(r), LivelinessChange)]
+    assert sorted((c.kind, c.service, c.alive, c.pid) for c in own) == [
+        ("alive", "recorder", True, None),
+        ("where", "recorder", True, proc.pid),
+    ]
 
     crashed = tmp_path / "crashed.mcap"
     proc = _start_recorder(router_endpoint, crashed)
@@ -208,9 +217,9 @@ def test_manus_record_process_stops_cleanly_and_survives_kill(
             proc.wait()
     stats = recover(crashed, tmp_path / "rescued.mcap")
     rescued = Recording(tmp_path / "rescued.mcap")
-    assert stats.messages == rescued.info.messages == 100
-    assert Counter(r.suffix for r in rescued.messages()) == {"estop": 100}
-    assert [decode(r).seq for r in rescued.messages()] == list(range(100))  # type: ignore[attr-defined]
+    assert stats.messages == rescued.info.messages == 102
+    assert Counter(r.suffix for r in rescued.messages()) == {"estop": 100, "liveliness": 2}
+    assert [decode(r).seq for r in rescued.messages(["estop"])] == list(range(100))  # type: ignore[attr-defined]
 
 
 def test_manus_replay_command_publishes_the_selection(
@@ -226,13 +235,14 @@ def test_manus_replay_command_publishes_the_selection(
             pub.undeclare()
         args = ["replay", str(SQUARE), "--max", "--only", "state/**", "--as", "can_bridge"]
         assert main([*args, "--connect", router_endpoint, "--prefix", "test"]) == 0
-        eventually(lambda: recorder.recorded >= total, what="replayed state")
+        eventually(lambda: recorder.samples_recorded >= total, what="replayed state")
     got = Recording(out)
     assert {c.suffix for c in got.info.channels.values()} == {
         "state/joints",
         "state/status",
         "state/bridge",
+        "liveliness",
     }
-    assert got.info.messages == total
+    assert sum(1 for r in got.messages() if r.suffix != "liveliness") == total
     assert [r.payload for r in got.messages(["state/joints"])] == want
     assert main(["replay", str(SQUARE), "--only", "no/such/key"]) == 1

@@ -76,10 +76,10 @@ def _recorder_zenoh(path: Path, out: Path) -> dict[str, Any]:
             started = time.perf_counter()
             replayer.play(items, rate=None)
             deadline = time.monotonic() + 30.0
-            while recorder.recorded < len(items) and time.monotonic() < deadline:
+            while recorder.samples_recorded < len(items) and time.monotonic() < deadline:
                 time.sleep(0.005)
             elapsed = time.perf_counter() - started
-            recorded = recorder.recorded
+            recorded = recorder.samples_recorded
         size = sum(len(i.rec.payload) for i in items)
         return {
             "sent": len(items),

@@ -2,7 +2,8 @@
 ``manus record --recover FILE``: rescue a recording that was never closed.
 
 Prints ``recorder: recording <prefix>/** to FILE`` when ready and one ``stats:`` JSON line
-(messages, bytes, per-key counts) on exit, both on standard error.
+(messages, bytes, samples received, liveliness changes, per-key counts) on exit, both on
+standard error.
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         "messages": stats.messages,
         "bytes": stats.bytes,
         "received": shell.received,
+        "liveliness": shell.liveliness_changes,
+        "reserved_dropped": shell.reserved_dropped,
         "not_msgpack": stats.not_msgpack,
         "write_errors": shell.write_errors,
         "keys": {k: c.messages for k, c in stats.channels.items()},

@@ -6,7 +6,18 @@ publishes them on Zenoh, under the recording's prefix or another one.
 
 ``as_service`` stands in for one service: only the keys that service publishes
 (:data:`SERVICE_OUTPUTS`) are replayed, so, for example, ``can_bridge`` feeds a live
-controller with the recorded arm state while the controller's own outputs stay live.
+controller with the recorded arm state while the controller's own outputs stay live. The
+stand-in also declares the service's liveliness tokens (``alive/<service>``, and
+``where/<service>/<host>/<pid>`` with the replay's own host and pid) and answers its
+queryables (:data:`SERVICE_QUERYABLES`) from the recorded exchanges, for as long as the
+:class:`Replayer` is open (:mod:`services.recorder.standin`; the matching rules are in
+:mod:`services.recorder.answers`). The planner publishes nothing: standing in for it is
+answering ``planner/plan`` only.
+
+The ``liveliness`` channel (token changes the recorder saw) is a record, not traffic: it
+is never published back, neither as samples (nobody listens on that key) nor as tokens
+(a replay must not make a live stack, ``manus status`` or the sequencer, believe that the
+recorded services run).
 """
 
 from __future__ import annotations
@@ -20,16 +31,35 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas.liveliness import LIVELINESS
+from services.recorder.answers import RecordedReplies
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
+from services.recorder.standin import StandIn
 
 SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
     "can_bridge": ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx"),
     "controller": ("cmd/joint_velocity", "controller/feedback", "controller/result"),
     "simulator": ("sim/truth",),
-    "sequencer": ("sequencer/events",),
+    "sequencer": ("sequencer/events", "heartbeat"),
+    "planner": (),
 }
-"""Key suffixes each service publishes (schemas/keys.py, the publisher column)."""
+"""Key suffixes each service publishes (schemas/keys.py, the publisher column); the
+services ``--as`` accepts."""
+
+SERVICE_QUERYABLES: dict[str, tuple[str, ...]] = {
+    "can_bridge": ("bridge/command",),
+    "planner": ("planner/plan",),
+    "controller": (
+        "controller/goal",
+        "controller/gripper",
+        "controller/cancel",
+        "controller/speed_scale",
+    ),
+    "sequencer": ("sequencer/submit", "sequencer/control", "sequencer/status"),
+}
+"""Queryables each service declares (schemas/keys.py and schemas/sequencing.py); a
+stand-in answers them from the recording."""
 
 
 def matching(pub: zenoh.Publisher) -> bool:
@@ -56,27 +86,52 @@ def selected_suffixes(
 ) -> list[str]:
     """Key suffixes to replay: all, or those matching ``only`` (a suffix, or a prefix
     ending in ``/``, or ``**`` patterns ``state/**``), intersected with ``as_service``'s.
+    The ``liveliness`` channel is never replayed (see the module docstring). Standing in
+    for a service with recorded query replies, nothing to publish is fine (the planner)
+    unless ``only`` asked for something.
 
     Raises:
-        RecordingError: an unknown service, or a selection that matches no channel.
+        RecordingError: an unknown service, or a selection that matches no channel (and,
+            with ``as_service``, no recorded reply of its queryables either).
     """
-    suffixes = sorted({c.suffix for c in recording.info.channels.values()})
+    channels = {c.suffix for c in recording.info.channels.values()}
+    suffixes = sorted(channels - {LIVELINESS})
     if as_service is not None:
-        outputs = SERVICE_OUTPUTS.get(as_service)
-        if outputs is None:
-            raise RecordingError(
-                f"--as {as_service!r}: not one of {sorted(SERVICE_OUTPUTS)} (services that publish)"
-            )
+        outputs = service_outputs(as_service)
         suffixes = [s for s in suffixes if s in outputs]
     if only:
         patterns = list(only)
         suffixes = [s for s in suffixes if any(_matches(s, p) for p in patterns)]
     if not suffixes:
+        replies = [f"trace/{q}/reply" for q in SERVICE_QUERYABLES.get(as_service or "", ())]
+        if channels.intersection(replies) and not only:
+            return []
+        what = ""
+        if as_service is not None:
+            what = (
+                f" for --as {as_service}: none of its outputs {list(service_outputs(as_service))}"
+            )
+            if only:
+                what += f" matches --only {list(only)}"
+            else:
+                what += f" nor a reply of its queryables {replies}" if replies else ""
+                what += " is recorded"
         raise RecordingError(
-            f"{recording.path}: nothing to replay (channels: "
-            f"{sorted(c.suffix for c in recording.info.channels.values())})"
+            f"{recording.path}: nothing to replay{what} (channels: {sorted(channels)})"
         )
     return suffixes
+
+
+def service_outputs(service: str) -> tuple[str, ...]:
+    """The key suffixes ``service`` publishes.
+
+    Raises:
+        RecordingError: ``service`` is not one of :data:`SERVICE_OUTPUTS`.
+    """
+    outputs = SERVICE_OUTPUTS.get(service)
+    if outputs is None:
+        raise RecordingError(f"--as {service!r}: not one of {sorted(SERVICE_OUTPUTS)}")
+    return outputs
 
 
 def _matches(suffix: str, pattern: str) -> bool:
@@ -113,15 +168,48 @@ class ReplayStats:
 
 
 class Replayer:
-    """Publishes scheduled messages on the bus.
+    """Publishes scheduled messages on the bus; with ``as_service``, stands in for that
+    service while it is open (its liveliness tokens and queryables, see the module
+    docstring).
 
     Args:
         settings: how to reach the bus; its prefix replaces the recorded one.
         session: an open session to share (not closed by :meth:`close`).
+        as_service: the service to stand in for (one of :data:`SERVICE_OUTPUTS`).
+        recording: where the stand-in's answers come from (required with ``as_service``).
+        mirror: the stand-in mirrors its live exchanges on ``trace/...`` (as the service
+            would; see :mod:`services.recorder.standin`).
+
+    Attributes:
+        stand_in: the queryables' side (None without ``as_service``).
+
+    Raises:
+        RecordingError: an unknown service, or ``as_service`` without ``recording``.
     """
 
-    def __init__(self, settings: ZenohSettings, *, session: zenoh.Session | None = None) -> None:
-        self.node = Node("replay", settings, session=session, liveliness=False)
+    def __init__(
+        self,
+        settings: ZenohSettings,
+        *,
+        session: zenoh.Session | None = None,
+        as_service: str | None = None,
+        recording: Recording | None = None,
+        mirror: bool = True,
+    ) -> None:
+        self.stand_in: StandIn | None = None
+        if as_service is None:
+            self.node = Node("replay", settings, session=session, liveliness=False)
+        else:
+            service_outputs(as_service)
+            if recording is None:
+                raise RecordingError(
+                    f"replay as {as_service}: a recording to answer from is needed"
+                )
+            queryables = SERVICE_QUERYABLES.get(as_service, ())
+            replies = RecordedReplies.from_recording(recording, queryables)
+            self.node = Node(as_service, settings, session=session, liveliness=False)
+            self.stand_in = StandIn(self.node, queryables, replies, mirror=mirror)
+            self.node.announce()  # its tokens, once its queryables answer
         self._pubs: dict[str, zenoh.Publisher] = {}
 
     def _publisher(self, suffix: str) -> zenoh.Publisher:
@@ -182,7 +270,9 @@ class Replayer:
         return ReplayStats(sent, time.monotonic() - started, recorded)
 
     def close(self) -> None:
-        """Leave the bus."""
+        """Leave the bus (a stand-in's queryables and tokens go too)."""
+        if self.stand_in is not None:
+            self.stand_in.close()
         for pub in self._pubs.values():
             pub.undeclare()
         self._pubs.clear()

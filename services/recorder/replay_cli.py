@@ -1,19 +1,25 @@
 """``manus replay FILE.mcap``: publish a recording back onto the bus.
 
 ``--rate R`` scales time (2: twice as fast), ``--max`` publishes as fast as the bus takes
-it, ``--only KEY...`` selects key suffixes (``state/joints``, ``can/**``), ``--as SERVICE``
-publishes only what that service publishes (stand in for it), ``--prefix`` replays onto
-another arm's keys. Prints one ``stats:`` JSON line on standard error.
+it, ``--only KEY...`` selects key suffixes (``state/joints``, ``can/**``), ``--prefix``
+replays onto another arm's keys. ``--as SERVICE`` stands in for one service: publishes
+only what it publishes, declares its liveliness tokens and answers its queryables from
+the recording (:mod:`services.recorder.replay`); ``--hold S`` keeps the stand-in up S
+seconds after the last message (``inf``: until SIGINT/SIGTERM; the default when there is
+nothing to publish, as for the planner). Prints one ``stats:`` JSON line on standard
+error (with ``--as``: how its queries were answered).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from manus.node import wait_for_signal
 from manus.session import settings_from_env
+from services.recorder.errors import RecordingError
 from services.recorder.reading import Recording
 from services.recorder.replay import SERVICE_OUTPUTS, Replayer, schedule
 
@@ -29,7 +35,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--as",
         dest="as_service",
         choices=sorted(SERVICE_OUTPUTS),
-        help="replay only this service's outputs (stand in for it)",
+        help="stand in for this service: its outputs, liveliness tokens and query answers",
+    )
+    parser.add_argument(
+        "--hold",
+        type=float,
+        metavar="S",
+        help="with --as: stay up S seconds after the last message (inf: until Ctrl-C; "
+        "default 0, or inf when there is nothing to publish)",
     )
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
@@ -37,17 +50,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Replay the file; stop early on SIGINT/SIGTERM."""
+    """Replay the file (standing in for a service with ``--as``); stop early on
+    SIGINT/SIGTERM."""
+    if args.hold is not None and (
+        args.as_service is None or math.isnan(args.hold) or args.hold < 0
+    ):
+        raise RecordingError(f"--hold {args.hold}: needs --as SERVICE and a time >= 0 [s]")
     recording = Recording(args.file)
     items = schedule(recording, args.only, args.as_service)
+    hold = args.hold if args.hold is not None else (math.inf if not items else 0.0)
     prefix = args.prefix or recording.info.prefix or None
     settings = settings_from_env(connect=args.connect, mode=args.mode, prefix=prefix)
     stop = wait_for_signal()
-    with Replayer(settings) as replayer:
+    with Replayer(settings, as_service=args.as_service, recording=recording) as replayer:
+        who = ""
+        if replayer.stand_in is not None:
+            replies = replayer.stand_in.replies
+            answering = ", ".join(
+                f"{q} ({replies.recorded(q)} recorded)" for q in replies.queryables
+            )
+            who = f" as {args.as_service}" + (f"; answering {answering}" if answering else "")
         sys.stderr.write(
-            f"replay: {len(items)} messages of {args.file} onto {settings.prefix}/**\n"
+            f"replay: {len(items)} messages of {args.file} onto {settings.prefix}/**{who}\n"
         )
         sys.stderr.flush()
         stats = replayer.play(items, rate=None if args.max else args.rate, stop=stop)
-    sys.stderr.write(f"stats: {json.dumps(stats.__dict__)}\n")
+        if args.as_service is not None and hold > 0 and not stop.is_set():
+            stop.wait(None if math.isinf(hold) else hold)
+        summary: dict[str, object] = dict(stats.__dict__)
+        if replayer.stand_in is not None:
+            summary["answers"] = {q: s.__dict__ for q, s in replayer.stand_in.replies.stats.items()}
+            summary["bad_requests"] = replayer.stand_in.bad_requests
+    sys.stderr.write(f"stats: {json.dumps(summary)}\n")
     return 0

@@ -5,6 +5,14 @@ thread drains the queue into :class:`~services.recorder.writer.RecordingWriter`,
 slow disk never blocks the bus, and closes a chunk at least every flush interval even
 when the bus is quiet. Samples of the query mirrors (``trace/...``) carry the query's
 receive time as their attachment, which becomes their publish time.
+
+Liveliness tokens are not samples: a second subscriber sees each token under the prefix
+appear (those already up when recording starts included, stamped with that moment) and
+vanish, and each change is written as a :class:`~schemas.liveliness.LivelinessChange` on
+the ``<prefix>/liveliness`` channel, log time = receive time, in the order received. The
+recorder's own tokens are recorded too (its ``where`` token says which process wrote the
+file). Samples published on ``<prefix>/liveliness`` itself are dropped and counted
+(:attr:`RecorderShell.reserved_dropped`): that channel is the recorder's.
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ import zenoh
 
 from manus.node import Node, now_ns
 from manus.session import ZenohSettings
+from schemas.liveliness import LivelinessChange
 from services.recorder.writer import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_FLUSH_INTERVAL_NS,
@@ -39,6 +48,12 @@ class RecorderShell:
         session: an open session to share (not closed by :meth:`close`).
         chunk_size: largest uncompressed chunk [bytes].
         flush_interval_ns: longest time a message waits in an open chunk [ns].
+
+    Attributes:
+        received: bus samples received.
+        liveliness_changes: token changes received (appeared, vanished).
+        reserved_dropped: samples published on ``<prefix>/liveliness`` and not recorded.
+        write_errors: items the writer could not record.
     """
 
     def __init__(
@@ -58,17 +73,38 @@ class RecorderShell:
             source="manus record",
         )
         self._queue: queue.SimpleQueue[_Item | None] = queue.SimpleQueue()
+        self._closing = False
         self._poll_s = min(flush_interval_ns / 4e9, 0.1)
         self.received = 0
+        self.liveliness_changes = 0
+        self.reserved_dropped = 0
         self._count_lock = threading.Lock()
         self.write_errors = 0
         self._thread = threading.Thread(target=self._drain, name="recorder-writer", daemon=True)
         self._thread.start()
         self.node = Node("recorder", settings, session=session)
+        self._liveliness_key = self.node.keys.liveliness
         self.node.subscribe_raw(self.node.keys.all, self._on_sample)
+        self.node.watch_tokens(self.node.keys.all, self._on_token)
+
+    def _on_token(self, key: str, alive: bool, rx_ns: int) -> None:
+        if self._closing:  # its own tokens vanish as it leaves: not part of the recording
+            return
+        suffix = self.node.keys.suffix(key)
+        with self._count_lock:  # seq and queue order agree
+            change = LivelinessChange.from_token(
+                key, suffix, alive=alive, stamp_ns=rx_ns, seq=self.liveliness_changes
+            )
+            self.liveliness_changes += 1
+            self._queue.put((self._liveliness_key, change.encode(), rx_ns, None))
 
     def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
         if sample.kind != zenoh.SampleKind.PUT:
+            return
+        key = str(sample.key_expr)
+        if key == self._liveliness_key:
+            with self._count_lock:
+                self.reserved_dropped += 1
             return
         publish: int | None = None
         attachment = sample.attachment
@@ -78,7 +114,7 @@ class RecorderShell:
                 publish = int.from_bytes(raw, "little")
         with self._count_lock:  # callbacks may run on several Zenoh threads
             self.received += 1
-        self._queue.put((str(sample.key_expr), sample.payload.to_bytes(), rx_ns, publish))
+        self._queue.put((key, sample.payload.to_bytes(), rx_ns, publish))
 
     def _drain(self) -> None:
         while True:
@@ -97,11 +133,18 @@ class RecorderShell:
 
     @property
     def recorded(self) -> int:
-        """Messages written so far."""
+        """Messages written so far (samples and liveliness changes)."""
         return self.writer.stats.messages
+
+    @property
+    def samples_recorded(self) -> int:
+        """Bus samples written so far (:attr:`recorded` without the liveliness changes)."""
+        channel = self.writer.stats.channels.get(self._liveliness_key)
+        return self.recorded - (channel.messages if channel is not None else 0)
 
     def close(self) -> WriterStats:
         """Stop listening, write what is queued, and close the file (summary and indexes)."""
+        self._closing = True
         self.node.close()
         self._queue.put(None)
         self._thread.join()

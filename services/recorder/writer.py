@@ -4,8 +4,9 @@ Each key expression gets its own channel (topic = the full key, e.g.
 ``manus/state/joints``) with the registered ``msgpack`` message encoding and a
 ``jsonschema`` schema named after the message type (``Message.json_schema()`` of the type
 :func:`schemas.keys.channel_type` gives for the key; a key outside the table gets a
-permissive schema named ``manus/Unknown``). Every message is stored as the payload bytes
-that travelled on the bus, with
+permissive schema named ``manus/Unknown``; the recorder's ``<prefix>/liveliness`` channel
+of token changes is typed like any other, ``schemas.liveliness``). Every message is stored
+as the payload bytes that travelled on the bus, with
 
 - log time: when the recorder received it [ns] (the simulated time in lock-step runs);
 - publish time: the message's own ``stamp_ns`` when it has one, else the time passed by
