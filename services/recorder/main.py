@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from manus.node import wait_for_signal
+from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.recorder.recover import recover
 from services.recorder.shell import RecorderShell
@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         flush_interval_ns=max(1, round(args.flush_ms * 1e6)),
     )
     try:
+        freeze_startup_heap()
         print(f"recorder: recording {shell.node.keys.all} to {output}", file=sys.stderr, flush=True)
         stop.wait(args.duration)
     finally:
