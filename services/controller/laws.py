@@ -35,21 +35,25 @@ from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_fa
 from services.controller.reference import Reference
 
 _CORNERS = np.array([[(k >> j) & 1 for j in range(6)] for k in range(64)], dtype=float)
-"""Every floor/ceil choice of six joints, shape (64, 6): row k holds the bits of k."""
-_ONES = np.ones(6)
+"""Every floor/ceil choice of six joints, shape (64, 6): row k holds the bits b of k."""
+_PAIRS = np.hstack([(_CORNERS[:, :, None] * _CORNERS[:, None, :]).reshape(64, 36), _CORNERS])
+"""Per choice, the products b_i b_j (36, row-major) then the bits b_j (6): shape (64, 42)."""
 
 
-def rounding_gains(q_target: Sequence[float], config: ControllerConfig) -> np.ndarray:
-    """Gripper error per motor error at ``q_target`` [rad]: G = J M, shape (6, 6).
+def rounding_gains(
+    q_target: Sequence[float], config: ControllerConfig, scale: float = 1.0
+) -> np.ndarray:
+    """Gripper error per motor error at ``q_target`` [rad]: G = J M (times ``scale``),
+    shape (6, 6).
 
     J is the geometric Jacobian with its rotation rows weighted by ``rounding_rotation_m``
     [m/rad], M the motor-to-DH map of SPEC 2.2 (dq2 = -de2, dq3 = de3 - de2), so column j
     is the gripper's (position [m], weighted rotation [m]) change per radian of motor j.
     Built on plain floats from the closed-form Jacobian (NumPy's 6x6 calls cost more here).
     """
-    w = config.rounding_rotation_m
+    p, w = scale, config.rounding_rotation_m * scale
     cols = [
-        (a, b, c, zx * w, zy * w, zz * w)
+        (a * p, b * p, c * p, zx * w, zy * w, zz * w)
         for a, b, c, zx, zy, zz in jacobian_columns(q_target, config.arm)
     ]
     c2, c3 = cols[1], cols[2]
@@ -70,8 +74,14 @@ def cartesian_rounding(
     motor error at the end of the command's cycle, mapped to the gripper through the
     Jacobian at the target, is smallest (position in m, orientation weighted by
     ``rounding_rotation_m`` [m/rad]), plus ``rounding_joint_m`` times each joint's own
-    deviation from its ideal count. With b binary that second term is linear in b
-    (b_j^2 = b_j), so every choice's cost is one row of two small products.
+    deviation from its ideal count.
+
+    With A = gain G (:func:`rounding_gains`) the gripper error of a choice is
+    A (base + b), base = miss / gain + lo, so its square is, up to a constant,
+    b^T Q b + 2 (Q base)^T b with Q = A^T A; the joint term sum_j (lo_j + b_j - wanted_j)^2
+    is, up to a constant, sum_j b_j (1 + 2 (lo_j - wanted_j)) (b_j^2 = b_j). Both are
+    linear in the products b_i b_j and the bits b_j, so every choice's cost is one row of
+    a single product with :data:`_PAIRS` (fewer NumPy calls: this runs every cycle).
 
     Args:
         wanted: ideal float counts, 6 values, within the range.
@@ -86,13 +96,12 @@ def cartesian_rounding(
     lo = [math.floor(v) for v in wanted]
     if max(lo) >= JOINT_COUNT_MAX or min(lo) < -JOINT_COUNT_MAX:
         return _clipped_rounding(wanted, miss, gain, q_target, config)
-    G = rounding_gains(q_target, config)
-    # The gripper error of each choice, (64, 6): G (miss + gain lo) + gain G b.
-    err = _CORNERS @ (gain * G.T) + G @ [m + gain * low for m, low in zip(miss, lo, strict=True)]
-    # sum_j (lo_j + b_j - wanted_j)^2 = sum_j b_j (1 + 2 (lo_j - wanted_j)) + a constant.
+    At = rounding_gains(q_target, config, gain).T  # A^T, (motors, twist)
+    Q = At @ At.T
+    base = [m / gain + low for m, low in zip(miss, lo, strict=True)]
     k = (config.rounding_joint_m * gain) ** 2
-    lin = [k * (1.0 + 2.0 * (low - v)) for low, v in zip(lo, wanted, strict=True)]
-    best = int(((err * err) @ _ONES + _CORNERS @ lin).argmin())
+    joint = [k * (1.0 + 2.0 * (low - v)) for low, v in zip(lo, wanted, strict=True)]
+    best = int((_PAIRS @ np.concatenate((Q.ravel(), 2.0 * (Q @ base) + joint))).argmin())
     return np.array([low + ((best >> j) & 1) for j, low in enumerate(lo)], dtype=np.int64)
 
 
