@@ -213,23 +213,20 @@ def jacobian_columns(
         c23 * c - s23 * a,
     )
     r2 = cfg.l2 * c2
-    elbow = (c1 * r2 - s1 * cfg.l1, s1 * r2 + c1 * cfg.l1, -cfg.l2 * s2)
-    wrist = tuple(p + cfg.l3 * z for p, z in zip(elbow, z3, strict=True))
-    ex, ey, ez = (p + cfg.l4 * z for p, z in zip(wrist, z5, strict=True))
-
-    def column(z: Vec3, p: Sequence[float]) -> tuple[float, float, float, float, float, float]:
-        zx, zy, zz = z
-        dx, dy, dz = ex - p[0], ey - p[1], ez - p[2]
-        return (zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz)
-
-    return [
-        (-ey, ex, 0.0, 0.0, 0.0, 1.0),
-        column(z1, (0.0, 0.0, 0.0)),
-        column(z1, elbow),
-        column(z3, elbow),
-        column(z4, wrist),
-        (0.0, 0.0, 0.0, *z5),
-    ]
+    bx, by, bz = c1 * r2 - s1 * cfg.l1, s1 * r2 + c1 * cfg.l1, -cfg.l2 * s2  # elbow
+    wx, wy, wz = bx + cfg.l3 * z3[0], by + cfg.l3 * z3[1], bz + cfg.l3 * z3[2]  # wrist
+    ex, ey, ez = wx + cfg.l4 * z5[0], wy + cfg.l4 * z5[1], wz + cfg.l4 * z5[2]  # gripper
+    columns = [(-ey, ex, 0.0, 0.0, 0.0, 1.0)]
+    # z_i x (p_e - p_i): about the base (z_1), the elbow (z_1, z_3), the wrist (z_4)
+    for (zx, zy, zz), dx, dy, dz in (
+        (z1, ex, ey, ez),
+        (z1, ex - bx, ey - by, ez - bz),
+        (z3, ex - bx, ey - by, ez - bz),
+        (z4, ex - wx, ey - wy, ez - wz),
+    ):
+        columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
+    columns.append((0.0, 0.0, 0.0, *z5))
+    return columns
 
 
 @functools.lru_cache(maxsize=8)

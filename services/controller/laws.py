@@ -52,13 +52,12 @@ def rounding_gains(
     Built on plain floats from the closed-form Jacobian (NumPy's 6x6 calls cost more here).
     """
     p, w = scale, config.rounding_rotation_m * scale
-    cols = [
-        (a * p, b * p, c * p, zx * w, zy * w, zz * w)
-        for a, b, c, zx, zy, zz in jacobian_columns(q_target, config.arm)
-    ]
-    c2, c3 = cols[1], cols[2]
-    cols[1] = tuple(-x - y for x, y in zip(c2, c3, strict=True))  # type: ignore[assignment]
-    return np.array(cols).T
+    j1, j2, j3, j4, j5, j6 = jacobian_columns(q_target, config.arm)
+    motor2 = tuple(-x - y for x, y in zip(j2, j3, strict=True))  # dq2 = -de2, dq3 = -de2
+    flat: list[float] = []
+    for a, b, c, zx, zy, zz in (j1, motor2, j3, j4, j5, j6):
+        flat += (a * p, b * p, c * p, zx * w, zy * w, zz * w)
+    return np.array(flat).reshape(6, 6).T
 
 
 def cartesian_rounding(
