@@ -17,8 +17,15 @@ both sides are counted; one side running out is a difference too.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
-started before the service. In a live recording a query and a joint state that arrive
-together may be recorded in the other order than the service saw them.
+started before the service (``manus up`` and ``manus demo`` start it first). A live
+recording also holds the liveliness changes (``liveliness`` channel): when it shows the
+service's process (its ``where/<service>/<host>/<pid>`` token) appear, only what was
+recorded while that first process was alive is compared, from its token's appearance
+(services declare it once they listen) to its disappearance (a restarted service is a
+new core). Inputs are fed up to the service's last recorded output: whether it saw the
+ones after it (as it stopped, or as the recorder stopped) the recording cannot tell. In
+a live recording a query and a joint state that arrive together may be recorded in the
+other order than the service saw them.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ import msgpack
 
 from manus_stack.controlled import controller_input
 from schemas.base import Message
+from schemas.liveliness import LIVELINESS, LivelinessChange
 from schemas.planning import PlanRequest
 from schemas.state import JointState
 from services.controller.config import ControllerConfig
@@ -125,13 +133,48 @@ def first_difference(recorded: Any, replayed: Any, path: str = "") -> tuple[str,
     return None
 
 
-class _Comparer:
-    """Collects replayed outputs and compares them with the recorded ones per channel."""
+Window = tuple[int, int]
+"""[first, last] log time [ns] of what a check feeds and compares."""
 
-    def __init__(self, recording: Recording, outputs: tuple[str, ...]) -> None:
+EVERYTHING: Window = (-(2**63), 2**63 - 1)
+
+
+def service_window(recording: Recording, service: str) -> Window:
+    """When the first process of ``service`` was alive, by the recorded liveliness
+    changes of its ``where`` token (:data:`EVERYTHING` when the recording has none:
+    lock-step recordings, or a recorder older than the liveliness channel)."""
+    if not any(c.suffix == LIVELINESS for c in recording.info.channels.values()):
+        return EVERYTHING
+    start, end = EVERYTHING
+    key: str | None = None
+    for rec in recording.messages([LIVELINESS]):
+        change = decode(rec)
+        if not isinstance(change, LivelinessChange) or change.kind != "where":
+            continue
+        if key is None and change.alive and change.service == service:
+            key, start = change.key, rec.log_ns
+        elif key is not None and change.key == key and not change.alive:
+            end = rec.log_ns
+            break
+    return start, end
+
+
+class _Comparer:
+    """Collects replayed outputs and compares them with the recorded ones per channel
+    (those recorded within ``window``)."""
+
+    def __init__(
+        self, recording: Recording, outputs: tuple[str, ...], window: Window = EVERYTHING
+    ) -> None:
         self.recorded: dict[str, list[Recorded]] = {s: [] for s in outputs}
+        last: int | None = None
         for rec in recording.messages(outputs):
-            self.recorded[rec.suffix].append(rec)
+            if window[0] <= rec.log_ns <= window[1]:
+                self.recorded[rec.suffix].append(rec)
+                last = rec.log_ns if last is None else max(last, rec.log_ns)
+        self.last_ns = window[1] if last is None else last
+        """Log time of the last recorded output [ns] (none: the window's end, so that a
+        service that answered nothing shows as a difference, not as an empty check)."""
         self.replayed: dict[str, list[tuple[int, bytes]]] = {s: [] for s in outputs}
 
     def add(self, suffix: str, payload: bytes, input_ns: int) -> None:
@@ -178,9 +221,12 @@ def _plain(payload: bytes) -> Any:
         return payload
 
 
-def _inputs(recording: Recording, suffixes: tuple[str, ...]) -> Iterator[tuple[Recorded, Message]]:
+def _inputs(
+    recording: Recording, suffixes: tuple[str, ...], window: Window = EVERYTHING
+) -> Iterator[tuple[Recorded, Message]]:
     for rec in recording.messages(_present(recording, suffixes)):
-        yield rec, decode(rec)
+        if window[0] <= rec.log_ns <= window[1]:
+            yield rec, decode(rec)
 
 
 def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
@@ -195,10 +241,12 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     """Replay the planner's inputs through :class:`PlannerCore` (see the module docstring)."""
     recording = Recording(path)
     core = PlannerCore(config)
-    cmp = _Comparer(recording, PLANNER_OUTPUTS)
+    window = service_window(recording, "planner")
+    cmp = _Comparer(recording, PLANNER_OUTPUTS, window)
+    window = (window[0], cmp.last_ns)
     recorded_ms = [_plain(r.payload) for r in cmp.recorded[PLANNER_OUTPUTS[0]]]
     inputs = 0
-    for rec, msg in _inputs(recording, ("state/joints", "trace/planner/plan/request")):
+    for rec, msg in _inputs(recording, ("state/joints", "trace/planner/plan/request"), window):
         inputs += 1
         if isinstance(msg, JointState):
             core.on_joint_state(msg)
@@ -232,9 +280,11 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
     recording = Recording(path)
     core = ControllerCore(config)
-    cmp = _Comparer(recording, CONTROLLER_OUTPUTS)
+    window = service_window(recording, "controller")
+    cmp = _Comparer(recording, CONTROLLER_OUTPUTS, window)
+    window = (window[0], cmp.last_ns)
     inputs = 0
-    for rec, msg in _inputs(recording, CONTROLLER_INPUTS):
+    for rec, msg in _inputs(recording, CONTROLLER_INPUTS, window):
         inputs += 1
         for suffix, out in controller_input(core, rec.suffix, msg):
             cmp.add(suffix, out.encode(), rec.log_ns)

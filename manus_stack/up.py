@@ -1,12 +1,16 @@
 """The whole stack on one machine, each service its own process (``manus up``, ``manus demo``).
 
 Order: a Zenoh router on loopback (``manus router``, a Python session in router mode),
-the simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
+``manus record`` (waited for: its token is up once it listens, so the recording holds
+every service's whole life, from the simulator's power-up and the bridge's first cycle
+to their shutdown, and ``manus replay --check`` can replay it through a core), the
+simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
 ``manus bridge`` on that device (or the real CAN interface), ``manus planner``,
-``manus controller``, ``manus sequencer`` and ``manus record``. Every child is a client
-of the router (``MANUS_ZENOH_CONNECT``), writes its output to ``<run dir>/logs/<name>.log``
-and runs in its own session, so a Ctrl-C reaches only this process, which then stops the
-children in reverse order, each by its pid (SIGINT, then SIGKILL after a grace period).
+``manus controller`` and ``manus sequencer``. Every child is a client of the router
+(``MANUS_ZENOH_CONNECT``), writes its output to ``<run dir>/logs/<name>.log`` and runs
+in its own session, so a Ctrl-C reaches only this process, which then stops the
+children in reverse order (the recorder last but the router), each by its pid (SIGINT,
+then SIGKILL after a grace period).
 
 :class:`LocalStack` waits until every started service's liveliness token is up.
 Services whose command is not part of this installation yet are reported, not started.
@@ -192,6 +196,12 @@ class LocalStack:
                 raise StackError(f"the router did not listen on {opts.endpoint} in time")
             time.sleep(0.05)
         have = available_commands()
+        if opts.record:
+            if "record" in have:
+                self._spawn("record", ["--output", str(opts.recording)])
+                self.wait_alive(deadline)
+            else:
+                self.skipped.append("record")
         if opts.can_interface:
             bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
         else:
@@ -209,8 +219,6 @@ class LocalStack:
             ("controller", []),
             ("sequencer", []),
         ]
-        if opts.record:
-            plan.append(("record", ["--output", str(opts.recording)]))
         for name, args in plan:
             if name in have:
                 self._spawn(name, args)

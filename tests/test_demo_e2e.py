@@ -15,6 +15,7 @@ import pytest
 from mcap.reader import make_reader
 
 from manus_stack.demo import THESIS_MAX_MM, THESIS_MEAN_MM
+from manus_stack.regression import check_controller, check_planner
 from tests.conftest import free_port
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -77,3 +78,10 @@ def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
     )
     assert overview is not None and Path(overview.group(1)).exists()
     assert float(overview.group(2)) == pytest.approx(mean, abs=0.01)
+
+    # The recorder started first: the live controller and planner are reproduced, byte
+    # for byte, by fresh cores fed the recorded inputs (manus replay --check).
+    for service, check in (("controller", check_controller), ("planner", check_planner)):
+        result = check(recording)
+        assert result.ok, f"{service}: {result.difference}"
+        assert result.compared > (900 if service == "controller" else 1)

@@ -18,9 +18,17 @@ from PIL import Image
 from manus_stack.cli import main
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_run
-from manus_stack.regression import check_controller, check_planner, first_difference
+from manus_stack.regression import (
+    CONTROLLER_INPUTS,
+    EVERYTHING,
+    check_controller,
+    check_planner,
+    first_difference,
+    service_window,
+)
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
+from schemas.liveliness import LIVELINESS, LivelinessChange
 from schemas.state import CanFrame
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
@@ -188,6 +196,79 @@ def test_a_tampered_recording_is_caught_at_the_tampered_message(tmp_path: Path) 
     assert (result.difference.suffix, result.difference.rank) == ("cmd/joint_velocity", target)
     assert result.difference.path == "velocity[5]" and result.difference.recorded == 1.0
     assert main(["replay", str(out), "--check", "controller"]) == 1
+
+
+def _live_like(
+    out: Path, *, appear_s: float, vanish_s: float | None, drop_outputs_after_s: float
+) -> Path:
+    """The square's recording as a live one would look: the controller's ``where`` token
+    appears at ``appear_s`` and vanishes at ``vanish_s`` (recording times), it published
+    nothing after ``drop_outputs_after_s``, and the bridge went on publishing."""
+    src = Recording(SQUARE)
+    start = min(r.log_ns for r in src.messages())
+    key = "manus/where/controller/host/4711"
+    outputs = ("cmd/joint_velocity", "controller/feedback", "controller/result")
+    changes = [(appear_s, True)] + ([] if vanish_s is None else [(vanish_s, False)])
+    with RecordingWriter(out, source="live-like") as writer:
+        for r in src.messages():
+            while changes and r.log_ns >= start + changes[0][0] * 1e9:
+                at, alive = changes.pop(0)
+                t = start + round(at * 1e9)
+                change = LivelinessChange.from_token(
+                    key, key.removeprefix("manus/"), alive=alive, stamp_ns=t, seq=0
+                )
+                writer.write(LIVELINESS, change, t)
+            if r.suffix in outputs and r.log_ns > start + drop_outputs_after_s * 1e9:
+                continue
+            writer.write(r.suffix, decode(r), r.log_ns)
+    return out
+
+
+def test_a_live_check_stops_at_the_last_output_of_the_controllers_process(
+    tmp_path: Path,
+) -> None:
+    # It stopped at 12 s (its token vanished a moment later); the bridge went on.
+    stopped = _live_like(tmp_path / "a.mcap", appear_s=0.0, vanish_s=12.01, drop_outputs_after_s=12)
+    result = check_controller(stopped)
+    assert result.ok, result.difference
+    assert 0 < result.compared < check_controller(SQUARE).compared
+    # The recorder stopped before it: nothing recorded after 12 s, the token still up.
+    cut = _live_like(tmp_path / "b.mcap", appear_s=0.0, vanish_s=None, drop_outputs_after_s=12)
+    assert check_controller(cut).ok
+    # Alive but silent: a difference, not an empty check.
+    silent = _live_like(tmp_path / "c.mcap", appear_s=0.0, vanish_s=None, drop_outputs_after_s=-1)
+    result = check_controller(silent)
+    assert not result.ok and result.difference is not None
+    assert result.difference.recorded is None  # the replay answered, the recording did not
+
+
+def test_a_live_check_feeds_only_what_came_while_the_first_process_listened(
+    tmp_path: Path,
+) -> None:
+    late = _live_like(tmp_path / "late.mcap", appear_s=0.5, vanish_s=15.0, drop_outputs_after_s=14)
+    rec = Recording(late)
+    first = min(r.log_ns for r in rec.messages())
+    start, end = service_window(rec, "controller")
+    assert (start - first, end - first) == (500_000_000, 15_000_000_000)
+    last_out = max(r.log_ns for r in rec.messages(["cmd/joint_velocity"]))
+    fed = [r for r in rec.messages(CONTROLLER_INPUTS) if start <= r.log_ns <= last_out]
+    assert 0 < len(fed) < sum(1 for _ in rec.messages(CONTROLLER_INPUTS))
+    assert check_controller(late).inputs == len(fed)
+    # Lock-step recordings have no liveliness channel: everything is fed.
+    assert service_window(Recording(SQUARE), "controller") == EVERYTHING
+
+
+def test_the_window_follows_the_first_process_not_a_restart(tmp_path: Path) -> None:
+    out = tmp_path / "restart.mcap"
+    with RecordingWriter(out, source="restart") as writer:
+        for t, pid, alive in ((1, 10, True), (2, 11, True), (3, 10, False), (4, 11, False)):
+            key = f"manus/where/controller/h/{pid}"
+            change = LivelinessChange.from_token(
+                key, key.removeprefix("manus/"), alive=alive, stamp_ns=t, seq=0
+            )
+            writer.write(LIVELINESS, change, t * 1_000_000_000)
+    assert service_window(Recording(out), "controller") == (1_000_000_000, 3_000_000_000)
+    assert service_window(Recording(out), "planner") == EVERYTHING
 
 
 def test_first_difference_names_the_field() -> None:

@@ -80,7 +80,7 @@ class BridgeShell:
         self.clock = clock
         self.on_reply = on_reply
         self.on_state = on_state
-        self.node = Node(SERVICE_NAME, settings, session=session)
+        self.node = Node(SERVICE_NAME, settings, session=session, liveliness=False)
         self.lock = self.node.lock
         keys = self.node.keys
         self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in SUFFIXES}
@@ -92,6 +92,7 @@ class BridgeShell:
         self.node.subscribe(keys.joint_velocity, JointVelocityCommand, self._on_command)
         self.node.subscribe(keys.estop, EStop, self._on_estop)
         self.node.queryable(keys.bridge_command, ArmCommand, self._on_arm_command)
+        self.node.announce()  # alive once it listens and answers
 
     # -- Zenoh side (callbacks run under node.lock) -------------------------------------------
 

@@ -51,7 +51,7 @@ class ControllerShell:
         session: zenoh.Session | None = None,
     ) -> None:
         self.core = ControllerCore(config)
-        self.node = Node("controller", settings, session=session)
+        self.node = Node("controller", settings, session=session, liveliness=False)
         self.sent: Counter[str] = Counter()
         keys = self.node.keys
         self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in PUBLISHED}
@@ -63,6 +63,7 @@ class ControllerShell:
         self.node.queryable(keys.gripper_goal, GripperGoal, self.core.submit_gripper)
         self.node.queryable(keys.cancel, CancelGoal, self.core.cancel)
         self.node.queryable(keys.speed_scale, SpeedScale, self.core.set_speed_scale)
+        self.node.announce()  # alive once it listens and answers
 
     def _publish(self, out: Output) -> None:
         for suffix, msg in out:

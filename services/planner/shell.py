@@ -42,11 +42,12 @@ class PlannerShell:
         session: zenoh.Session | None = None,
     ) -> None:
         self.core = PlannerCore(config)
-        self.node = Node("planner", settings, session=session)
+        self.node = Node("planner", settings, session=session, liveliness=False)
         self.plans = 0
         self.refusals = 0
         self.node.subscribe(self.node.keys.joints, JointState, self._on_joint_state)
         self.node.queryable(self.node.keys.plan, PlanRequest, self._on_plan, locked=False)
+        self.node.announce()  # alive once it listens and answers
 
     def _on_joint_state(self, js: JointState, rx_ns: int) -> None:
         self.core.on_joint_state(js)

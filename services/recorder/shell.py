@@ -82,10 +82,13 @@ class RecorderShell:
         self.write_errors = 0
         self._thread = threading.Thread(target=self._drain, name="recorder-writer", daemon=True)
         self._thread.start()
-        self.node = Node("recorder", settings, session=session)
+        # Alive only once it listens: whoever waits for the recorder's token (manus up)
+        # can start the rest knowing that their first messages are recorded.
+        self.node = Node("recorder", settings, session=session, liveliness=False)
         self._liveliness_key = self.node.keys.liveliness
         self.node.subscribe_raw(self.node.keys.all, self._on_sample)
         self.node.watch_tokens(self.node.keys.all, self._on_token)
+        self.node.announce()
 
     def _on_token(self, key: str, alive: bool, rx_ns: int) -> None:
         if self._closing:  # its own tokens vanish as it leaves: not part of the recording

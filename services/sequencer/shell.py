@@ -65,7 +65,7 @@ class SequencerShell:
         query_timeout: float = 5.0,
     ) -> None:
         self.core = SequencerCore(config)
-        self.node = Node("sequencer", settings, session=session)
+        self.node = Node("sequencer", settings, session=session, liveliness=False)
         self.query_timeout = query_timeout
         self.submitted = 0
         self.refused = 0
@@ -89,6 +89,7 @@ class SequencerShell:
         self._ticker = threading.Thread(target=self._tick, name="sequencer-tick", daemon=True)
         self._worker.start()
         self._ticker.start()
+        self.node.announce()  # alive once it listens and answers
 
     # -- bus inputs (under the node lock) --------------------------------------------------
 
