@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import socket
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -60,6 +61,15 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         reporter.write_sep(".", f"{log.relative_to(tmp)} (last {len(lines)} lines)")
         for line in lines:
             reporter.write_line(line)
+
+
+def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
+    """Poll ``check()`` every 10 ms until it holds; AssertionError naming ``what`` after
+    ``timeout`` [s] (live tests: bounded waits, never a sleep that hopes)."""
+    deadline = time.monotonic() + timeout
+    while not check():
+        assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
+        time.sleep(0.01)
 
 
 def free_port() -> int:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import queue
-import time
-from collections.abc import Callable
 
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
@@ -13,14 +11,8 @@ from schemas.control import CancelGoal, GoalAck, GoalResult, TrajectoryGoal
 from schemas.state import JointState
 from services.controller.core import ControllerCore
 from services.controller.shell import ControllerShell
+from tests.conftest import eventually
 from tests.controller_plant import Q0, Plant, line_trajectory
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.02)
 
 
 def test_controller_shell_runs_a_goal_over_zenoh(zenoh_settings: ZenohSettings) -> None:

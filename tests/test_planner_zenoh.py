@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
 from pathlib import Path as FilePath
 
 import pytest
@@ -17,16 +15,10 @@ from schemas.planning import Path, PlanReply, PlanRequest
 from schemas.state import JointState
 from services.planner.core import PlannerCore
 from services.planner.shell import PlannerShell
+from tests.conftest import eventually
 
 ROOT = FilePath(__file__).resolve().parent.parent
 UNFOLDED = [math.radians(q) for q in UNFOLDED_Q_DEG]
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.02)
 
 
 def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:

@@ -8,7 +8,6 @@ import json
 import os
 import socket
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import jsonschema
@@ -28,15 +27,9 @@ from services.recorder.reading import Recording, decode
 from services.recorder.replay import schedule
 from services.recorder.shell import RecorderShell
 from services.recorder.writer import RecordingWriter
+from tests.conftest import eventually
 
 SQUARE = Path(__file__).resolve().parent / "data" / "thesis_square.mcap"
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
-        time.sleep(0.01)
 
 
 def changes(path: Path) -> list[LivelinessChange]:

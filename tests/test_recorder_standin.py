@@ -11,7 +11,6 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 from manus.node import Node, QueryError
@@ -24,16 +23,10 @@ from services.recorder.reading import Recording
 from services.recorder.replay import Replayer
 from services.recorder.shell import RecorderShell
 from services.recorder.writer import RecordingWriter
+from tests.conftest import eventually
 
 DATA = Path(__file__).resolve().parent / "data"
 MANUS = str(Path(sys.executable).parent / "manus")
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
-        time.sleep(0.01)
 
 
 def plan_exchange(name: str) -> tuple[bytes, bytes]:

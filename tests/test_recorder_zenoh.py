@@ -12,7 +12,6 @@ import sys
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable
 from pathlib import Path
 
 import zenoh
@@ -33,17 +32,11 @@ from services.recorder.reading import Recording, decode
 from services.recorder.recover import recover
 from services.recorder.replay import Replayer, matching, schedule
 from services.recorder.shell import RecorderShell
+from tests.conftest import eventually
 
 ROOT = Path(__file__).resolve().parent.parent
 SQUARE = ROOT / "tests" / "data" / "thesis_square.mcap"
 MANUS = str(Path(sys.executable).parent / "manus")
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
-        time.sleep(0.01)
 
 
 def test_no_message_lost_at_ten_times_the_bus_rate(

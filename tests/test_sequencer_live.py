@@ -10,7 +10,7 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -32,6 +32,7 @@ from services.sequencer.taskfile import parse_task_text
 from services.simulator.config import SimConfig
 from services.simulator.core import SimCore
 from services.simulator.live import LiveSim
+from tests.conftest import eventually
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parent.parent
@@ -48,13 +49,6 @@ move = [
 [[step]]
 gripper = 30
 """
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.02)
 
 
 class LiveStack:

@@ -9,7 +9,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path as FilePath
 
 import pytest
@@ -22,18 +22,12 @@ from services.planner.shell import PlannerShell
 from services.sequencer.client import TaskClient
 from services.sequencer.shell import SequencerShell
 from services.sequencer.taskfile import parse_task_text, task_from_args
+from tests.conftest import eventually
 from tests.sequencer_fakes import FakeBridge, FakeController
 
 ROOT = FilePath(__file__).resolve().parent.parent
 SQUARE = str(ROOT / "paths" / "thesis_square.txt")
 FAR = "[3000, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2.0, 0]"
-
-
-def eventually(check: Callable[[], bool], timeout: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.02)
 
 
 class Stack:
