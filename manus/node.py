@@ -89,6 +89,9 @@ class Node:
         self.session = session if session is not None else open_session(self.settings)
         self.lock = threading.RLock()
         self.bad_payloads: Counter[str] = Counter()
+        self.on_bad_payload: Callable[[str], None] | None = None
+        """Called with the key after each bad payload is counted (on a Zenoh thread, not
+        under :attr:`lock`): a service that reports its health live counts them there."""
         self._last_bad_log: dict[str, float] = {}
         self._entities: list[Any] = []
         self._token: zenoh.LivelinessToken | None = None
@@ -311,6 +314,9 @@ class Node:
             log.warning(
                 "%s: bad payload on %s (%d so far): %s", self.name, key, self.bad_payloads[key], exc
             )
+        hook = self.on_bad_payload
+        if hook is not None:
+            hook(key)
 
     @property
     def bad_payload_count(self) -> int:

@@ -96,7 +96,11 @@ class BridgeState(Message):
     duplicate_frames: int = field("frames seen twice in a cycle", minimum=0)
     garbled_frames: int = field("frames with a wrong length or unknown id", minimum=0)
     buffered_syncs: int = field("old syncs found in a buffer and not answered", minimum=0)
-    bad_payloads: int = field("bus messages to the bridge that failed to decode", minimum=0)
+    bad_payloads: int = field(
+        "bus messages to the bridge that failed to decode, and commands it refused (a count "
+        "out of range), counted as they come",
+        minimum=0,
+    )
     detail: str = field("last notable event, in words")
     late_frames: int = field(
         "frames that arrived out of order: after a later frame of their cycle, or after "

@@ -201,6 +201,18 @@ def test_quantized_counts_pass_after_a_range_check() -> None:
     assert "motor 1 = 11 outside -10..10" in ls.bridge.detail
 
 
+def test_undecodable_messages_are_counted_in_the_next_bridge_state() -> None:
+    ls = running()
+    before = [m for _, _, m in ls.messages if isinstance(m, BridgeState)][-1].bad_payloads
+    for _ in range(4):
+        ls.bridge.on_bad_payload()  # what the shell does when its node refuses a payload
+    t0 = ls.t_ns
+    ls.run_for(0.1)
+    states = [m for t, _, m in ls.messages if isinstance(m, BridgeState) and t > t0]
+    assert states and states[0].bad_payloads == before + 4
+    assert all(s.phase == "running" for s in states)  # counted, nothing stops
+
+
 def test_estop_zeros_then_stop_latched_until_released() -> None:
     ls = running()
     ls.subscribe("state/joints", VelocityController((0, 0, 0, 0, 0, 20.0)))

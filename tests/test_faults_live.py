@@ -188,6 +188,10 @@ def test_garbage_on_every_key_is_counted_and_nothing_dies(stack: FaultStack) -> 
     logs = {c.name: c.log.read_text(errors="replace") for c in stack.stack.children}
     for name in ("bridge", "controller", "sequencer"):
         assert "bad payload on" in logs[name], name
+    # The bridge counts them live: cmd/joint_velocity and estop, three rounds each.
+    with stack.watch.lock:
+        counted = stack.watch.bridge[-1].bad_payloads
+    assert counted >= 2 * 3 * len(garbage), counted
     assert refused >= 5
     # still works: a task runs
     _start_square(stack)

@@ -155,6 +155,11 @@ class BridgeCore:
         self._report(rx_ns, out)
         return out
 
+    def on_bad_payload(self) -> None:
+        """A bus message to the bridge failed to decode (the shell's node refused it):
+        counted in ``BridgeState.bad_payloads``, published with the next state."""
+        self.health.bad_payloads += 1
+
     def on_estop(self, msg: EStop, rx_ns: int) -> Outputs:
         """E-stop: latch (zeros at the next sync, then 0x370) or release."""
         out = Outputs()

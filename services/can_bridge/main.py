@@ -132,7 +132,6 @@ def run(args: argparse.Namespace) -> int:
                     "phase": shell.core.phase,
                     **dataclasses.asdict(state),
                     "send_errors": shell.send_errors,
-                    "bad_payloads": state.bad_payloads + shell.node.bad_payload_count,
                 }
     finally:
         bus.shutdown()

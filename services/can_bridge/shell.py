@@ -92,6 +92,7 @@ class BridgeShell:
         self.node.subscribe(keys.joint_velocity, JointVelocityCommand, self._on_command)
         self.node.subscribe(keys.estop, EStop, self._on_estop)
         self.node.queryable(keys.bridge_command, ArmCommand, self._on_arm_command)
+        self.node.on_bad_payload = self._on_bad_payload
         self.node.announce()  # alive once it listens and answers
 
     # -- Zenoh side (callbacks run under node.lock) -------------------------------------------
@@ -104,6 +105,10 @@ class BridgeShell:
             "e-stop %s by %s %s", "engaged" if msg.engaged else "released", msg.source, msg.reason
         )
         self._publish(self.core.on_estop(msg, rx_ns))
+
+    def _on_bad_payload(self, key: str) -> None:
+        with self.lock:
+            self.core.on_bad_payload()
 
     def _on_arm_command(self, req: ArmCommand) -> ArmCommandReply:
         reply, out = self.core.on_arm_command(req, self.clock())
