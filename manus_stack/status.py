@@ -32,6 +32,9 @@ HEALTH_FIELDS = (
     "late_frames",
     "buffered_syncs",
     "bad_payloads",
+    "other_node_frames",
+    "preempted_replies",
+    "buffered_states",
 )
 """BridgeState counters shown under the bridge's health."""
 

@@ -23,6 +23,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | controller/result      | pub        | GoalResult                    | controller |
 | sequencer/...          | (see schemas.sequencing)                   | sequencer  |
 | sim/truth              | pub        | SimTruth                      | simulator  |
+| guardian/report        | pub        | GuardianReport                | guardian   |
 | alive/<service>        | liveliness | (no payload)                  | each one   |
 | where/<service>/<host>/<pid> | liveliness | (no payload): where it runs | each one |
 | trace/<q>/request      | pub        | request type of queryable <q> | its server |
@@ -49,7 +50,15 @@ from manus.session import DEFAULT_PREFIX
 from schemas.base import Message
 from schemas.liveliness import LIVELINESS, LivelinessChange
 
-SERVICES = ("simulator", "can_bridge", "planner", "controller", "sequencer", "recorder")
+SERVICES = (
+    "simulator",
+    "can_bridge",
+    "planner",
+    "controller",
+    "sequencer",
+    "recorder",
+    "guardian",
+)
 """Names used for liveliness tokens (``<prefix>/alive/<name>``)."""
 
 
@@ -141,6 +150,11 @@ class Keys:
     def sim_truth(self) -> str:
         return self("sim/truth")
 
+    @property
+    def guardian_report(self) -> str:
+        """What the CAN guardian did (``schemas.guardian.GuardianReport``)."""
+        return self("guardian/report")
+
     def alive(self, service: str) -> str:
         """Liveliness token of one service."""
         return self(f"alive/{service}")
@@ -186,7 +200,7 @@ def channel_types() -> dict[str, type[Message]]:
     reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
     travel as ``trace/<suffix>/request|reply`` (:func:`channel_type` maps the keys).
     """
-    from schemas import commands, control, planning, sequencing, state
+    from schemas import commands, control, guardian, planning, sequencing, state
 
     table: dict[str, type[Message]] = {
         "state/joints": state.JointState,
@@ -212,6 +226,7 @@ def channel_types() -> dict[str, type[Message]]:
         "controller/speed_scale#reply": control.GoalAck,
         "controller/feedback": control.ControllerFeedback,
         "controller/result": control.GoalResult,
+        "guardian/report": guardian.GuardianReport,
         LIVELINESS: LivelinessChange,
     }
     table.update(sequencing.CHANNELS)

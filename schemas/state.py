@@ -108,6 +108,24 @@ class BridgeState(Message):
         default=0,
         minimum=0,
     )
+    other_node_frames: int = field(
+        "frames of another PC-side node seen on the bus (replies to the arm such as the "
+        "guardian's 0x370): counted, never taken for the arm's or the bridge's own",
+        default=0,
+        minimum=0,
+    )
+    preempted_replies: int = field(
+        "replies of the bridge that reached the bus after another node's reply to the same "
+        "sync (the arm latched the other one, e.g. the guardian's stop)",
+        default=0,
+        minimum=0,
+    )
+    buffered_states: int = field(
+        "0x360 frames found in a buffer (processed more than sync_max_age_ms after they "
+        "arrived, e.g. after a SIGSTOP): no joint state published from them",
+        default=0,
+        minimum=0,
+    )
 
 
 @dataclass(frozen=True)
