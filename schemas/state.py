@@ -155,3 +155,9 @@ class SimTruth(Message):
     gripper: float = field("true gripper opening", unit="m")
     xyz: list[float] = field("true gripper position in the base frame", unit="m", length=3)
     ypr: list[float] = field("true gripper (yaw, pitch, roll)", unit="rad", length=3)
+    qd_true: list[float] = field(
+        "true DH joint speeds (the drives' speeds through the joint map; empty in recordings "
+        "made before it existed)",
+        unit="rad/s",
+        default_factory=list,
+    )

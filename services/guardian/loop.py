@@ -1,13 +1,16 @@
 """The guardian's live loop: one thread, one CAN bus, :class:`GuardianCore` in between.
 
-Wait in ``bus.recv`` at most until the waiting sync's deadline, stamp each frame with the
-monotonic clock as it arrives, feed the core, and send the 0x370 the core asks for at
-once. Nothing else happens in this thread: each action goes to ``on_action`` (a logger
-and a queue, never a network call), so the decision never waits on anything but the bus.
+Wait at most until the waiting sync's deadline (in ``select`` on the bus's descriptor when
+it has one, so that no backend's polling delays the deadline; else in ``bus.recv``), stamp
+each frame with the monotonic clock as it is read, feed the core, and send the 0x370 the
+core asks for at once. Nothing else happens in this thread: each action goes to
+``on_action`` (a logger and a queue, never a network call), so the decision never waits
+on anything but the bus.
 """
 
 from __future__ import annotations
 
+import select
 import threading
 import time
 from collections.abc import Callable
@@ -54,10 +57,18 @@ def run_loop(
     """Guard the bus until ``stop`` is set; returns the loop's timing."""
     stats = stats or LoopStats()
     cpu0 = time.thread_time_ns()
+    try:
+        fd: int | None = bus.fileno()
+    except NotImplementedError:
+        fd = None
     while not stop.is_set():
         due = core.next_deadline_ns()
         wait = MAX_WAIT_S if due is None else min(MAX_WAIT_S, max(0.0, (due - clock()) / 1e9))
-        msg = bus.recv(timeout=wait)
+        if fd is not None:
+            select.select([fd], [], [], wait)
+            msg = bus.recv(timeout=0.0)
+        else:
+            msg = bus.recv(timeout=wait)
         while msg is not None:
             action = core.on_frame(_frame(msg, clock()))
             if action is not None:

@@ -92,7 +92,8 @@ def open_guardian_bus(args: argparse.Namespace) -> can.BusABC:
                     raise SystemExit(f"manus guardian: no device file {path}: give --can-channel")
                 time.sleep(0.05)
             channel = path.read_text().strip()
-        extra = {"timeout": 0.001, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
+        # non-blocking serial reads: the loop waits in select (services.guardian.loop)
+        extra = {"timeout": 0, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
     return can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
 
 
@@ -188,6 +189,8 @@ def run(args: argparse.Namespace) -> int:
         "reports_dropped": reports.dropped,
         "send_errors": stats.send_errors,
         "cpu_ms": round(stats.cpu_ns / 1e6, 3),
+        "reaction_ms_p50": round(reaction[len(reaction) // 2], 3) if reaction else None,
+        "reaction_ms_p99": round(reaction[(99 * len(reaction)) // 100], 3) if reaction else None,
         "reaction_ms_max": round(reaction[-1], 3) if reaction else None,
     }
     print(f"stats: {json.dumps(out)}", file=sys.stderr, flush=True)
