@@ -8,14 +8,16 @@ positions in metres). It
 2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
    the reply is a SubmitReply: a task id, or every validation error),
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
-   pause it after a while and resume it (``<prefix>/sequencer/control``).
+   pause it after a while and resume it (``<prefix>/sequencer/control``),
+4. watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
+   vanishes, the sequencer died and no final event will come, so it stops waiting.
 
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
 
-Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it
-was refused. Via-point files are read here (14 columns in mm, deg, s; SPEC 5.1) and
-sent in SI units.
+Exit status: 0 when the task succeeded, 1 when it failed or was cancelled or the
+sequencer vanished (named), 2 when it was refused. Via-point files are read here (14
+columns in mm, deg, s; SPEC 5.1) and sent in SI units.
 """
 
 from __future__ import annotations
@@ -99,6 +101,12 @@ def main() -> int:
             f"{p}/sequencer/events",
             lambda s: events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
         )
+        # The sequencer's token vanishing (a DELETE sample) means it died mid-task.
+        gone = {"event": "sequencer_gone"}
+        session.liveliness().declare_subscriber(
+            f"{p}/alive/sequencer",
+            lambda s: events.put(gone) if s.kind == zenoh.SampleKind.DELETE else None,
+        )
 
         def ask(key: str, request: dict[str, Any], timeout: float = 60.0) -> dict[str, Any]:
             payload = msgpack.packb(request, use_bin_type=True)
@@ -133,6 +141,10 @@ def main() -> int:
                 event = events.get(timeout=0.1)
             except queue.Empty:
                 continue
+            if event is gone:
+                print(f"sequencer gone: its liveliness token {p}/alive/sequencer vanished while "
+                      f"task {task_id} ran; its outcome is unknown", flush=True)  # fmt: skip
+                return 1
             if event["task_id"] != task_id or event["event"] == "step_progress":
                 continue
             reason = f": {event['reason']}" if event["reason"] else ""

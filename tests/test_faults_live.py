@@ -13,9 +13,12 @@ from __future__ import annotations
 import math
 import os
 import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from subprocess import PIPE
 
 import numpy as np
 import pytest
@@ -23,7 +26,7 @@ import pytest
 from schemas.keys import channel_types
 from services.sequencer.taskfile import task_from_args
 from tests.conftest import free_port
-from tests.fault_stack import LEASE_MS, SQUARE, FaultStack
+from tests.fault_stack import LEASE_MS, ROOT, SQUARE, FaultStack
 
 pytestmark = pytest.mark.slow
 CYCLE_MS = 60.0
@@ -222,3 +225,47 @@ def test_garbage_on_every_key_is_counted_and_nothing_dies(stack: FaultStack) -> 
     _start_square(stack)
     n = len(garbage) * 3
     print(f"FAULT garbage: {len(suffixes)} keys x {n} payloads, {refused} queries refused")
+
+
+BACK_AND_FORTH = """
+0 0 0    0 0 0  0 0 0  0 0 0  0.0 2
+0 50 0   0 0 0  0 0 0  0 0 0  2.5 2
+0 -50 0  0 0 0  0 0 0  0 0 0  5.0 2
+"""
+"""50 mm along y and back (relative via points): the arm ends where it started."""
+
+
+def test_clients_notice_the_sequencer_dying_mid_task(stack: FaultStack, tmp_path: Path) -> None:
+    """``manus run``, then examples/supervisor.py, each following a task, exit 1 naming the
+    sequencer when its process is killed mid-task: no final event will ever come."""
+    path = tmp_path / "back_and_forth.txt"
+    path.write_text(BACK_AND_FORTH)
+    endpoint, prefix = stack.options.endpoint, stack.options.prefix
+    run = [sys.executable, "-m", "manus_stack.cli", "run", "--plain", "--connect", endpoint]
+    sup = [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", endpoint]
+    for name, head in (("manus run", run), ("supervisor", sup)):
+        argv = [*head, "--prefix", prefix, str(path)]
+        proc = subprocess.Popen(argv, cwd=ROOT, stdout=PIPE, stderr=PIPE, text=True)
+        try:
+            stack.wait_moving()
+            assert proc.poll() is None, proc.communicate()
+            sequencer = stack.child("sequencer")
+            t_kill = time.monotonic()
+            os.kill(sequencer.proc.pid, signal.SIGKILL)
+            sequencer.proc.wait(timeout=5.0)
+            out, err = proc.communicate(timeout=10.0)
+            took = time.monotonic() - t_kill
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        _report(f"sequencer SIGKILL, {name}", exited_after=took * 1e3)
+        assert proc.returncode == 1, (out, err)
+        assert "sequencer" in out + err and "gone" in out + err, (out, err)
+        assert took < 3.0  # the token's loss: a closed connection, well under a second
+        # a new sequencer for the next client (compose would restart it)
+        stack.stack.children.remove(sequencer)
+        sequencer.stream.close()
+        stack.stack._spawn("sequencer", [])
+        stack.wait("a sequencer", lambda: "sequencer" in stack.node.alive_services(0.5), 20.0)  # type: ignore[union-attr]
+        time.sleep(1.0)  # the controller's aborted goal has stopped the arm

@@ -30,8 +30,8 @@ import os
 import random
 import signal
 import socket
-import tempfile
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable

@@ -5,9 +5,11 @@
 
 Submits the task to the running sequencer (or, when none is up, runs one in this
 process), shows a progress bar for the task and one for the current step, and exits 0
-when the task succeeds; 1 with the failure reason when it fails or is cancelled; 2 when
-it is refused (every validation problem is printed, with its location). Ctrl-C cancels
-the task (the arm decelerates and stops) and exits 130.
+when the task succeeds; 1 with the failure reason when it fails or is cancelled, or when
+the sequencer's liveliness token vanishes while the task runs (the sequencer died: no
+final event will come; named on stderr, within the token's loss); 2 when it is refused
+(every validation problem is printed, with its location). Ctrl-C cancels the task (the
+arm decelerates and stops) and exits 130.
 """
 
 from __future__ import annotations
@@ -134,6 +136,13 @@ def run(args: argparse.Namespace) -> int:
         _out(f"task {reply.task_id}: {task.name} ({len(task.steps)} steps)")
         view = ProgressView(task, sys.stdout, live=sys.stdout.isatty() and not args.plain)
         final = client.follow(reply.task_id, view.show, stop=stop, timeout=args.timeout)
+        if final is None and client.sequencer_gone.is_set():
+            _err(
+                f"manus run: the sequencer is gone (its liveliness token alive/sequencer "
+                f"vanished) while task {reply.task_id} ran: its outcome is unknown; the "
+                "controller's deadman stops the arm"
+            )
+            return 1
         if final is None:
             why = "interrupted" if stop.is_set() else f"no end within {args.timeout:g} s"
             _err(f"manus run: {why}: cancelling task {reply.task_id}")
