@@ -137,6 +137,10 @@ class LockStep:
         for frame in backlog:
             self._apply(self.bridge.on_frame(frame, self._t), self._t)
 
+    def bridge_input(self, frame: Frame) -> None:
+        """A frame reaches the bridge now and only the bridge (a corrupted arm frame)."""
+        self._bridge_frame(frame.at(self._t))
+
     def restart_bridge(self, config: BridgeConfig | None = None) -> None:
         """A new bridge process takes over now (after a kill): a fresh core, started."""
         self.bridge = BridgeCore(config or self.bridge.config)

@@ -26,6 +26,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | guardian/report        | pub        | GuardianReport                | guardian   |
 | alive/<service>        | liveliness | (no payload)                  | each one   |
 | where/<service>/<host>/<pid> | liveliness | (no payload): where it runs | each one |
+| health/<service>       | queryable  | (any) -> NodeHealth: bad input counted | each one |
 | trace/<q>/request      | pub        | request type of queryable <q> | its server |
 | trace/<q>/reply        | pub        | reply type of queryable <q>   | its server |
 | liveliness             | recording  | LivelinessChange              | recorder   |
@@ -172,6 +173,14 @@ class Keys:
     @property
     def where_all(self) -> str:
         return self("where/**")
+
+    def health(self, service: str) -> str:
+        """Queryable of one service's bad-input counts (``schemas.health.NodeHealth``)."""
+        return self(f"health/{service}")
+
+    @property
+    def health_all(self) -> str:
+        return self("health/**")
 
     @property
     def liveliness(self) -> str:
