@@ -132,7 +132,7 @@ class Node:
         )
 
     def _on_health(self, query: zenoh.Query) -> None:
-        query.reply(query.key_expr, self.health().encode())
+        query.reply(self.keys.health(self.name), self.health().encode())
 
     # -- publish / subscribe -------------------------------------------------------------
 

@@ -298,3 +298,59 @@ def run_fuzz(seed: int = 0, per_endpoint: int = 20, frames: int = 2000) -> FuzzR
     report.task_after = task_after(arm)
     report.bridge_counts = dataclasses.asdict(arm.ls.bridge.health)
     return report
+
+
+@dataclass
+class LiveFuzz:
+    """What a live fuzz run sent (see :func:`fuzz_live`).
+
+    Attributes:
+        sent: bad payloads published per key suffix, or sent as queries per queryable.
+        refused: queries answered with an error (the owner refused them).
+        unanswered: queries nobody answered (no such queryable up).
+    """
+
+    sent: dict[str, int] = field(default_factory=dict)
+    refused: dict[str, int] = field(default_factory=dict)
+    unanswered: dict[str, int] = field(default_factory=dict)
+
+
+def bad_payloads(cls: type[Message], count: int, rng: random.Random) -> list[bytes]:
+    """``count`` payloads for ``cls`` that do not decode (valid ones are commands, not
+    bad input: the core-level fuzz gives those to the cores)."""
+    out: list[bytes] = []
+    while len(out) < count:
+        for _, data in payloads(cls, len(KINDS), rng):
+            try:
+                cls.decode(data)
+            except SchemaError:
+                out.append(data)
+    return out[:count]
+
+
+def fuzz_live(node: Any, seed: int, per_endpoint: int, query_timeout: float = 1.0) -> LiveFuzz:
+    """Publish bad payloads on every published key of :func:`channel_types` and send them
+    as queries to every queryable, through ``node`` (a :class:`manus.node.Node`)."""
+    rng = random.Random(seed)
+    done = LiveFuzz()
+    keys = node.keys
+    for channel, cls in sorted(channel_types().items()):
+        suffix, _, part = channel.partition("#")
+        if part == "reply" or suffix == "liveliness":
+            continue  # replies are answers, not input; liveliness is the recorder's file
+        batch = bad_payloads(cls, per_endpoint, rng)
+        done.sent[suffix] = len(batch)
+        if part == "request":
+            for data in batch:
+                replies = list(node.session.get(keys(suffix), payload=data, timeout=query_timeout))
+                if not replies:
+                    done.unanswered[suffix] = done.unanswered.get(suffix, 0) + 1
+                for reply in replies:
+                    if reply.err is not None:
+                        done.refused[suffix] = done.refused.get(suffix, 0) + 1
+        else:
+            pub = node.session.declare_publisher(keys(suffix))
+            for data in batch:
+                pub.put(data)
+            pub.undeclare()
+    return done

@@ -14,6 +14,8 @@ import threading
 import time
 from typing import Any
 
+import zenoh
+
 from manus.errors import SchemaError
 from manus.node import Node
 from schemas.health import NodeHealth
@@ -98,7 +100,13 @@ def node_health(node: Node, timeout: float = 1.0) -> dict[str, dict[str, Any]]:
     """Service -> its bad input (``schemas.health.NodeHealth``): ``bad_payloads`` (total),
     ``by_key`` (key suffix -> count), ``handler_errors``; summed over a service's processes."""
     out: dict[str, dict[str, Any]] = {}
-    for reply in node.session.get(node.keys.health_all, timeout=timeout):
+    replies = node.session.get(
+        node.keys.health_all,
+        timeout=timeout,
+        target=zenoh.QueryTarget.ALL,  # every service's queryable, not the best match
+        consolidation=zenoh.ConsolidationMode.NONE,
+    )
+    for reply in replies:
         if reply.ok is None:
             continue
         try:

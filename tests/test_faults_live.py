@@ -23,7 +23,8 @@ from subprocess import PIPE
 import numpy as np
 import pytest
 
-from schemas.keys import channel_types
+from manus_stack.fuzz import fuzz_live
+from manus_stack.status import node_health
 from services.sequencer.taskfile import task_from_args
 from tests.conftest import free_port
 from tests.fault_stack import LEASE_MS, ROOT, SQUARE, FaultStack
@@ -192,39 +193,37 @@ def test_bridge_killed_or_hung_the_guardian_stops_the_arm_and_a_new_bridge_takes
     _start_square(stack)
 
 
-def test_garbage_on_every_key_is_counted_and_nothing_dies(stack: FaultStack) -> None:
+def test_fuzz_on_every_key_and_queryable_is_counted_and_nothing_dies(stack: FaultStack) -> None:
+    """Seeded bad payloads (manus_stack.fuzz) on every key and queryable of
+    ``channel_types()``: no process dies, each service counts every one it received where
+    ``manus status`` shows it (NodeHealth), each queryable refuses them, a task runs after."""
     assert stack.node is not None
     node = stack.node
-    keys = node.keys
-    garbage = [b"", b"\xc1", b"\x93\x01\x02", b"not msgpack at all", bytes(range(256))]
-    suffixes = sorted({name.split("#")[0] for name in channel_types()})
-    pubs = {s: node.session.declare_publisher(keys(s)) for s in suffixes}
-    for _ in range(3):
-        for pub in pubs.values():
-            for g in garbage:
-                pub.put(g)
-    refused = 0
-    for name in channel_types():
-        if name.endswith("#request"):
-            q = name.removesuffix("#request")
-            for reply in node.session.get(keys(q), payload=b"\xc1", timeout=2.0):
-                refused += reply.err is not None
-    for pub in pubs.values():
-        pub.undeclare()
+    per = 8
+    done = fuzz_live(node, seed=0, per_endpoint=per)
     time.sleep(1.0)
     assert stack.stack.exited() == []
-    logs = {c.name: c.log.read_text(errors="replace") for c in stack.stack.children}
-    for name in ("bridge", "controller", "sequencer"):
-        assert "bad payload on" in logs[name], name
-    # The bridge counts them live: cmd/joint_velocity and estop, three rounds each.
+    health = node_health(node)
+    counted: dict[str, int] = {}
+    for service, h in health.items():
+        for key, n in h["by_key"].items():
+            assert n == done.sent[key], (service, key, n)  # every one, none lost
+            counted[key] = counted.get(key, 0) + n
+    subscribed = {"state/joints", "state/status", "state/bridge", "cmd/joint_velocity", "estop"}
+    subscribed |= {"heartbeat", "controller/feedback", "controller/result"}
+    queryables = set(done.refused) | set(done.unanswered)
+    assert subscribed <= set(counted), sorted(subscribed - set(counted))
+    for q in queryables:
+        assert done.refused.get(q) == per and q in counted, (q, done)
+    # the bridge counts its own live too (BridgeState.bad_payloads)
     with stack.watch.lock:
-        counted = stack.watch.bridge[-1].bad_payloads
-    assert counted >= 2 * 3 * len(garbage), counted
-    assert refused >= 5
-    # still works: a task runs
-    _start_square(stack)
-    n = len(garbage) * 3
-    print(f"FAULT garbage: {len(suffixes)} keys x {n} payloads, {refused} queries refused")
+        bridge_counted = stack.watch.bridge[-1].bad_payloads
+    assert bridge_counted >= done.sent["cmd/joint_velocity"] + done.sent["estop"]
+    _start_square(stack)  # still works: a task runs
+    print(
+        f"FUZZ live: {len(done.sent)} endpoints x {per} bad payloads, "
+        f"{sum(done.refused.values())} queries refused, counted per key {counted}"
+    )
 
 
 BACK_AND_FORTH = """

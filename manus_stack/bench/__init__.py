@@ -13,5 +13,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
     "guardian": ("manus_stack.bench.guardian", False),
+    "fuzz": ("manus_stack.bench.fuzz", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
