@@ -273,14 +273,18 @@ def fuzz_can(arm: ControlledArm, seed: int, frames: int, report: FuzzReport) -> 
 
 
 def task_after(arm: ControlledArm) -> str:
-    """Back to rest (the fuzz may have left a goal running), then the thesis square."""
+    """The documented recovery (e-stop released, ``clear``), a fold out (valid fuzzed goals
+    may have left the arm anywhere), then the thesis square."""
     ls = arm.ls
     ls.publish("estop", EStop(stamp_ns=ls.t_ns, seq=0, engaged=False, source="fuzz"))
     ls.run_for(2.0)
     if ls.bridge.phase != "running":
         ls.arm_command(ArmCommand(action="clear", source="fuzz"))
     ls.run_until_phase("running", timeout_s=10.0)
-    arm.ls.run_for(0.5)
+    ls.arm_command(ArmCommand(action="fold_out", source="fuzz"))
+    ls.run_for(0.5)
+    ls.run_until_phase("running", timeout_s=60.0)
+    ls.run_for(0.5)
     try:
         traj = arm.plan(PATHS / "thesis_square.txt")
     except RuntimeError as exc:

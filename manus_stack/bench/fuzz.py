@@ -2,7 +2,8 @@
 
 **Core level** (:func:`manus_stack.fuzz.run_fuzz`): seeds 0-4 (``--quick``: seed 0), 50
 payloads per endpoint of ``channel_types()`` (10) through decode and the lock-step cores,
-5000 random CAN frames into the bridge (1000), then the thesis square.
+5000 random CAN frames into the bridge (1000), then the documented recovery, a fold out
+and the thesis square.
 
 **Live** (:func:`manus_stack.fuzz.fuzz_live`): the stack of ``manus up`` (no recorder),
 20 bad payloads per key and per queryable (5), then every process must be alive, every
