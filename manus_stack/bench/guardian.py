@@ -47,7 +47,7 @@ from manus.protocol import FrameId
 from manus.session import client_settings
 from manus_stack.guardian_lockstep import bridge_fault_trial
 from manus_stack.up import LocalStack, StackOptions
-from schemas.sequencing import SubmitReply, Task, TaskStep
+from schemas.sequencing import SubmitReply, Task, TaskEvent, TaskStep
 from schemas.state import BridgeState, SimTruth
 from services.sequencer.taskfile import task_from_args
 
@@ -120,6 +120,7 @@ class Watcher:
 
     truth: list[tuple[int, SimTruth]] = field(default_factory=list)
     bridge: list[BridgeState] = field(default_factory=list)
+    events: list[TaskEvent] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def on_truth(self, msg: SimTruth, rx_ns: int) -> None:
@@ -129,6 +130,10 @@ class Watcher:
     def on_bridge(self, msg: BridgeState, rx_ns: int) -> None:
         with self.lock:
             self.bridge.append(msg)
+
+    def on_event(self, msg: TaskEvent, rx_ns: int) -> None:
+        with self.lock:
+            self.events.append(msg)
 
     def speed(self) -> float:
         """Largest true joint speed of the newest truth [rad/s]."""
@@ -204,6 +209,7 @@ def live_figures(trials: int, seed: int = 0) -> dict[str, Any]:
         with Node("bench-guardian", settings, liveliness=False) as node:
             node.subscribe(node.keys.sim_truth, SimTruth, watch.on_truth, locked=False)
             node.subscribe(node.keys.bridge_state, BridgeState, watch.on_bridge, locked=False)
+            node.subscribe(node.keys("sequencer/events"), TaskEvent, watch.on_event, locked=False)
             _wait("the bridge running", lambda: watch.phase() == "running", 30.0)
             for fault in ("stop", "kill"):
                 results[fault] = _live_trials(stack, node, watch, listener, fault, trials, rng)
@@ -231,6 +237,25 @@ def _submit(node: Node, task: Task) -> SubmitReply:
     return node.query(node.keys("sequencer/submit"), task, SubmitReply, timeout=30.0)
 
 
+def _start_moving(node: Node, watch: Watcher, attempts: int = 3) -> None:
+    """Submit the task until the arm moves (a busy machine may fail a task: retried)."""
+    failures: list[str] = []
+    for _ in range(attempts):
+        end = time.monotonic() + 30.0
+        while not (reply := _submit(node, TASK)).accepted:
+            if time.monotonic() > end:
+                raise TimeoutError(f"the sequencer refused the task for 30 s: {reply.errors}")
+            time.sleep(0.2)
+        try:
+            _wait("the arm moving", lambda: watch.speed() > math.radians(2.0), 20.0)
+            return
+        except TimeoutError as exc:
+            failures.append(str(exc))
+            with watch.lock:
+                failures += [e.reason for e in watch.events[-3:] if e.event == "failed"]
+    raise TimeoutError(f"the arm did not move after {attempts} tasks: {failures}")
+
+
 def _live_trials(
     stack: LocalStack,
     node: Node,
@@ -245,12 +270,7 @@ def _live_trials(
     rest: list[float] = []
     resumed = 0
     for _ in range(trials):
-        end = time.monotonic() + 30.0
-        while not (reply := _submit(node, TASK)).accepted:
-            if time.monotonic() > end:
-                raise TimeoutError(f"the sequencer refused the square for 30 s: {reply.errors}")
-            time.sleep(0.2)
-        _wait("the arm moving", lambda: watch.speed() > math.radians(2.0), 20.0)
+        _start_moving(node, watch)
         time.sleep(1.0 + rng.uniform(0.0, 0.06))
         bridge = next(c for c in stack.children if c.name == "bridge")
         t_fault = time.time_ns()
