@@ -23,7 +23,7 @@ from subprocess import PIPE
 import numpy as np
 import pytest
 
-from manus_stack.fuzz import fuzz_live
+from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
 from services.sequencer.taskfile import task_from_args
 from tests.conftest import free_port

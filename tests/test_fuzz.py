@@ -9,7 +9,8 @@ import random
 import pytest
 
 from manus.errors import SchemaError
-from manus_stack.fuzz import KINDS, bad_payloads, payloads, run_fuzz
+from manus_stack.fuzz import KINDS, payloads, run_fuzz
+from manus_stack.fuzz_live import bad_payloads
 from schemas.keys import channel_types
 
 

@@ -5,7 +5,7 @@ payloads per endpoint of ``channel_types()`` (10) through decode and the lock-st
 5000 random CAN frames into the bridge (1000), then the documented recovery, a fold out
 and the thesis square.
 
-**Live** (:func:`manus_stack.fuzz.fuzz_live`): the stack of ``manus up`` (no recorder),
+**Live** (:func:`manus_stack.fuzz_live.fuzz_live`): the stack of ``manus up`` (no recorder),
 20 bad payloads per key and per queryable (5), then every process must be alive, every
 service's count (``health/<service>``, what ``manus status`` shows) must equal what it
 was sent on each key it listens to, and the square must run.
@@ -22,7 +22,8 @@ from typing import Any
 
 from manus.node import Node
 from manus.session import client_settings
-from manus_stack.fuzz import fuzz_live, run_fuzz
+from manus_stack.fuzz import run_fuzz
+from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
 from manus_stack.up import LocalStack, StackOptions
 from schemas.sequencing import SubmitReply, TaskEvent
