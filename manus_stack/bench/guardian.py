@@ -268,10 +268,14 @@ def _live_trials(
     syncs_to_stop: list[int] = []
     reaction: list[float] = []
     rest: list[float] = []
+    speed: list[float] = []
     resumed = 0
     for _ in range(trials):
         _start_moving(node, watch)
-        time.sleep(1.0 + rng.uniform(0.0, 0.06))
+        time.sleep(1.0)  # into the path: then at a moment it moves (not between steps)
+        _wait("the arm moving", lambda: watch.speed() > math.radians(2.0), 20.0)
+        time.sleep(rng.uniform(0.0, 0.06))
+        speed.append(math.degrees(watch.speed()))
         bridge = next(c for c in stack.children if c.name == "bridge")
         t_fault = time.time_ns()
         os.kill(bridge.proc.pid, signal.SIGSTOP if fault == "stop" else signal.SIGKILL)
@@ -303,6 +307,7 @@ def _live_trials(
         "syncs_to_stop": sorted(set(syncs_to_stop)),
         "stop_at_first_sync": sum(n == 1 for n in syncs_to_stop),
         "reaction_on_wire_ms": _stats(reaction),
+        "speed_at_fault_deg_s": _stats(speed),
         "rest_ms": _stats(rest),
         "resumed": resumed,
     }
