@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,7 @@ from manus.protocol import ZERO_JOINT_MOVE, Frame, FrameId, empty_frame, move_fr
 from manus_stack.guardian_lockstep import bridge_fault_trial
 from manus_stack.lockstep import LockStep
 from schemas.state import BridgeState
-from services.guardian.core import GuardianCore
+from services.guardian.core import Action, GuardianCore
 
 ROOT = Path(__file__).resolve().parent.parent
 MS = 1_000_000
@@ -139,3 +140,45 @@ def test_the_bridge_counts_other_nodes_frames_and_never_takes_them_for_the_arms(
     ls.bridge.on_tick(ls.t_ns)
     reports = [m for m in ls.published("state/bridge") if isinstance(m, BridgeState)]
     assert reports[-1].other_node_frames >= n - 1  # published with the next state
+
+
+@pytest.mark.slow
+def test_the_loop_stops_an_unanswered_arm_on_a_virtual_bus() -> None:
+    """The live loop in process: the simulator on python-can's virtual bus, the guardian
+    on another bus of the same channel, no bridge: every sync gets the guardian's 0x370,
+    inside the window."""
+    import threading
+    import uuid
+
+    import can
+
+    from services.guardian.loop import LoopStats, run_loop
+    from services.simulator.config import SimConfig
+    from services.simulator.core import SimCore
+    from services.simulator.live import LiveSim
+
+    channel = f"guardian-{uuid.uuid4().hex}"
+    arm_bus = can.Bus(interface="virtual", channel=channel)
+    pc_bus = can.Bus(interface="virtual", channel=channel)
+    sim = LiveSim(SimCore(SimConfig(start_pose="unfolded")), arm_bus)
+    core, stop, stats = GuardianCore(), threading.Event(), LoopStats()
+    actions: list[Action] = []
+    loop = threading.Thread(target=run_loop, args=(pc_bus, core, stop, actions.append),
+                            kwargs={"stats": stats}, daemon=True)  # fmt: skip
+    try:
+        loop.start()
+        sim.start()
+        time.sleep(1.0)
+    finally:
+        sim.stop()
+        stop.set()
+        loop.join(2.0)
+        arm_bus.shutdown()
+        pc_bus.shutdown()
+    counts = sim.core.counters
+    assert core.counts.syncs >= 10 and core.counts.answered == 0
+    assert core.counts.stops_sent + core.counts.late == core.counts.syncs
+    assert counts.replies_latched >= core.counts.stops_sent - 1  # each one in its window
+    assert counts.outside_window <= core.counts.late + 1
+    assert len(stats.reaction_ms) == core.counts.stops_sent
+    assert [a.kind for a in actions].count("stop_sent") == core.counts.stops_sent
