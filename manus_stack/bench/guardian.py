@@ -248,6 +248,8 @@ def _start_moving(node: Node, watch: Watcher, attempts: int = 3) -> None:
             time.sleep(0.2)
         try:
             _wait("the arm moving", lambda: watch.speed() > math.radians(2.0), 20.0)
+            time.sleep(1.0)  # into the path: then at a moment it moves (not between steps)
+            _wait("the arm moving on", lambda: watch.speed() > math.radians(2.0), 5.0)
             return
         except TimeoutError as exc:
             failures.append(str(exc))
@@ -272,8 +274,6 @@ def _live_trials(
     resumed = 0
     for _ in range(trials):
         _start_moving(node, watch)
-        time.sleep(1.0)  # into the path: then at a moment it moves (not between steps)
-        _wait("the arm moving", lambda: watch.speed() > math.radians(2.0), 20.0)
         time.sleep(rng.uniform(0.0, 0.06))
         speed.append(math.degrees(watch.speed()))
         bridge = next(c for c in stack.children if c.name == "bridge")
