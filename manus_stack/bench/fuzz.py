@@ -96,7 +96,10 @@ def live_figures(per_endpoint: int) -> dict[str, Any]:
                 if final:
                     break
                 time.sleep(0.1)
-            task = final[-1].event if reply.accepted and final else f"refused: {reply.errors}"
+            if not reply.accepted:
+                task = f"refused: {reply.errors}"
+            else:
+                task = f"{final[-1].event} {final[-1].reason}".strip() if final else "no end"
         dead = [c.name for c in stack.exited()]
     return {
         "endpoints": len(done.sent),
