@@ -20,6 +20,7 @@ import pytest
 from manus.kinematics import fk
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.control import GoalResult
 from schemas.sequencing import TaskEvent
 from schemas.state import JointState
@@ -65,9 +66,9 @@ class LiveStack:
         self.client = TaskClient(self.node)
         self.joints: list[tuple[float, JointState]] = []
         self.results: list[GoalResult] = []
-        self.node.subscribe(self.node.keys.joints, JointState,
+        self.node.subscribe(self.node.keys(ep.JOINTS), JointState,
                             lambda m, rx: self.joints.append((time.monotonic(), m)))  # fmt: skip
-        self.node.subscribe(self.node.keys.result, GoalResult,
+        self.node.subscribe(self.node.keys(ep.RESULT), GoalResult,
                             lambda m, rx: self.results.append(m))  # fmt: skip
         self.bridge.start()
         self.sim.start()

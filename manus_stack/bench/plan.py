@@ -30,6 +30,7 @@ from manus.kinematics import ik_batch
 from manus.node import Node, QueryError, freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
+from schemas import endpoints as ep
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
 from services.planner.resolve import resolve_path
@@ -101,7 +102,7 @@ def _over_zenoh(request: PlanRequest, runs: int) -> dict[str, Any]:
             with Node("bench_client", settings, liveliness=False) as client:
                 freeze_startup_heap()  # as the sequencer, the planner's client, does
                 try:
-                    return _round_trips(client, client.keys.plan, request, runs)
+                    return _round_trips(client, client.keys(ep.PLAN), request, runs)
                 finally:
                     gc.unfreeze()
         finally:

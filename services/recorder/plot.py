@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from manus.kinematics import fk_batch
+from schemas import endpoints as ep
 from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
@@ -37,12 +38,12 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
 _SUFFIXES = (
-    "state/joints",
-    "controller/feedback",
-    "controller/result",
-    "sim/truth",
-    "trace/controller/goal/request",
-    "trace/planner/plan/reply",
+    ep.JOINTS,
+    ep.FEEDBACK,
+    ep.RESULT,
+    ep.SIM_TRUTH,
+    ep.GOAL.trace("request"),
+    ep.PLAN.trace("reply"),
 )
 
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
 from schemas.control import (
@@ -58,8 +59,8 @@ from services.sequencer.poses import remainder_path
 from services.sequencer.validate import plan_request, step_label
 
 NS = 1_000_000_000
-EVENTS_SUFFIX = "sequencer/events"
-HEARTBEAT_SUFFIX = "heartbeat"
+EVENTS_SUFFIX = ep.EVENTS
+HEARTBEAT_SUFFIX = ep.HEARTBEAT
 """Key suffix of the deadman heartbeat (``schemas.control.Heartbeat``)."""
 ACTIVE_STATES = ("running", "paused")
 
