@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import ik_batch
 from manus.node import Node, QueryError, freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
@@ -82,7 +82,7 @@ def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
         core.plan(request)
     return {
         "full_plan": _stats_ms(_timed(lambda: core.plan(request), runs)),
-        "ik_batch_only": _stats_ms(_timed(lambda: ik_batch(resolved.poses[1:]), runs)),
+        "ik_batch_only": _stats_ms(_timed(lambda: ik_batch(resolved.poses[1:], DEFAULT_ARM), runs)),
         "spline_only": _stats_ms(_timed(spline, runs)),
     }
 
