@@ -184,12 +184,12 @@ class Wiring(Generic[C, O]):
             endpoint = self._outputs.get(suffix)
             if endpoint is None:
                 raise WiringError(
-                    f"{self.service}: the core published on {suffix!r}, which is not one of "
-                    f"its outputs {sorted(self._outputs)}"
+                    f"{self.service}: the core published on {str(suffix)!r}, which is not one "
+                    f"of its outputs {sorted(self._outputs)}"
                 )
             if type(msg) is not endpoint.msg_type:
                 raise WiringError(
-                    f"{self.service}: {type(msg).__name__} on {suffix!r}, which carries "
+                    f"{self.service}: {type(msg).__name__} on {str(suffix)!r}, which carries "
                     f"{getattr(endpoint.msg_type, '__name__', '?')}"
                 )
             found.append((suffix, msg))

@@ -172,6 +172,9 @@ class Endpoint(str):
     def __repr__(self) -> str:
         return f"Endpoint({self.suffix!r}, {self.kind.value}, owner {self.owner})"
 
+    def __str__(self) -> str:
+        return self.suffix
+
 
 class Topic(Endpoint, Generic[M]):
     """A publication (or recording channel) carrying messages of type ``M``."""
