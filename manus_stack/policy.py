@@ -116,7 +116,7 @@ def access_control(router: str) -> dict[str, Any]:
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
-    members = [(user, (user,)) for user in COMPUTERS[router]]
+    members: list[tuple[str, tuple[str, ...]]] = [(user, (user,)) for user in COMPUTERS[router]]
     members.append((f"router-{other}", COMPUTERS[other]))
     for subject, identities in members:
         allowed: dict[str, list[str]] = {}
