@@ -37,6 +37,7 @@ import msgpack
 from manus.errors import ManusError, SchemaError
 from manus.protocol import REPLY_IDS, Frame, FrameId
 from manus_stack.controlled import ControlledArm, controller_input
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, EStop
 from schemas.control import TrajectoryGoal
@@ -203,23 +204,24 @@ def _deliver(
     sequencer core's request handlers)."""
     ls = arm.ls
     suffix, _, part = channel.partition("#")
+    endpoint = ep.TABLE.get(suffix)
     try:
-        if part == "request" and suffix == "planner/plan" and isinstance(msg, PlanRequest):
+        if part == "request" and endpoint is ep.PLAN and isinstance(msg, PlanRequest):
             PlannerCore().plan(msg)
         elif part == "request" and isinstance(msg, Task):
             if seq.refuse(msg) is None:
                 _validate(msg, seq.start_configuration())
         elif part == "request" and isinstance(msg, TaskControl):
             seq.control(msg, ls.t_ns)
-        elif part == "request" and suffix == "bridge/command":
-            ls.publish("trace/bridge/command/request", msg)
+        elif part == "request" and endpoint is ep.BRIDGE_COMMAND:
+            ls.publish(ep.BRIDGE_COMMAND.trace("request"), msg)
             ls.arm_command(msg)  # type: ignore[arg-type]
-        elif part == "request":
-            ls.publish(f"trace/{suffix}/request", msg)
-        elif suffix in ("cmd/joint_velocity", "estop"):
+        elif part == "request" and endpoint is not None and endpoint.kind is ep.Kind.QUERYABLE:
+            ls.publish(endpoint.trace("request"), msg)
+        elif endpoint in (ep.JOINT_VELOCITY, ep.ESTOP):
             ls.publish(suffix, msg)
         else:
-            controller_input(arm.core, suffix, msg)
+            controller_input(arm.core, suffix, msg, ls.t_ns)
     except ManusError:
         report.refused += 1
 
@@ -276,7 +278,7 @@ def task_after(arm: ControlledArm) -> str:
     """The documented recovery (e-stop released, ``clear``), a fold out (valid fuzzed goals
     may have left the arm anywhere), then the thesis square."""
     ls = arm.ls
-    ls.publish("estop", EStop(stamp_ns=ls.t_ns, seq=0, engaged=False, source="fuzz"))
+    ls.publish(ep.ESTOP, EStop(stamp_ns=ls.t_ns, seq=0, engaged=False, source="fuzz"))
     ls.run_for(2.0)
     if ls.bridge.phase != "running":
         ls.arm_command(ArmCommand(action="clear", source="fuzz"))

@@ -1,7 +1,7 @@
 """The guardian in lock-step: a bridge stopped or killed mid-path, judged on the truth.
 
 :class:`GuardianNode` puts a :class:`~services.guardian.core.GuardianCore` on the
-lock-step bus as another PC-side node (:meth:`manus_stack.lockstep.LockStep.attach`).
+lock-step bus as another PC-side node (:meth:`manus_stack.lockstep.LockStep.attach_node`).
 :func:`bridge_fault_trial` runs the thesis square on a :class:`ControlledArm`, stops
 (SIGSTOP) or kills (SIGKILL) the bridge at a given instant, and measures from the
 simulator's true motor speeds when the arm is at rest and how many syncs it took.
@@ -91,7 +91,7 @@ def bridge_fault_trial(fault: str, offset_ms: float, *, guardian: bool = True) -
     arm = ControlledArm(SimConfig(start_pose="unfolded"))
     node = GuardianNode()
     if guardian:
-        arm.ls.attach(node)
+        arm.ls.attach_node(node)
     arm.start()
     traj = arm.plan(PATHS / "thesis_square.txt")
     arm.submit(TrajectoryGoal(goal_id="square", trajectory=traj))

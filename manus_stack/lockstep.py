@@ -8,14 +8,18 @@ path takes a fraction of a second and gives the same result on every run:
 - the bridge's frames reach the simulator ``reply_latency_ns`` later;
 - every message published (by the bridge, by a subscriber, or with :meth:`LockStep.publish`)
   is recorded in :attr:`LockStep.messages` and delivered ``bus_latency_ns`` later to the
-  subscribers of its key suffix; ``cmd/joint_velocity`` and ``estop`` also reach the
-  bridge (``on_command`` / ``on_estop``);
+  subscribers of its key suffix, and to the bridge's inputs (its wiring map,
+  :data:`services.can_bridge.wiring.WIRING`: velocity commands, e-stops);
+- a core attached with :meth:`LockStep.attach` gets what its service's wiring map
+  subscribes, its queryables' requests as their ``trace/<q>/request`` mirrors (its
+  answers go out on ``trace/<q>/reply``), as the live shells wire them;
 - the bridge's ``on_tick`` runs every 20 ms;
-- other PC-side nodes on the bus (:meth:`LockStep.attach`, e.g. the guardian) get every
-  frame of the arm and of the bridge, and theirs reach the arm and the bridge, each
+- other PC-side nodes on the bus (:meth:`LockStep.attach_node`, e.g. the guardian) get
+  every frame of the arm and of the bridge, and theirs reach the arm and the bridge, each
   ``reply_latency_ns`` after it left (CAN broadcast); :meth:`LockStep.pause_bridge` stops
-  the bridge as SIGSTOP would (frames to it wait) and :meth:`LockStep.resume_bridge`
-  hands it the waiting frames at once (``kill=True``: never again).
+  the bridge as SIGSTOP would (frames to it wait, messages to it are dropped),
+  :meth:`LockStep.resume_bridge` hands it the waiting frames at once (``kill=True``:
+  never again) and :meth:`LockStep.restart_bridge` starts a new one.
 
 Events at the same instant run in this order: the simulator, then message deliveries (in
 publication order), then the tick.
@@ -27,12 +31,15 @@ import heapq
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol, TypeVar
 
 from manus.protocol import Frame
+from manus.wiring import Wiring
+from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
+from schemas.commands import ArmCommand, ArmCommandReply
 from services.can_bridge.core import BridgeConfig, BridgeCore, Outputs
+from services.can_bridge.wiring import WIRING as BRIDGE
 from services.simulator.config import SimConfig
 from services.simulator.core import SimCore
 
@@ -42,9 +49,11 @@ Handler = Callable[[Message, int], list[tuple[str, Message]]]
 TICK_NS = 20_000_000
 """Period of the bridge's ``on_tick`` [ns]."""
 
+C = TypeVar("C")
+
 
 class BusNode(Protocol):
-    """Another PC-side node on the arm's bus (see :meth:`LockStep.attach`)."""
+    """Another PC-side node on the arm's bus (see :meth:`LockStep.attach_node`)."""
 
     def receive(self, frame: Frame) -> None:
         """A frame of the arm or of another node, stamped with its arrival time."""
@@ -106,7 +115,7 @@ class LockStep:
         self._queue: list[tuple[int, int, _Delivery | _FrameTo]] = []
         self._subs: dict[str, list[Handler]] = {}
         self.nodes: list[BusNode] = []
-        """Other PC-side nodes on the bus (:meth:`attach`)."""
+        """Other PC-side nodes on the bus (:meth:`attach_node`)."""
         self.node_frames: list[Frame] = []
         """Every frame the other nodes sent (stamped with its send time)."""
         self._bridge_paused = False
@@ -119,7 +128,18 @@ class LockStep:
         """The simulated time reached [ns]."""
         return self._t
 
-    def attach(self, node: BusNode) -> None:
+    def subscribe(self, suffix: str, handler: Handler) -> None:
+        """Call ``handler`` with every message published on ``suffix`` from now on."""
+        self._subs.setdefault(suffix, []).append(handler)
+
+    def attach(self, wiring: Wiring[C, Any], core: C) -> None:
+        """Feed ``core`` as its live shell would: every input of ``wiring`` and the
+        ``trace/<q>/request`` mirror of each of its queryables (the answer is published on
+        ``trace/<q>/reply``), through :meth:`manus.wiring.Wiring.feed`."""
+        for suffix in wiring.input_suffixes:
+            self.subscribe(suffix, _fed(wiring, core, suffix))
+
+    def attach_node(self, node: BusNode) -> None:
         """Put another PC-side node on the bus from now on."""
         self.nodes.append(node)
 
@@ -137,10 +157,6 @@ class LockStep:
         for frame in backlog:
             self._apply(self.bridge.on_frame(frame, self._t), self._t)
 
-    def bridge_input(self, frame: Frame) -> None:
-        """A frame reaches the bridge now and only the bridge (a corrupted arm frame)."""
-        self._bridge_frame(frame.at(self._t))
-
     def restart_bridge(self, config: BridgeConfig | None = None) -> None:
         """A new bridge process takes over now (after a kill): a fresh core, started."""
         self.bridge = BridgeCore(config or self.bridge.config)
@@ -148,9 +164,9 @@ class LockStep:
         self._bridge_backlog = []
         self._apply(self.bridge.start(self._t), self._t)
 
-    def subscribe(self, suffix: str, handler: Handler) -> None:
-        """Call ``handler`` with every message published on ``suffix`` from now on."""
-        self._subs.setdefault(suffix, []).append(handler)
+    def bridge_input(self, frame: Frame) -> None:
+        """A frame reaches the bridge now and only the bridge (a corrupted arm frame)."""
+        self._bridge_frame(frame.at(self._t))
 
     def publish(self, suffix: str, msg: Message) -> None:
         """Publish ``msg`` now; it is delivered ``bus_latency_ns`` later."""
@@ -158,7 +174,8 @@ class LockStep:
 
     def arm_command(self, cmd: ArmCommand) -> ArmCommandReply:
         """Ask the bridge (the ``bridge/command`` queryable), now."""
-        reply, out = self.bridge.on_arm_command(cmd, self._t)
+        reply: ArmCommandReply
+        reply, out = BRIDGE.answer(ep.BRIDGE_COMMAND).handle(self.bridge, cmd, self._t)
         self._apply(out, self._t)
         return reply
 
@@ -261,22 +278,26 @@ class LockStep:
             for node in self.nodes:
                 item = _FrameTo(node, arrival)
                 heapq.heappush(self._queue, (arrival.t_ns, next(self._order), item))
-        for suffix, msg in out.messages:
+        for suffix, msg in BRIDGE.published(out):
             self._publish(suffix, msg, now_ns)
 
     def _publish(self, suffix: str, msg: Message, now_ns: int) -> None:
         self.messages.append((now_ns, suffix, msg))
-        if suffix in self._subs or suffix in ("cmd/joint_velocity", "estop"):
+        if suffix in self._subs or BRIDGE.input(suffix) is not None:
             due = now_ns + self.bus_latency_ns
             heapq.heappush(self._queue, (due, next(self._order), _Delivery(suffix, msg)))
 
     def _deliver(self, d: _Delivery, t: int) -> None:
-        if self._bridge_paused:
-            pass  # a stopped bridge takes no messages (a resumed one gets the new ones)
-        elif d.suffix == "cmd/joint_velocity" and isinstance(d.msg, JointVelocityCommand):
-            self._apply(self.bridge.on_command(d.msg, t), t)
-        elif d.suffix == "estop" and isinstance(d.msg, EStop):
-            self._apply(self.bridge.on_estop(d.msg, t), t)
+        bridge_input = BRIDGE.input(d.suffix)
+        if bridge_input is not None and not self._bridge_paused:  # a stopped bridge takes none
+            self._apply(bridge_input.handle(self.bridge, d.msg, t), t)
         for handler in self._subs.get(d.suffix, ()):
             for suffix, msg in handler(d.msg, t):
                 self._publish(suffix, msg, t)
+
+
+def _fed(wiring: Wiring[C, Any], core: C, suffix: str) -> Handler:
+    def handle(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
+        return wiring.feed(core, suffix, msg, t_ns)
+
+    return handle

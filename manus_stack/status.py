@@ -18,6 +18,7 @@ import zenoh
 
 from manus.errors import SchemaError
 from manus.node import Node
+from schemas import endpoints as ep
 from schemas.health import NodeHealth
 from schemas.keys import SERVICES
 from schemas.state import ArmStatus, BridgeState
@@ -69,8 +70,8 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
         return handler
 
     keys = node.keys
-    node.subscribe(keys.bridge_state, BridgeState, keep("bridge"), locked=False)
-    node.subscribe(keys.status, ArmStatus, keep("arm"), locked=False)
+    node.subscribe(keys(ep.BRIDGE_STATE), BridgeState, keep("bridge"), locked=False)
+    node.subscribe(keys(ep.STATUS), ArmStatus, keep("arm"), locked=False)
     start = time.monotonic()
     alive = node.alive_services(timeout=min(1.0, wait_s))
     hosts = node.service_hosts(timeout=min(1.0, wait_s))
@@ -92,7 +93,7 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
         "services": services,
         "bridge": bridge.to_dict() if bridge is not None else None,
         "arm": arm.to_dict() if arm is not None else None,
-        "health": health,
+        "bad_input": health,
     }
 
 
@@ -152,7 +153,7 @@ def format_status(status: dict[str, Any]) -> str:
         lines.append(f"  mode {arm['mode']}, {arm['msg_class']} {arm['msg_code']}: {text}")
     bad = {
         n: h
-        for n, h in status.get("health", {}).items()
+        for n, h in status.get("bad_input", {}).items()
         if h["bad_payloads"] or h["handler_errors"]
     }
     lines += ["", "bad input (payloads that did not decode; handler errors):"]

@@ -14,6 +14,13 @@ from schemas.base import Message, field
 
 
 @dataclass(frozen=True)
+class HealthRequest(Message):
+    """A query of ``health/<service>`` (no fields; the nodes ignore the payload)."""
+
+    TYPE_NAME = "manus/HealthRequest/1"
+
+
+@dataclass(frozen=True)
 class NodeHealth(Message):
     """Bad input one service's node has counted since it started."""
 

@@ -127,7 +127,7 @@ def test_the_bridge_counts_other_nodes_frames_and_never_takes_them_for_the_arms(
     ls.run_until_phase("running", timeout_s=3.0)
     ls.run_for(0.3)
     garbled, cycles = ls.bridge.health.garbled_frames, ls.bridge.health.cycles
-    ls.attach(EchoNode())
+    ls.attach_node(EchoNode())
     ls.run_for(1.2)  # 20 syncs
     ls.run_until(ls.arm_frames[-1].t_ns + 40 * MS)  # every echo in, no sync since
     n = len(ls.node_frames)

@@ -13,6 +13,7 @@ from pathlib import Path
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.status import collect, format_status
+from schemas import endpoints as ep
 from schemas.keys import Keys
 from schemas.state import ArmStatus
 from tests.test_sequencer_core import bridge_state
@@ -26,8 +27,8 @@ def _arm_status() -> ArmStatus:
 
 
 def _publish_until(stop: threading.Event, node: Node) -> None:
-    bridge = node.publisher(node.keys.bridge_state)
-    arm = node.publisher(node.keys.status)
+    bridge = node.publisher(node.keys(ep.BRIDGE_STATE))
+    arm = node.publisher(node.keys(ep.STATUS))
     state = bridge_state("running", seq=7, detail="fold_out complete")
     while not stop.wait(0.05):
         bridge.put(state)
@@ -92,12 +93,12 @@ def test_status_shows_each_services_bad_input(zenoh_settings: ZenohSettings) -> 
         Node("controller", zenoh_settings) as controller,
         Node("status-test", zenoh_settings, liveliness=False) as viewer,
     ):
-        controller.subscribe(controller.keys.joints, JointState, lambda m, t: None)
+        controller.subscribe(controller.keys(ep.JOINTS), JointState, lambda m, t: None)
         for payload in (b"\xc1", b"not msgpack", b"\x93\x01\x02"):
-            viewer.session.put(viewer.keys.joints, payload)
+            viewer.session.put(viewer.keys(ep.JOINTS), payload)
         eventually(lambda: sum(controller.bad_payloads.values()) == 3)
         status = collect(viewer, wait_s=0.5)
-    assert status["health"]["controller"] == {
+    assert status["bad_input"]["controller"] == {
         "bad_payloads": 3,
         "by_key": {"state/joints": 3},
         "handler_errors": 0,

@@ -26,6 +26,7 @@ from manus_stack.fuzz import run_fuzz
 from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
 from manus_stack.up import LocalStack, StackOptions
+from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, TaskEvent
 from services.sequencer.taskfile import task_from_args
 
@@ -85,9 +86,9 @@ def live_figures(per_endpoint: int) -> dict[str, Any]:
                 if n != done.sent[key]
             ]
             events: list[TaskEvent] = []
-            node.subscribe(node.keys("sequencer/events"), TaskEvent, lambda e, t: events.append(e))
+            node.subscribe(node.keys(ep.EVENTS), TaskEvent, lambda e, t: events.append(e))
             reply = node.query(
-                node.keys("sequencer/submit"), task_from_args([str(SQUARE)]), SubmitReply,
+                node.keys(ep.SUBMIT), task_from_args([str(SQUARE)]), SubmitReply,
                 timeout=30.0,
             )  # fmt: skip
             end = time.monotonic() + 60.0

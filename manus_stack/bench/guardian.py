@@ -47,6 +47,7 @@ from manus.protocol import FrameId
 from manus.session import client_settings
 from manus_stack.guardian_lockstep import bridge_fault_trial
 from manus_stack.up import LocalStack, StackOptions
+from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, Task, TaskEvent, TaskStep
 from schemas.state import BridgeState, SimTruth
 from services.sequencer.taskfile import task_from_args
@@ -207,9 +208,9 @@ def live_figures(trials: int, seed: int = 0) -> dict[str, Any]:
         watch = Watcher()
         settings = client_settings(options.endpoint, prefix=options.prefix)
         with Node("bench-guardian", settings, liveliness=False) as node:
-            node.subscribe(node.keys.sim_truth, SimTruth, watch.on_truth, locked=False)
-            node.subscribe(node.keys.bridge_state, BridgeState, watch.on_bridge, locked=False)
-            node.subscribe(node.keys("sequencer/events"), TaskEvent, watch.on_event, locked=False)
+            node.subscribe(node.keys(ep.SIM_TRUTH), SimTruth, watch.on_truth, locked=False)
+            node.subscribe(node.keys(ep.BRIDGE_STATE), BridgeState, watch.on_bridge, locked=False)
+            node.subscribe(node.keys(ep.EVENTS), TaskEvent, watch.on_event, locked=False)
             _wait("the bridge running", lambda: watch.phase() == "running", 30.0)
             for fault in ("stop", "kill"):
                 results[fault] = _live_trials(stack, node, watch, listener, fault, trials, rng)
@@ -234,7 +235,7 @@ TASK = Task(
 
 
 def _submit(node: Node, task: Task) -> SubmitReply:
-    return node.query(node.keys("sequencer/submit"), task, SubmitReply, timeout=30.0)
+    return node.query(node.keys(ep.SUBMIT), task, SubmitReply, timeout=30.0)
 
 
 def _start_moving(node: Node, watch: Watcher, attempts: int = 3) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 from manus.errors import ConfigError
 from manus.node import Node, now_ns
 from manus.session import add_bus_arguments, bus_settings
+from schemas import endpoints as ep
 from schemas.guardian import GuardianReport
 
 log = logging.getLogger("manus.guardian.reporter")
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         log.warning("no report on Zenoh: %s", exc)
         node = None
-    pub = node.publisher(node.keys.guardian_report) if node is not None else None
+    pub = node.publisher(node.keys(ep.GUARDIAN_REPORT)) if node is not None else None
     seq = 0
     try:
         for line in sys.stdin:
