@@ -45,6 +45,7 @@ REPLAYABLE = (
     Service.SIMULATOR,
     Service.SEQUENCER,
     Service.PLANNER,
+    Service.GUARDIAN,
 )
 """The services ``--as`` accepts."""
 
