@@ -15,6 +15,7 @@ from typing import Any
 
 from manus.errors import SchemaError
 from manus_stack.fuzz import KINDS, payloads
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.keys import channel_types
 
@@ -55,8 +56,11 @@ def fuzz_live(node: Any, seed: int, per_endpoint: int, query_timeout: float = 1.
     keys = node.keys
     for channel, cls in sorted(channel_types().items()):
         suffix, _, part = channel.partition("#")
-        if part == "reply" or suffix == "liveliness":
-            continue  # replies are answers, not input; liveliness is the recorder's file
+        endpoint = ep.TABLE.get(suffix)
+        if part == "reply" or endpoint is None or endpoint.kind is ep.Kind.RECORDING:
+            continue  # replies are answers, not input; recording channels are not bus keys
+        if endpoint.params:
+            continue  # a per-service root (health/<service>): each node ignores the payload
         batch = bad_payloads(cls, per_endpoint, rng)
         done.sent[suffix] = len(batch)
         if part == "request":
