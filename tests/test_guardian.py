@@ -182,3 +182,23 @@ def test_the_loop_stops_an_unanswered_arm_on_a_virtual_bus() -> None:
     assert counts.outside_window <= core.counts.late + 1
     assert len(stats.reaction_ms) == core.counts.stops_sent
     assert [a.kind for a in actions].count("stop_sent") == core.counts.stops_sent
+
+
+def test_a_reply_of_another_node_before_the_bridges_own_is_counted_preempted() -> None:
+    """The bridge answers a sync late (15 ms: it sat in a buffer); the guardian's 0x370
+    reached the bus at 12 ms, so the arm latched that one: counted, and what the arm
+    executes (``applied``) is the stop, not the bridge's reply."""
+    ls = LockStep()
+    ls.run_until_phase("running", timeout_s=3.0)
+    ls.pause_bridge()  # the test hands the bridge its frames itself from here
+    n = len(ls.arm_frames)
+    while not any(f.remote for f in ls.arm_frames[n:]):
+        ls.run_for(0.005)
+    sync = next(f for f in ls.arm_frames[n:] if f.remote)
+    bridge = ls.bridge
+    out = bridge.on_frame(sync, sync.t_ns + 15 * MS)
+    assert out.frames, "the bridge answered"
+    bridge.on_frame(empty_frame(FrameId.STOP, sync.t_ns + 12 * MS), sync.t_ns + 16 * MS)
+    assert (bridge.health.other_node_frames, bridge.health.preempted_replies) == (1, 1)
+    assert bridge._applied[1] == "stop"
+    assert "preempted" in bridge.detail
