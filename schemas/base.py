@@ -198,7 +198,7 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
             raise SchemaError(f"{path}: expected a string, got {value!r}")
         choices = meta.get("choices") if meta else None
         if choices and value not in choices:
-            raise SchemaError(f"{path}: {value!r} is not one of {list(choices)}")
+            raise SchemaError(f"{path}: {value!r} is not one of {[str(c) for c in choices]}")
         return value
     if tp is bytes:
         if not isinstance(value, bytes | bytearray):
