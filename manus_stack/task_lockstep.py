@@ -1,8 +1,10 @@
 """Tasks in lock-step: the sequencer core driving the real planner, controller, bridge and
 simulator cores on one simulated clock (no Zenoh, no threads; :mod:`manus_stack.lockstep`).
 
-The sequencer's queries are answered in-process, at the simulated instant they are sent,
-by the core that owns each key (``planner/plan``, ``controller/*``, ``bridge/command``);
+The sequencer's queries (the plan requests that validate a submitted task included: it
+goes through :meth:`SequencerCore.submit`, as live) are answered in-process, at the
+simulated instant they are sent, by the core that owns each key (``planner/plan``,
+``controller/*``, ``bridge/command``);
 its task events are published on ``sequencer/events`` like every other message, so
 :attr:`LockStep.messages` holds the whole run. Used by the sequencer's scenario tests and
 by ``manus bench sequencer``.
@@ -19,8 +21,8 @@ from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskSt
 from schemas.state import JointState
 from services.controller.core import ControllerCore
 from services.planner.core import PlannerCore
-from services.sequencer.core import Action, Publish, SequencerCore
-from services.sequencer.validate import Validator
+from services.sequencer.actions import Action, Publish, Reply
+from services.sequencer.core import SequencerCore
 from services.simulator.config import SimConfig
 
 NS = 1_000_000_000
@@ -40,6 +42,7 @@ class TaskLockStep:
         self.seq = SequencerCore()
         self.events: list[TaskEvent] = []
         self.requests: list[Message] = []
+        self.replies: dict[str, SubmitReply] = {}  # answers to submissions, by task id
         ls = self.ls
         ls.subscribe("state/joints", self._on_joints)
         ls.subscribe("state/status", lambda m, t: self.controller.on_status(m))  # type: ignore[arg-type]
@@ -79,6 +82,9 @@ class TaskLockStep:
         """Carry out the sequencer's actions; the messages to publish."""
         out: list[tuple[str, Message]] = []
         for action in actions:
+            if isinstance(action, Reply):
+                self.replies[action.submission] = action.reply
+                continue
             if isinstance(action, Publish):
                 if isinstance(action.message, TaskEvent):
                     self.events.append(action.message)
@@ -89,18 +95,15 @@ class TaskLockStep:
         return out
 
     def submit(self, task: Task, task_id: str = "t") -> SubmitReply:
-        """Validate ``task`` whole (as the shell does) and start it when it passes."""
-        refused = self.seq.refuse(task)
-        if refused is not None:
-            return refused
-        v = Validator(task, self.seq.start_configuration())
-        while (request := v.next_request()) is not None:
-            v.on_reply(self.planner.plan(request))
-        if v.errors:
-            return SubmitReply(accepted=False, task_id="", errors=v.errors)
-        for suffix, msg in self.do(self.seq.start(task_id, task, self.ls.t_ns), self.ls.t_ns):
+        """Submit ``task`` as the live shell does (:meth:`SequencerCore.submit`: refused,
+        or validated whole and started); its answer."""
+        t = self.ls.t_ns
+        for suffix, msg in self.do(self.seq.submit(task, t, task_id), t):
             self.ls.publish(suffix, msg)
-        return SubmitReply(accepted=True, task_id=task_id)
+        reply = self.replies.pop(task_id, None)
+        if reply is None:  # the cores answer every query at once: never
+            raise RuntimeError(f"submission {task_id!r} got no answer")
+        return reply
 
     def control(self, action: str) -> TaskStatus:
         """Cancel, pause, resume or status, now."""

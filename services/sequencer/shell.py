@@ -1,16 +1,17 @@
 """The sequencer's live shell: the supervisor API on Zenoh around :class:`SequencerCore`.
 
 Queryables (``schemas.sequencing``): ``<prefix>/sequencer/submit`` (Task -> SubmitReply:
-validates the whole task, asking the planner for every move, before anything moves),
+the core validates the whole task, asking the planner for every move, before anything
+moves; the handler waits for the core's answer),
 ``<prefix>/sequencer/control`` (TaskControl -> TaskStatus: cancel, pause, resume,
 status) and ``<prefix>/sequencer/status``. Publishes ``<prefix>/sequencer/events``
 (TaskEvent) and, while a task runs, ``<prefix>/heartbeat`` (the controller's deadman, one
 per joint state). Follows ``state/joints``, ``state/bridge``, ``controller/feedback``,
 ``controller/result``, ``estop`` and the liveliness tokens.
 
-The core's queries run one at a time, in order, on a worker thread (never under the node
-lock, so the callbacks that carry results keep flowing); a ticker feeds the core the
-time every 50 ms (waits, timeouts).
+The core's queries (the validation's plan requests included) run one at a time, in order,
+on a worker thread (never under the node lock, so the callbacks that carry results keep
+flowing); a ticker feeds the core the time every 50 ms (waits, timeouts).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import logging
 import queue
 import threading
 import uuid
+from concurrent.futures import Future
 
 import zenoh
 
@@ -26,19 +28,18 @@ from manus.node import Node, Publisher, QueryError, now_ns
 from manus.session import ZenohSettings
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult
-from schemas.planning import PlanReply
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskStatus
+from schemas.sequencing import SubmitReply, Task, TaskAction, TaskControl, TaskStatus
 from schemas.state import BridgeState, JointState
-from services.sequencer.config import SequencerConfig
-from services.sequencer.core import (
+from services.sequencer.actions import (
     EVENTS_SUFFIX,
     HEARTBEAT_SUFFIX,
     Action,
     Publish,
     Query,
-    SequencerCore,
+    Reply,
 )
-from services.sequencer.validate import Validator
+from services.sequencer.config import SequencerConfig
+from services.sequencer.core import SequencerCore
 
 log = logging.getLogger("manus.sequencer")
 
@@ -53,7 +54,8 @@ class SequencerShell:
         settings: how to reach the bus (its prefix roots the keys).
         config: sequencer settings.
         session: an open session to share (not closed by :meth:`close`).
-        query_timeout: how long to wait for each service's answer [s].
+        query_timeout: how long to wait for each service's answer [s] (a submission: for
+            each of its steps, and once more).
     """
 
     def __init__(
@@ -75,6 +77,7 @@ class SequencerShell:
             for suffix in (EVENTS_SUFFIX, HEARTBEAT_SUFFIX)
         }
         self._queries: queue.Queue[Query | None] = queue.Queue()
+        self._answers: dict[str, Future[SubmitReply]] = {}  # submissions waiting
         self._stop = threading.Event()
         self.node.subscribe(keys.joints, JointState, self._on_joints)
         self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
@@ -119,47 +122,43 @@ class SequencerShell:
     def _on_status(self, req: TaskControl) -> TaskStatus:
         return self.core.status()
 
-    # -- submit: validate the whole task, then start it --------------------------------------
+    # -- submit: the core validates the whole task, then starts it -------------------------
 
     def _on_submit(self, task: Task) -> SubmitReply:
+        task_id = uuid.uuid4().hex[:8]
+        answer: Future[SubmitReply] = Future()
+        bound = self.query_timeout * (len(task.steps) + 1)
         with self.node.lock:
-            refused = self.core.refuse(task)
-            start = self.core.start_configuration()
-        if refused is not None:
-            return self._refuse(refused)
-        validator = Validator(task, start)
-        while (request := validator.next_request()) is not None:
-            try:
-                reply = self.node.query(
-                    self.node.keys.plan, request, PlanReply, timeout=self.query_timeout
-                )
-            except QueryError as exc:
-                validator.on_reply(None, str(exc))
+            self._answers[task_id] = answer
+            self._do(self.core.submit(task, now_ns(), task_id))
+        try:
+            reply = answer.result(timeout=bound)
+        except TimeoutError:
+            why = f"validation did not finish within {bound:g} s (is the planner overloaded?)"
+            with self.node.lock:
+                self._do(self.core.withdraw(task_id, now_ns(), why))
+            reply = answer.result(timeout=0)  # withdrawn, or answered just before
+        with self.node.lock:
+            self._answers.pop(task_id, None)
+            if reply.accepted:
+                self.submitted += 1
             else:
-                validator.on_reply(reply)
-        if validator.errors:
-            return self._refuse(SubmitReply(accepted=False, task_id="", errors=validator.errors))
-        with self.node.lock:
-            refused = self.core.refuse(task)  # things may have changed while planning
-            if refused is not None:
-                return self._refuse(refused)
-            task_id = uuid.uuid4().hex[:8]
-            self.submitted += 1
+                self.refused += 1
+        if reply.accepted:
             log.info("task %s (%s): %d steps", task_id, task.name, len(task.steps))
-            self._do(self.core.start(task_id, task, now_ns()))
-        return SubmitReply(accepted=True, task_id=task_id)
-
-    def _refuse(self, reply: SubmitReply) -> SubmitReply:
-        with self.node.lock:
-            self.refused += 1
-        log.info("refused a task: %s", "; ".join(reply.errors))
+        else:
+            log.info("refused a task: %s", "; ".join(reply.errors))
         return reply
 
     # -- outputs -----------------------------------------------------------------------------
 
     def _do(self, actions: list[Action]) -> None:
         for action in actions:
-            if isinstance(action, Publish):
+            if isinstance(action, Reply):
+                answer = self._answers.pop(action.submission, None)
+                if answer is not None:
+                    answer.set_result(action.reply)
+            elif isinstance(action, Publish):
                 self._publisher(action.suffix).put(action.message)
             else:
                 self._queries.put(action)
@@ -195,8 +194,11 @@ class SequencerShell:
     def close(self) -> None:
         """Stop the threads and leave the bus (a running task's goal is cancelled first)."""
         with self.node.lock:
+            if self.core.validating:
+                why = "the sequencer is shutting down"
+                self._do(self.core.withdraw(self.core.validating, now_ns(), why))
             if self.core.busy:
-                _, actions = self.core.control(TaskControl(action="cancel"), now_ns())
+                _, actions = self.core.control(TaskControl(action=TaskAction.CANCEL), now_ns())
                 self._do(actions)
         self._stop.set()
         self._queries.put(None)
