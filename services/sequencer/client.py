@@ -13,11 +13,16 @@ import time
 from collections.abc import Callable, Iterable
 
 from manus.node import Node
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
+from schemas.sequencing import (
+    FINAL_EVENTS,
+    SubmitReply,
+    Task,
+    TaskAction,
+    TaskControl,
+    TaskEvent,
+    TaskStatus,
+)
 from schemas.state import BridgeState, JointState
-
-FINAL_EVENTS = ("succeeded", "failed", "cancelled")
-"""Events that end a task."""
 
 
 class TaskClient:
@@ -82,7 +87,7 @@ class TaskClient:
     def control(self, action: str, task_id: str = "", timeout: float = 5.0) -> TaskStatus:
         """Cancel, pause, resume (or status of) a task."""
         request = TaskControl(action=action, task_id=task_id)
-        key = "sequencer/status" if action == "status" else "sequencer/control"
+        key = "sequencer/status" if action == TaskAction.STATUS else "sequencer/control"
         return self.node.query(self.node.keys(key), request, TaskStatus, timeout=timeout)
 
     def follow(
