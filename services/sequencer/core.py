@@ -290,33 +290,19 @@ class SequencerCore:
         self.now = now_ns
         if req.action == TaskAction.STATUS:
             return self.status(), []
-        if self._submission is not None:
-            return self.status(False, f"nothing to {req.action} before the task starts"), []
-        if req.task_id and req.task_id != self.task_id:
-            return self.status(False, f"no task {req.task_id!r} (current: {self.task_id!r})"), []
-        if not self.busy:
-            return self.status(False, f"no task to {req.action} (state {self.state})"), []
+        refused = self._why_not(req)
+        if refused:
+            return self.status(False, refused), []
         if req.action == TaskAction.CANCEL:
             out = self._cancel()
             return self.status(True, "cancelling" if self.busy else ""), out
         if req.action == TaskAction.PAUSE:
-            if (
-                self.state == TaskState.PAUSED
-                or self.pause_requested
-                or self.phase == Phase.PAUSING
-            ):
-                return self.status(False, "already paused or pausing"), []
-            if self.cancel_requested or self.phase in (Phase.CANCELLING, Phase.STOPPING):
-                return self.status(False, "the task is being cancelled"), []
             out = self._pause()
             note = "pausing after the fold" if self.phase == Phase.FOLDING else ""
             return self.status(True, note), out
-        # resume
-        if self.state != TaskState.PAUSED:
-            if self.pause_requested:
-                self.pause_requested = False
-                return self.status(True, "pause withdrawn"), []
-            return self.status(False, "the task is not paused"), []
+        if self.state != TaskState.PAUSED:  # resume before the pause took effect
+            self.pause_requested = False
+            return self.status(True, "pause withdrawn"), []
         self.state = TaskState.RUNNING
         out = [self._event(TaskEventKind.RESUMED, step=self.step, progress=self._task_progress())]
         if self._current is None:  # paused before the step began
@@ -324,6 +310,27 @@ class SequencerCore:
         else:
             out += self._current.resume()
         return self.status(), out
+
+    def _why_not(self, req: TaskControl) -> str:
+        """Why the cancel, pause or resume ``req`` cannot be done now ('' if it can)."""
+        action = req.action
+        pausing = (
+            self.state == TaskState.PAUSED or self.pause_requested or self.phase == Phase.PAUSING
+        )
+        cancelling = self.cancel_requested or self.phase in (Phase.CANCELLING, Phase.STOPPING)
+        not_paused = self.state != TaskState.PAUSED and not self.pause_requested
+        checks = (
+            (self._submission is not None, f"nothing to {action} before the task starts"),
+            (
+                bool(req.task_id) and req.task_id != self.task_id,
+                f"no task {req.task_id!r} (current: {self.task_id!r})",
+            ),
+            (not self.busy, f"no task to {action} (state {self.state})"),
+            (action == TaskAction.PAUSE and pausing, "already paused or pausing"),
+            (action == TaskAction.PAUSE and cancelling, "the task is being cancelled"),
+            (action == TaskAction.RESUME and not_paused, "the task is not paused"),
+        )
+        return next((why for failed, why in checks if failed), "")
 
     # -- inputs ------------------------------------------------------------------------------
 

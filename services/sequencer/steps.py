@@ -451,24 +451,26 @@ class FoldStep(Step):
         return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, cmd, ArmCommandReply, wait=True)]
 
     def on_reply(self, reply: Message | None, error: str) -> list[Action]:
-        ctx = self.ctx
         if self.phase == Phase.FOLDING:
-            if not isinstance(reply, ArmCommandReply):
-                return ctx.fail(f"can_bridge: {error or 'no answer to the fold'}")
-            if not reply.ok:
-                return ctx.fail(f"can_bridge refused {self.spec.kind}: {reply.message}")
-            # Done only after a state/bridge in folding_* and then running: a state
-            # published before the bridge took the command may still be on its way.
-            return []
+            return self._on_fold_reply(reply, error)
         if self.phase == Phase.STOPPING:
             # stop answered: clear, so the arm is back in joint mode and ready.
             if isinstance(reply, ArmCommandReply) and reply.ok and reply.phase == "stopped":
                 self.phase = Phase.CLEARING
                 clear = ArmCommand(action="clear", source="sequencer")
-                return [ctx.query(BRIDGE_COMMAND_SUFFIX, clear, ArmCommandReply, wait=True)]
-            return ctx.cancelled(f"{BY_REQUEST}; fold stopped")
+                return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, clear, ArmCommandReply, wait=True)]
+            return self.ctx.cancelled(f"{BY_REQUEST}; fold stopped")
         if self.phase == Phase.CLEARING:
-            return ctx.cancelled(f"{BY_REQUEST}; fold stopped")
+            return self.ctx.cancelled(f"{BY_REQUEST}; fold stopped")
+        return []
+
+    def _on_fold_reply(self, reply: Message | None, error: str) -> list[Action]:
+        if not isinstance(reply, ArmCommandReply):
+            return self.ctx.fail(f"can_bridge: {error or 'no answer to the fold'}")
+        if not reply.ok:
+            return self.ctx.fail(f"can_bridge refused {self.spec.kind}: {reply.message}")
+        # Done only after a state/bridge in folding_* and then running: a state published
+        # before the bridge took the command may still be on its way.
         return []
 
     def on_bridge_state(self, bs: BridgeState) -> list[Action] | None:
