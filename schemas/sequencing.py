@@ -1,11 +1,5 @@
-"""The supervisor's interface: tasks, their control and their events.
-
-| key (after the prefix) | kind      | type                           |
-|------------------------|-----------|--------------------------------|
-| sequencer/submit       | queryable | Task -> SubmitReply            |
-| sequencer/control      | queryable | TaskControl -> TaskStatus      |
-| sequencer/status       | queryable | TaskControl -> TaskStatus      |
-| sequencer/events       | pub       | TaskEvent                      |
+"""The supervisor's interface: tasks, their control and their events (their keys:
+``SUBMIT``, ``TASK_CONTROL``, ``TASK_STATUS`` and ``EVENTS`` of :mod:`schemas.endpoints`).
 
 A task is validated whole before anything moves (every file parses, every path plans
 from where the previous step leaves the arm, every opening is in range); a refused task
@@ -18,7 +12,8 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
-from schemas.planning import Path
+from schemas.control import ControlMode
+from schemas.planning import Interpolation, Path
 
 
 class StepKind(StrEnum):
@@ -82,7 +77,7 @@ class TaskStep(Message):
 
     TYPE_NAME = "manus/TaskStep/1"
 
-    kind: str = field("what the step does", choices=tuple(StepKind))
+    kind: str = field("what the step does", choices=StepKind)
     path: Path | None = field("for move: the path", default=None)
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
     duration: float = field(
@@ -95,7 +90,7 @@ class TaskStep(Message):
     interpolation: str = field(
         "for move and pose: cubic spline or quintic segments",
         default="cubic",
-        choices=("cubic", "quintic"),
+        choices=Interpolation,
     )
     speed_scaling: bool = field(
         "for move: stretch time to respect joint limits instead of refusing (pose: always)",
@@ -112,7 +107,7 @@ class Task(Message):
     steps: list[TaskStep] = field("the steps, in execution order")
     name: str = field("a name for logs and events", default="")
     mode: str = field(
-        "controller mode for move steps", default="default", choices=("default", "thesis")
+        "controller mode for move steps", default=ControlMode.DEFAULT, choices=ControlMode
     )
 
 
@@ -135,7 +130,7 @@ class TaskControl(Message):
 
     TYPE_NAME = "manus/TaskControl/1"
 
-    action: str = field("what to do", choices=tuple(TaskAction))
+    action: str = field("what to do", choices=TaskAction)
     task_id: str = field("task concerned; empty: the current one", default="")
 
 
@@ -147,7 +142,7 @@ class TaskStatus(Message):
 
     ok: bool = field("the request was carried out")
     task_id: str = field("the task ('' when none)")
-    state: str = field("task state", choices=tuple(TaskState))
+    state: str = field("task state", choices=TaskState)
     step: int = field("0-based index of the current step (-1: none)")
     total: int = field("number of steps")
     progress: float = field("fraction of the task done, 0..1", minimum=0.0, maximum=1.0)
@@ -163,20 +158,9 @@ class TaskEvent(Message):
     stamp_ns: int = field("time of the event", unit="ns")
     seq: int = field("sequence number", minimum=0)
     task_id: str = field("the task")
-    event: str = field("what happened", choices=tuple(TaskEventKind))
+    event: str = field("what happened", choices=TaskEventKind)
     step: int = field("0-based step index (-1: the task as a whole)")
     total: int = field("number of steps")
     kind: str = field("kind of the step ('' for task events)", default="")
     progress: float = field("fraction of the step (step events) or task done", default=0.0)
     reason: str = field("why (failures, cancel), from the service that failed", default="")
-
-
-CHANNELS: dict[str, type[Message]] = {
-    "sequencer/submit#request": Task,
-    "sequencer/submit#reply": SubmitReply,
-    "sequencer/control#request": TaskControl,
-    "sequencer/control#reply": TaskStatus,
-    "sequencer/status#request": TaskControl,
-    "sequencer/status#reply": TaskStatus,
-    "sequencer/events": TaskEvent,
-}

@@ -13,6 +13,7 @@ import pytest
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.task_lockstep import TaskLockStep
+from schemas import endpoints as ep
 from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import (
     StepKind,
@@ -68,7 +69,7 @@ def test_a_task_is_validated_by_planner_queries_then_answered_and_started() -> N
     task = task_from_args([SQUARE, "40", SQUARE])
     out = core.submit(task, 10, "a")
     (ask,) = out  # one plan at a time
-    assert isinstance(ask, Query) and ask.suffix == "planner/plan" and ask.reply_type is PlanReply
+    assert isinstance(ask, Query) and ask.suffix == ep.PLAN and ask.reply_type is PlanReply
     assert isinstance(ask.request, PlanRequest) and ask.request.start == UNFOLDED
     status = core.status()
     assert (status.state, status.task_id, status.total) == (TaskState.VALIDATING, "a", 3)
@@ -88,7 +89,7 @@ def test_a_task_is_validated_by_planner_queries_then_answered_and_started() -> N
     assert ask2.request.start != UNFOLDED  # from where the first move leaves the arm
     out = core.on_reply(ask2.token, planner.plan(ask2.request), "", 30)
     (reply,) = replies(out)
-    assert reply.submission == "a" and reply.suffix == "sequencer/submit"
+    assert reply.submission == "a" and reply.suffix == ep.SUBMIT
     assert reply.reply == SubmitReply(accepted=True, task_id="a")
     assert out[-1] is reply  # after the task's first actions, as the shell did
     assert events(out) == ["accepted", "step_started"]
@@ -247,7 +248,7 @@ class SlowPlanner:
         self.node = Node("planner", settings)
         self.core = PlannerCore()
         self.delay = delay
-        self.node.queryable(self.node.keys.plan, PlanRequest, self._plan, locked=False)
+        self.node.queryable(self.node.keys(ep.PLAN), PlanRequest, self._plan, locked=False)
 
     def _plan(self, request: PlanRequest) -> PlanReply:
         time.sleep(self.delay)

@@ -10,17 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.sequencing import SubmitReply
 
-PLAN_SUFFIX = "planner/plan"
-GOAL_SUFFIX = "controller/goal"
-GRIPPER_SUFFIX = "controller/gripper"
-CANCEL_SUFFIX = "controller/cancel"
-BRIDGE_COMMAND_SUFFIX = "bridge/command"
-EVENTS_SUFFIX = "sequencer/events"
-SUBMIT_SUFFIX = "sequencer/submit"
-HEARTBEAT_SUFFIX = "heartbeat"
+EVENTS_SUFFIX = ep.EVENTS
+HEARTBEAT_SUFFIX = ep.HEARTBEAT
 """Key suffix of the deadman heartbeat (``schemas.control.Heartbeat``)."""
 
 
@@ -47,7 +42,7 @@ class Publish:
 class Reply(Publish):
     """The answer to a submitted task: ``message`` (a
     :class:`~schemas.sequencing.SubmitReply`) goes back on the queryable ``suffix``
-    (``sequencer/submit``), to the submitter of ``submission`` (the task id given to
+    (:data:`schemas.endpoints.SUBMIT`), to the submitter of ``submission`` (the task id given to
     :meth:`SequencerCore.submit <services.sequencer.core.SequencerCore.submit>`) only.
 
     A :class:`Publish` in that it goes out on a key (Zenoh sends a query's reply on the

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult, Heartbeat
@@ -62,12 +63,10 @@ from schemas.sequencing import (
     TaskState,
     TaskStatus,
 )
-from schemas.state import BridgeState, JointState
+from schemas.state import BridgePhase, BridgeState, JointState
 from services.sequencer.actions import (
     EVENTS_SUFFIX,
     HEARTBEAT_SUFFIX,
-    PLAN_SUFFIX,
-    SUBMIT_SUFFIX,
     Action,
     Publish,
     Query,
@@ -97,7 +96,7 @@ def refusal(why: str) -> SubmitReply:
 
 def answer(task_id: str, reply: SubmitReply) -> Reply:
     """The answer to submission ``task_id``."""
-    return Reply(SUBMIT_SUFFIX, reply, submission=task_id)
+    return Reply(ep.SUBMIT, reply, submission=task_id)
 
 
 @dataclass
@@ -219,9 +218,9 @@ class SequencerCore:
         missing = self.missing_services()
         if missing:
             return refusal(f"required service(s) not running: {', '.join(missing)}")
-        if self.start_configuration() is None and self.bridge_phase == "running":
+        if self.start_configuration() is None and self.bridge_phase == BridgePhase.RUNNING:
             return refusal("no valid joint state from the arm yet; try again in a moment")
-        if self.bridge_phase != "running":
+        if self.bridge_phase != BridgePhase.RUNNING:
             seen = self.bridge_phase or "no state/bridge received yet"
             return refusal(
                 f"the bridge is not running ({seen}); a task starts only in phase running"
@@ -261,7 +260,7 @@ class SequencerCore:
         assert sub is not None
         request = sub.validator.next_request()
         if request is not None:
-            query = self.query(PLAN_SUFFIX, request, PlanReply)
+            query = self.query(ep.PLAN, request, PlanReply)
             sub.token = query.token
             return [query]
         self._submission = None
@@ -365,7 +364,10 @@ class SequencerCore:
             out = self._current.on_bridge_state(bs)
             if out is not None:
                 return out
-        if bs.phase in ("arm_error", "estopped") and self.phase != Phase.STOPPING:
+        if (
+            bs.phase in (BridgePhase.ARM_ERROR, BridgePhase.ESTOPPED)
+            and self.phase != Phase.STOPPING
+        ):
             return self.fail(f"can_bridge: phase {bs.phase}: {bs.detail}")
         return []
 

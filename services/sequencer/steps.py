@@ -35,28 +35,22 @@ from typing import ClassVar, Protocol
 
 from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.viapoints import ViaPointError, validate_path
+from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.commands import ArmCommand, ArmCommandReply
+from schemas.commands import ArmAction, ArmCommand, ArmCommandReply
 from schemas.control import (
     CancelGoal,
     ControllerFeedback,
     GoalAck,
     GoalResult,
     GripperGoal,
+    ResultStatus,
     TrajectoryGoal,
 )
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
-from schemas.state import BridgeState
-from services.sequencer.actions import (
-    BRIDGE_COMMAND_SUFFIX,
-    CANCEL_SUFFIX,
-    GOAL_SUFFIX,
-    GRIPPER_SUFFIX,
-    PLAN_SUFFIX,
-    Action,
-    Query,
-)
+from schemas.state import BridgePhase, BridgeState
+from services.sequencer.actions import Action, Query
 from services.sequencer.config import SequencerConfig
 from services.sequencer.poses import POSES, pose_path, remainder_path
 
@@ -71,6 +65,9 @@ FOLD_END = {
     StepKind.FOLD_IN: [math.radians(v) for v in FOLDED_Q_DEG],
 }
 """Where a fold leaves the arm (DH joint angles [rad])."""
+
+FOLDING = {StepKind.FOLD_OUT: BridgePhase.FOLDING_OUT, StepKind.FOLD_IN: BridgePhase.FOLDING_IN}
+"""The bridge's phase while it folds."""
 
 NS = 1_000_000_000
 BY_REQUEST = "cancelled by request"
@@ -116,7 +113,7 @@ class StepContext(Protocol):
 
 
 def _stop_command() -> ArmCommand:
-    return ArmCommand(action="stop", source="sequencer")
+    return ArmCommand(action=ArmAction.STOP, source="sequencer")
 
 
 class Step:
@@ -230,7 +227,7 @@ class GoalStep(Step):
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
         self.ctx.set_deadline(self.ctx.config.cancel_timeout_s)
-        return [self.ctx.query(CANCEL_SUFFIX, CancelGoal(goal_id=self.goal_id), GoalAck)]
+        return [self.ctx.query(ep.CANCEL, CancelGoal(goal_id=self.goal_id), GoalAck)]
 
     def on_result(self, res: GoalResult) -> list[Action]:
         if not self.goal_id or res.goal_id != self.goal_id:
@@ -238,9 +235,9 @@ class GoalStep(Step):
         self.goal_id = ""
         if self.phase == Phase.CANCELLING:
             return self.ctx.cancelled(BY_REQUEST)
-        if res.status == "succeeded":
+        if res.status == ResultStatus.SUCCEEDED:
             return self.ctx.step_done()
-        if res.status == "cancelled" and self.phase == Phase.PAUSING:
+        if res.status == ResultStatus.CANCELLED and self.phase == Phase.PAUSING:
             self._remember_pause()
             return self.ctx.paused()
         return self.ctx.fail(f"controller: goal {res.status}: {res.reason}")
@@ -266,7 +263,7 @@ class GoalStep(Step):
     def on_deadline(self) -> list[Action]:
         if self.phase in (Phase.PAUSING, Phase.CANCELLING):
             goal_id, self.goal_id = self.goal_id, ""
-            stop = self.ctx.query(BRIDGE_COMMAND_SUFFIX, _stop_command(), ArmCommandReply)
+            stop = self.ctx.query(ep.BRIDGE_COMMAND, _stop_command(), ArmCommandReply)
             what = "pause" if self.phase == Phase.PAUSING else "cancel"
             msg = (
                 f"controller did not confirm the {what} of goal {goal_id} within "
@@ -282,7 +279,7 @@ class GoalStep(Step):
     def cleanup(self) -> list[Action]:
         live = (Phase.ACKING, Phase.ACTIVE, Phase.PAUSING, Phase.CANCELLING)
         if self.goal_id and self.phase in live:
-            return [self.ctx.query(CANCEL_SUFFIX, CancelGoal(goal_id=self.goal_id), GoalAck)]
+            return [self.ctx.query(ep.CANCEL, CancelGoal(goal_id=self.goal_id), GoalAck)]
         return []
 
     @property
@@ -347,7 +344,7 @@ class MoveStep(GoalStep):
         if path is not None:  # the rest of a paused path starts from rest: let it stretch
             request = dataclasses.replace(request, speed_scaling=True)
         self.phase = Phase.PLANNING
-        return [self.ctx.query(PLAN_SUFFIX, request, PlanReply, wait=True)]
+        return [self.ctx.query(ep.PLAN, request, PlanReply, wait=True)]
 
     def resume(self) -> list[Action]:
         if self.resume_at is None:
@@ -384,7 +381,7 @@ class MoveStep(GoalStep):
             heartbeat_timeout=ctx.config.heartbeat_timeout_s,
         )
         span = reply.trajectory.times[-1] + goal.goal_time_tolerance + ctx.config.result_margin_s
-        return self._send(GOAL_SUFFIX, goal, span)
+        return self._send(ep.GOAL, goal, span)
 
     def on_feedback(self, fb: ControllerFeedback) -> list[Action]:
         if not self.goal_id or fb.goal_id != self.goal_id or self.traj is None:
@@ -418,7 +415,7 @@ class GripperStep(GoalStep):
         self.goal_id = self.ctx.new_goal_id()
         self.grip0 = None
         goal = GripperGoal(goal_id=self.goal_id, opening=self.spec.opening, timeout=timeout)
-        return self._send(GRIPPER_SUFFIX, goal, timeout + 5.0)
+        return self._send(ep.GRIPPER_GOAL, goal, timeout + 5.0)
 
     def on_feedback(self, fb: ControllerFeedback) -> list[Action]:
         if not self.goal_id or fb.gripper_goal_id != self.goal_id:
@@ -448,17 +445,21 @@ class FoldStep(Step):
         self.ctx.set_deadline(self.ctx.config.fold_timeout_s)
         self.phase = Phase.FOLDING
         cmd = ArmCommand(action=self.spec.kind, source="sequencer")
-        return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, cmd, ArmCommandReply, wait=True)]
+        return [self.ctx.query(ep.BRIDGE_COMMAND, cmd, ArmCommandReply, wait=True)]
 
     def on_reply(self, reply: Message | None, error: str) -> list[Action]:
         if self.phase == Phase.FOLDING:
             return self._on_fold_reply(reply, error)
         if self.phase == Phase.STOPPING:
             # stop answered: clear, so the arm is back in joint mode and ready.
-            if isinstance(reply, ArmCommandReply) and reply.ok and reply.phase == "stopped":
+            if (
+                isinstance(reply, ArmCommandReply)
+                and reply.ok
+                and reply.phase == BridgePhase.STOPPED
+            ):
                 self.phase = Phase.CLEARING
-                clear = ArmCommand(action="clear", source="sequencer")
-                return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, clear, ArmCommandReply, wait=True)]
+                clear = ArmCommand(action=ArmAction.CLEAR, source="sequencer")
+                return [self.ctx.query(ep.BRIDGE_COMMAND, clear, ArmCommandReply, wait=True)]
             return self.ctx.cancelled(f"{BY_REQUEST}; fold stopped")
         if self.phase == Phase.CLEARING:
             return self.ctx.cancelled(f"{BY_REQUEST}; fold stopped")
@@ -476,9 +477,9 @@ class FoldStep(Step):
     def on_bridge_state(self, bs: BridgeState) -> list[Action] | None:
         if self.phase != Phase.FOLDING:
             return None
-        if bs.phase == f"folding_{self.spec.kind.removeprefix('fold_')}":
+        if bs.phase == FOLDING[StepKind(self.spec.kind)]:
             self.seen_fold = True
-        elif self.seen_fold and bs.phase == "running":
+        elif self.seen_fold and bs.phase == BridgePhase.RUNNING:
             return self.ctx.step_done()
         return None
 
@@ -486,7 +487,7 @@ class FoldStep(Step):
         if self.phase != Phase.FOLDING:
             return self.ctx.cancelled(BY_REQUEST)
         self.phase = Phase.STOPPING
-        return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, _stop_command(), ArmCommandReply, wait=True)]
+        return [self.ctx.query(ep.BRIDGE_COMMAND, _stop_command(), ArmCommandReply, wait=True)]
 
     def on_deadline(self) -> list[Action]:
         if self.phase != Phase.FOLDING:
@@ -497,7 +498,7 @@ class FoldStep(Step):
     def cleanup(self) -> list[Action]:
         if self.phase != Phase.FOLDING:
             return []
-        return [self.ctx.query(BRIDGE_COMMAND_SUFFIX, _stop_command(), ArmCommandReply)]
+        return [self.ctx.query(ep.BRIDGE_COMMAND, _stop_command(), ArmCommandReply)]
 
 
 class WaitStep(Step):
