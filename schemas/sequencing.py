@@ -89,7 +89,7 @@ class TaskStep(Message):
     where: str = field("where the step was written (file:line), for errors", default="")
     interpolation: str = field(
         "for move and pose: cubic spline or quintic segments",
-        default="cubic",
+        default=Interpolation.CUBIC,
         choices=Interpolation,
     )
     speed_scaling: bool = field(

@@ -83,20 +83,8 @@ class SequencerShell:
 
     def _on_submit(self, task: Task) -> SubmitReply:
         task_id = uuid.uuid4().hex[:8]
-        answer: Future[SubmitReply] = Future()
-        bound = self.query_timeout * (len(task.steps) + 1)
+        reply = self._submit(task, task_id)
         with self.node.lock:
-            self._answers[task_id] = answer
-            self._do(self.core.submit(task, now_ns(), task_id))
-        try:
-            reply = answer.result(timeout=bound)
-        except TimeoutError:
-            why = f"validation did not finish within {bound:g} s (is the planner overloaded?)"
-            with self.node.lock:
-                self._do(self.core.withdraw(task_id, now_ns(), why))
-            reply = answer.result(timeout=0)  # withdrawn, or answered just before
-        with self.node.lock:
-            self._answers.pop(task_id, None)
             if reply.accepted:
                 self.submitted += 1
             else:
@@ -106,6 +94,27 @@ class SequencerShell:
         else:
             log.info("refused a task: %s", "; ".join(reply.errors))
         return reply
+
+    def _submit(self, task: Task, task_id: str) -> SubmitReply:
+        """Hand ``task`` to the core and wait for its :class:`Reply` (the query worker
+        carries the plan requests meanwhile); withdrawn when it takes longer than
+        ``query_timeout`` per step, plus one."""
+        answer: Future[SubmitReply] = Future()
+        bound = self.query_timeout * (len(task.steps) + 1)
+        try:
+            with self.node.lock:
+                self._answers[task_id] = answer
+                self._do(self.core.submit(task, now_ns(), task_id))
+            try:
+                return answer.result(timeout=bound)
+            except TimeoutError:
+                why = f"validation did not finish within {bound:g} s (is the planner overloaded?)"
+                with self.node.lock:
+                    self._do(self.core.withdraw(task_id, now_ns(), why))
+                return answer.result(timeout=0)  # withdrawn, or answered just before
+        finally:
+            with self.node.lock:
+                self._answers.pop(task_id, None)
 
     # -- outputs -----------------------------------------------------------------------------
 
