@@ -155,36 +155,47 @@ class Step:
     # -- while it runs -----------------------------------------------------------------------
 
     def begin(self) -> list[Action]:
+        """Start the step (its first query, or its timer)."""
         raise NotImplementedError
 
     def resume(self) -> list[Action]:
+        """Go on after a pause (by default: begin again)."""
         return self.begin()
 
     def on_reply(self, reply: Message | None, error: str) -> list[Action]:
+        """The answer to the query the step waits for (None and ``error``: none came)."""
         return []
 
     def on_feedback(self, fb: ControllerFeedback) -> list[Action]:
+        """The controller's feedback (any goal's)."""
         return []
 
     def on_result(self, res: GoalResult) -> list[Action]:
+        """A goal's result (any goal's)."""
         return []
 
     def on_bridge_state(self, bs: BridgeState) -> list[Action] | None:
+        """The bridge's state (None: the core checks for arm errors and e-stops)."""
         return None
 
     def on_tick(self) -> list[Action] | None:
+        """Time passed (None: the core checks the link and the deadline)."""
         return None
 
     def pause(self) -> list[Action] | None:
+        """Stop for a pause now (None: not now; the core keeps the request for later)."""
         return None
 
     def cancel(self) -> list[Action]:
+        """Stop for good (by default at once: the task is cancelled)."""
         return self.ctx.cancelled(BY_REQUEST)
 
     def on_deadline(self) -> list[Action]:
+        """The deadline the step set (:meth:`StepContext.set_deadline`) passed."""
         return []
 
     def cleanup(self) -> list[Action]:
+        """The task fails: the queries that stop what the step started."""
         return []
 
     @property
