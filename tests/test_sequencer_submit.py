@@ -3,17 +3,22 @@ answer, start), the step table, and the submission over Zenoh with a slow planne
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path as FilePath
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
+from schemas.commands import ArmCommand, EStop
+from schemas.control import CancelGoal, TrajectoryGoal
 from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import (
     StepKind,
@@ -34,6 +39,7 @@ from services.sequencer.taskfile import parse_task_text, task_from_args
 from tests.conftest import eventually
 from tests.sequencer_fakes import FakeBridge, FakeController
 from tests.test_sequencer_core import SQUARE, UNFOLDED, bridge_state, far_task, joint_state
+from tests.test_sequencer_core import Rig as CoreRig
 
 ROOT = FilePath(__file__).resolve().parent.parent
 NS = 1_000_000_000
@@ -297,3 +303,98 @@ def test_status_answers_while_a_submission_validates_over_zenoh(
     assert (sequencer.submitted, sequencer.refused) == (1, 1)
     status = client.control("status")
     assert status.task_id == got[0].task_id and status.state == TaskState.RUNNING
+
+
+# -- any order of inputs ---------------------------------------------------------------------
+
+OPS = ("pause", "resume", "cancel", "tick", "long_tick", "joints", "feedback", "succeeded",
+       "cancelled", "aborted", "fold_done", "running", "arm_error", "estop")  # fmt: skip
+FINAL = {"succeeded", "failed", "cancelled"}
+
+
+def drive(ops: list[str]) -> tuple[CoreRig, list[bytes]]:
+    """Start a task of every kind of step, apply ``ops``, then cancel and let time pass."""
+    rig = CoreRig()
+    ended: set[str] = set()  # goals whose result the controller published
+    folds_done: list[int] = []  # queries sent when the bridge showed a whole fold
+    rig.start(Task(steps=[
+        TaskStep(kind=StepKind.FOLD_OUT), *task_from_args([SQUARE, "40"]).steps,
+        TaskStep(kind=StepKind.WAIT, duration=1.0), TaskStep(kind=StepKind.FOLD_IN),
+    ]))  # fmt: skip
+    for seq, op in enumerate(ops, start=2):
+        if op in ("succeeded", "cancelled", "aborted") and rig.goals():
+            ended.add(rig.goals()[-1].goal_id)  # type: ignore[attr-defined]
+        if op == "fold_done":
+            folds_done.append(len(rig.sent))
+        apply(rig, op, seq)
+        check(rig)
+    rig.control("cancel")
+    for _ in range(10):  # a cancel ends the task within cancel_timeout_s (3 s)
+        rig.now += NS // 2
+        rig.feed(rig.core.on_tick(rig.now))
+    check(rig)
+    assert not rig.core.busy and rig.names()[-1] in FINAL, rig.names()
+    # no goal outlives the task: it ended, or the sequencer cancelled it, or had the
+    # bridge stop the arm
+    requests = [q.request for q in rig.sent]
+    cancelled = {r.goal_id for r in requests if isinstance(r, CancelGoal)}
+    stopped = any(isinstance(r, ArmCommand) and r.action == "stop" for r in requests)
+    for goal in rig.goals():
+        goal_id = goal.goal_id  # type: ignore[attr-defined]
+        assert goal_id in ended | cancelled or stopped, (goal_id, rig.names())
+    # ... nor a fold: it was seen through, or the bridge was told to stop
+    for i, r in enumerate(requests):
+        if isinstance(r, ArmCommand) and r.action.startswith("fold_"):
+            stop_after = any(isinstance(x, ArmCommand) and x.action == "stop"
+                             for x in requests[i:])  # fmt: skip
+            assert any(n > i for n in folds_done) or stop_after, rig.names()
+    return rig, [e.encode() for e in rig.events] + [q.request.encode() for q in rig.sent]
+
+
+def apply(rig: CoreRig, op: str, seq: int) -> None:
+    core, goals = rig.core, rig.goals()
+    if op in ("pause", "resume", "cancel"):
+        rig.control(op)
+    elif op in ("tick", "long_tick"):
+        rig.now += NS // 10 if op == "tick" else 5 * NS
+        rig.feed(core.on_tick(rig.now))
+    elif op == "joints":
+        out = core.on_joint_state(joint_state(UNFOLDED, seq), rig.now)
+        rig.feed([a for a in out if not (isinstance(a, Publish) and a.suffix == ep.HEARTBEAT)])
+    elif op == "feedback" and goals and isinstance(goals[-1], TrajectoryGoal):
+        rig.feedback(goals[-1].trajectory.times[-1] * (seq % 10) / 10)
+    elif op in ("succeeded", "cancelled", "aborted") and goals:
+        rig.result(op, "test")
+    elif op == "fold_done":  # the bridge shows a fold, then running again
+        for phase in ("folding_out", "folding_in", "running"):
+            rig.feed(core.on_bridge_state(bridge_state(phase, seq), rig.now))
+    elif op in ("running", "arm_error"):
+        rig.feed(core.on_bridge_state(bridge_state(op, seq), rig.now))
+    elif op == "estop":
+        stop = EStop(stamp_ns=rig.now, seq=seq, engaged=True, source="test", reason="")
+        rig.feed(core.on_estop(stop, rig.now))
+
+
+def check(rig: CoreRig) -> None:
+    """The events tell one story: accepted first, one final event last, steps in order."""
+    names = rig.names()
+    assert names[0] == "accepted"
+    finals = [i for i, n in enumerate(names) if n in FINAL]
+    assert len(finals) <= 1 and (not finals or finals[0] == len(names) - 1), names
+    assert rig.core.busy == (not finals)
+    steps = [e.step for e in rig.events if e.event == "step_started"]
+    assert steps == sorted(steps) and len(set(steps)) >= len(steps) - names.count("resumed")
+    paused = [n for n in names if n in ("paused", "resumed")]
+    assert all(a != b for a, b in itertools.pairwise(paused)), names
+    status = rig.core.status()
+    assert 0.0 <= status.progress <= 1.0 and status.state == rig.core.state
+
+
+@given(st.booleans(), st.lists(st.sampled_from(OPS), max_size=30))
+def test_any_order_of_inputs_tells_one_story_and_a_cancel_ends_it(
+    unfolded: bool, ops: list[str]
+) -> None:
+    ops = ["fold_done", *ops] if unfolded else ops  # half of them start past the fold
+    _, first = drive(ops)
+    _, again = drive(ops)
+    assert first == again  # same inputs, same outputs
