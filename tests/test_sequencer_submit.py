@@ -17,8 +17,9 @@ from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
+from schemas.base import Message
 from schemas.commands import ArmCommand, EStop
-from schemas.control import CancelGoal, TrajectoryGoal
+from schemas.control import CancelGoal, GripperGoal, TrajectoryGoal
 from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import (
     StepKind,
@@ -323,7 +324,7 @@ def drive(ops: list[str]) -> tuple[CoreRig, list[bytes]]:
     ]))  # fmt: skip
     for seq, op in enumerate(ops, start=2):
         if op in ("succeeded", "cancelled", "aborted") and rig.goals():
-            ended.add(rig.goals()[-1].goal_id)  # type: ignore[attr-defined]
+            ended.add(goal_id(rig.goals()[-1]))
         if op == "fold_done":
             folds_done.append(len(rig.sent))
         apply(rig, op, seq)
@@ -339,9 +340,8 @@ def drive(ops: list[str]) -> tuple[CoreRig, list[bytes]]:
     requests = [q.request for q in rig.sent]
     cancelled = {r.goal_id for r in requests if isinstance(r, CancelGoal)}
     stopped = any(isinstance(r, ArmCommand) and r.action == "stop" for r in requests)
-    for goal in rig.goals():
-        goal_id = goal.goal_id  # type: ignore[attr-defined]
-        assert goal_id in ended | cancelled or stopped, (goal_id, rig.names())
+    for goal in map(goal_id, rig.goals()):
+        assert goal in ended | cancelled or stopped, (goal, rig.names())
     # ... nor a fold: it was seen through, or the bridge was told to stop
     for i, r in enumerate(requests):
         if isinstance(r, ArmCommand) and r.action.startswith("fold_"):
@@ -349,6 +349,11 @@ def drive(ops: list[str]) -> tuple[CoreRig, list[bytes]]:
                              for x in requests[i:])  # fmt: skip
             assert any(n > i for n in folds_done) or stop_after, rig.names()
     return rig, [e.encode() for e in rig.events] + [q.request.encode() for q in rig.sent]
+
+
+def goal_id(goal: Message) -> str:
+    assert isinstance(goal, TrajectoryGoal | GripperGoal)
+    return goal.goal_id
 
 
 def apply(rig: CoreRig, op: str, seq: int) -> None:
