@@ -240,7 +240,7 @@ class SequencerCore:
         refused = self.refuse(task)
         if refused is not None:
             return [answer(task_id, refused)]
-        validator = Validator(task, self.start_configuration())
+        validator = Validator(task, self.start_configuration(), self.config.arm)
         self._submission = Submission(task_id, task, validator)
         return self._validate()
 
