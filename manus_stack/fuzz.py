@@ -44,6 +44,7 @@ from schemas.control import TrajectoryGoal
 from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from schemas.sequencing import Task, TaskControl
+from schemas.state import BridgeState, JointState
 from services.planner.core import PlannerCore
 from services.sequencer.core import SequencerCore
 from services.sequencer.validate import Validator
@@ -174,6 +175,7 @@ class FuzzReport:
         inputs: payloads tried per endpoint (channel name of :func:`channel_types`).
         decoded: of those, how many decoded to a message (valid or not for the core).
         refused: decoded messages a core refused with its own error (counted, no crash).
+        validated: decoded tasks validated as the sequencer does (planner in process).
         can_frames: random CAN frames given to the bridge.
         crashes: unexpected exceptions, each naming the endpoint, kind and error.
         task_after: status of the thesis square run afterwards.
@@ -184,15 +186,17 @@ class FuzzReport:
     inputs: dict[str, int] = field(default_factory=dict)
     decoded: dict[str, int] = field(default_factory=dict)
     refused: int = 0
+    validated: int = 0
     can_frames: int = 0
     crashes: list[str] = field(default_factory=list)
     task_after: str = ""
     bridge_counts: dict[str, Any] = field(default_factory=dict)
 
 
-def _validate(task: Task, start: list[float] | None) -> None:
+def _validate(task: Task, seq: SequencerCore) -> None:
     """The sequencer's validation of a submitted task, the planner in process."""
-    validator, planner = Validator(task, start), PlannerCore()
+    validator = Validator(task, seq.start_configuration(), seq.config.arm)
+    planner = PlannerCore()
     while (request := validator.next_request()) is not None:
         validator.on_reply(planner.plan(request))
 
@@ -209,8 +213,10 @@ def _deliver(
         if part == "request" and endpoint is ep.PLAN and isinstance(msg, PlanRequest):
             PlannerCore().plan(msg)
         elif part == "request" and isinstance(msg, Task):
-            if seq.refuse(msg) is None:
-                _validate(msg, seq.start_configuration())
+            refused = seq.refuse(msg)
+            assert refused is None, refused  # the sequencer was primed to accept tasks
+            _validate(msg, seq)
+            report.validated += 1
         elif part == "request" and isinstance(msg, TaskControl):
             seq.control(msg, ls.t_ns)
         elif part == "request" and endpoint is ep.BRIDGE_COMMAND:
@@ -233,6 +239,13 @@ def fuzz_cores(seed: int, per_endpoint: int) -> tuple[FuzzReport, ControlledArm]
     arm = ControlledArm(SimConfig(start_pose="unfolded", seed=seed))
     arm.start()
     seq = SequencerCore()
+    for service in seq.config.required_services:  # a sequencer that would accept tasks
+        seq.on_liveliness(service, True, arm.ls.t_ns)
+    bridge_state = arm.ls.published(ep.BRIDGE_STATE)[-1]
+    joint_state = arm.ls.published(ep.JOINTS)[-1]
+    assert isinstance(bridge_state, BridgeState) and isinstance(joint_state, JointState)
+    seq.on_bridge_state(bridge_state, arm.ls.t_ns)
+    seq.on_joint_state(joint_state, arm.ls.t_ns)
     for channel, cls in sorted(channel_types().items()):
         for kind, data in payloads(cls, per_endpoint, rng):
             report.inputs[channel] = report.inputs.get(channel, 0) + 1

@@ -35,6 +35,7 @@ def test_cores_survive_fuzz_and_the_square_runs_after() -> None:
     assert set(report.inputs) == set(channel_types())  # every endpoint, new ones included
     assert all(n == 10 for n in report.inputs.values())
     assert sum(report.decoded.values()) > 0  # some reach the cores (valid, other shapes)
+    assert report.validated > 0  # tasks validated as the sequencer does
     counts = report.bridge_counts
     assert counts["garbled_frames"] + counts["other_node_frames"] > 0  # the CAN fuzz counted
     assert report.task_after == "succeeded"

@@ -33,7 +33,7 @@ import math
 from enum import StrEnum
 from typing import ClassVar, Protocol
 
-from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
+from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.viapoints import ViaPointError, validate_path
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -141,10 +141,10 @@ class Step:
 
     @classmethod
     def plan(
-        cls, spec: TaskStep, start: list[float] | None, path: Path | None = None
+        cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig, path: Path | None = None
     ) -> PlanRequest:
         """The request that plans ``spec`` (or ``path`` instead of its own) from ``start``
-        (only for kinds with :attr:`planned`)."""
+        for the arm ``arm`` (only for kinds with :attr:`planned`)."""
         raise TypeError(f"a {spec.kind} step is not planned")
 
     @classmethod
@@ -333,10 +333,10 @@ class MoveStep(GoalStep):
 
     @classmethod
     def plan(
-        cls, spec: TaskStep, start: list[float] | None, path: Path | None = None
+        cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig, path: Path | None = None
     ) -> PlanRequest:
         """A pose step always asks for speed scaling: its duration is a shortest time."""
-        chosen = path if path is not None else step_path(spec, start)
+        chosen = path if path is not None else step_path(spec, start, arm)
         assert chosen is not None, "a move step without a path or a bad pose is never planned"
         return PlanRequest(
             path=chosen,
@@ -351,7 +351,7 @@ class MoveStep(GoalStep):
         start = self.ctx.start_configuration()
         if start is None:
             return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
-        request = self.plan(self.spec, start, path)
+        request = self.plan(self.spec, start, self.ctx.config.arm, path)
         if path is not None:  # the rest of a paused path starts from rest: let it stretch
             request = dataclasses.replace(request, speed_scaling=True)
         self.phase = Phase.PLANNING
@@ -562,11 +562,11 @@ STEP_TYPES: dict[str, type[Step]] = {
 """The class of each kind of step."""
 
 
-def step_path(step: TaskStep, start: list[float] | None = None) -> Path | None:
-    """The path a move or pose step follows from ``start`` (None for other kinds or a bad
-    pose name)."""
+def step_path(step: TaskStep, start: list[float] | None, arm: ArmConfig) -> Path | None:
+    """The path a move or pose step follows from ``start`` on the arm ``arm`` (None for
+    other kinds or a bad pose name)."""
     if step.kind == StepKind.MOVE:
         return step.path
     if step.kind == StepKind.POSE and step.pose in POSES and step.duration > 0.0:
-        return pose_path(step.pose, step.duration, start=start)
+        return pose_path(step.pose, step.duration, arm, start=start)
     return None

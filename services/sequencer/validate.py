@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+from manus.config import ArmConfig
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
 from services.sequencer.steps import FOLD_END, STEP_TYPES
@@ -32,14 +33,16 @@ class Validator:
     Args:
         task: the task.
         start: the arm's configuration now (DH [rad]); None: unknown (no joint state).
+        arm: the arm's geometry (named poses become via points by its kinematics).
 
     Use: ``while (req := v.next_request()) is not None: v.on_reply(ask(req))``, with
     ``on_reply(None, error)`` when the planner could not be asked; then :attr:`errors`.
     :attr:`plans` holds each planned step's trajectory (index -> Trajectory).
     """
 
-    def __init__(self, task: Task, start: list[float] | None) -> None:
+    def __init__(self, task: Task, start: list[float] | None, arm: ArmConfig) -> None:
         self.task = task
+        self.arm = arm
         self._problems: list[list[str]] = [[] for _ in task.steps]
         self.plans: dict[int, Trajectory] = {}
         self._q: list[float] | None = list(start) if start is not None else None
@@ -88,7 +91,7 @@ class Validator:
                 self._problems[i].append(f"not planned: its start is unknown ({self._unknown})")
                 continue
             self._asked = i
-            return kind.plan(step, self._q)
+            return kind.plan(step, self._q, self.arm)
         return None
 
     def on_reply(self, reply: PlanReply | None, error: str = "") -> None:
