@@ -81,8 +81,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
 
 
-def open_guardian_bus(args: argparse.Namespace) -> can.BusABC:
-    """The guardian's own CAN connection (the channel from the device file for slcan)."""
+def open_guardian_bus(args: argparse.Namespace) -> tuple[can.BusABC, str]:
+    """The guardian's own CAN connection and its channel (for slcan without
+    ``--can-channel``: read from the device file)."""
     channel, extra = args.can_channel, dict[str, Any]()
     if args.can_interface == "slcan":
         if not channel:
@@ -94,7 +95,8 @@ def open_guardian_bus(args: argparse.Namespace) -> can.BusABC:
             channel = path.read_text().strip()
         # non-blocking serial reads: the loop waits in select (services.guardian.loop)
         extra = {"timeout": 0, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
-    return can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
+    bus = can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
+    return bus, channel
 
 
 class Reports:
@@ -154,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     core = GuardianCore(args.deadline_ms)
-    bus = open_guardian_bus(args)
+    bus, channel = open_guardian_bus(args)
     reporter = start_reporter(args) if args.report else None
     reports = Reports(core, reporter.stdin if reporter is not None else None)
     stats = LoopStats()
@@ -163,8 +165,9 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         loop.start()
-        reports.put("started", detail=f"{args.can_interface} {bus.channel_info}")
-        print(f"guardian: {args.can_interface} {bus.channel_info}", file=sys.stderr, flush=True)
+        where = f"{args.can_interface} {channel}, deadline {args.deadline_ms:g} ms"
+        reports.put("started", detail=where)
+        print(f"guardian: {where}", file=sys.stderr, flush=True)
         end = math.inf if args.duration is None else time.monotonic() + args.duration
         while not stop.wait(max(0.0, min(COUNTS_EVERY_S, end - time.monotonic()))):
             if time.monotonic() >= end:
