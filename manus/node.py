@@ -76,6 +76,8 @@ class Node:
         settings: how to reach the bus; its ``prefix`` roots every key.
         session: an already open session to use instead (not closed by :meth:`close`).
         liveliness: declare the liveliness tokens now (else with :meth:`announce`).
+        pid: the process its ``where`` token names (default: this one; the guardian's
+            reporter names the guardian).
     """
 
     def __init__(
@@ -85,8 +87,11 @@ class Node:
         *,
         session: zenoh.Session | None = None,
         liveliness: bool = True,
+        pid: int | None = None,
     ) -> None:
         self.name = name
+        self.pid = os.getpid() if pid is None else pid
+        """The process the ``where`` token names (another one's for a helper process)."""
         self.settings = settings or ZenohSettings()
         self.keys = Keys(self.settings.prefix)
         self._own_session = session is None
@@ -116,7 +121,7 @@ class Node:
             live = self.session.liveliness()
             self._token = live.declare_token(self.keys.alive(self.name))
             self._where = live.declare_token(
-                self.keys.where(self.name, socket.gethostname(), os.getpid())
+                self.keys.where(self.name, socket.gethostname(), self.pid)
             )
 
     def health(self) -> NodeHealth:
@@ -125,7 +130,7 @@ class Node:
         return NodeHealth(
             service=self.name,
             host=socket.gethostname(),
-            pid=os.getpid(),
+            pid=self.pid,
             bad_payloads=sum(bad.values()),
             bad_keys=list(bad),
             bad_counts=list(bad.values()),

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 from typing import Any
 
@@ -50,7 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        node: Node | None = Node("guardian", bus_settings(args))
+        # the where token names the guardian (this process's parent), not the reporter
+        node: Node | None = Node("guardian", bus_settings(args), pid=os.getppid())
     except ConfigError as exc:
         log.warning("no report on Zenoh: %s", exc)
         node = None
