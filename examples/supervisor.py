@@ -13,9 +13,9 @@ positions in metres). It
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
 
-Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it
-was refused. Via-point files are read here (14 columns in mm, deg, s; SPEC 5.1) and
-sent in SI units.
+Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it was
+refused. Via-point files are read here (14 columns in mm, deg, s; docs/protocol.md, Thesis
+via-point format) and sent in SI units.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """Forward kinematics, geometric Jacobian and closed-form inverse kinematics.
 
-Standard Denavit-Hartenberg (SPEC 2.1), A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i):
+Standard Denavit-Hartenberg (docs/protocol.md, Kinematics),
+A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i):
 
     i  a   alpha  d   theta
     1  0   -90    0   q1
@@ -10,7 +11,8 @@ Standard Denavit-Hartenberg (SPEC 2.1), A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alp
     5  0   +90    0   q5
     6  0     0    L4  q6
 
-The inverse kinematics is derived from this product (the thesis's eqs 3.6/3.8 are wrong).
+The inverse kinematics is derived from this product (the thesis's printed IK
+is wrong: docs/protocol.md, Corrections to the thesis).
 With u = L2 c2 + L3 s23 and v = L2 s2 - L3 c23 the wrist centre is
 
     p_w = (c1 u - s1 L1,  s1 u + c1 L1,  -v)

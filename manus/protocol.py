@@ -1,8 +1,9 @@
-"""The Manus transparent-mode CAN protocol (SPEC 3): identifiers, units and codecs.
+"""The Manus transparent-mode CAN protocol: identifiers, units and codecs.
 
-Pure functions over ``(arbitration_id, data, is_remote)``; nothing here touches a bus.
-Both the simulator (the arm's side) and the bridge (the PC's side) use this module, and
-``schemas/manus.dbc`` describes the same frames for CAN tools.
+The protocol is docs/protocol.md, The CAN protocol. Pure functions over ``(arbitration_id,
+data, is_remote)``; nothing here touches a bus. Both the simulator (the arm's side) and the
+bridge (the PC's side) use this module, and ``schemas/manus.dbc`` describes the same frames
+for CAN tools.
 
 Multi-byte fields are signed 16-bit big-endian; command bytes are signed 8-bit.
 """
@@ -52,7 +53,7 @@ XYZ_UNIT_MM = 0.022
 """Position unit of Cartesian fields and increments [mm]."""
 
 GRIPPER_UNIT_MM = 0.1
-"""Gripper opening unit and gripper increment unit [mm] (the project's choice, SPEC 3.2)."""
+"""Gripper opening unit and gripper increment unit [mm] (the project's choice)."""
 
 JOINT_INC_MAX = 10
 """Largest joint increment magnitude [0.1 deg per 20 ms] (50 deg/s)."""
@@ -117,7 +118,7 @@ GEN_ANGLES_MEASURED = 3
 
 
 def message_text(msg_class: MessageClass, code: int) -> str:
-    """Human-readable meaning of a (class, code) pair (SPEC 3.2 table)."""
+    """Human-readable meaning of a (class, code) pair (docs/protocol.md, Message codes)."""
     if msg_class == MessageClass.NONE:
         return ""
     table = {

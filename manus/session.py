@@ -3,7 +3,7 @@
 Loopback only by default: a service is a ``client`` of a router on
 ``tcp/127.0.0.1:7447``, multicast scouting and gossip are off, and a peer or router that
 is given no listen endpoint listens on ``tcp/127.0.0.1:0``. Real deployments override
-the defaults in layers (SPEC 8, STYLE 9):
+the defaults in layers:
 
     defaults < Zenoh config file < environment < keyword arguments (command line)
 

@@ -33,7 +33,7 @@ UNFOLDED = np.radians(UNFOLDED_Q_DEG)
 
 
 def test_unfolded_pose_matches_spec() -> None:
-    # SPEC 4: the unfolded pose puts the gripper at about (208, 105, 200) mm.
+    # docs/protocol.md, Kinematics: the unfolded pose puts the gripper at about (208, 105, 200) mm.
     p = fk(UNFOLDED)[:3, 3] * 1000
     assert p == pytest.approx([207.846, 105.0, 200.0], abs=1e-3)
 

@@ -6,8 +6,8 @@ Phases (:data:`schemas.state.BRIDGE_PHASES`) and the reply to each current 0x37F
   session), then nothing until "absolute angles measured" (or ``power_up_timeout_ms`` of
   cycles without it, or the arm already reports a move mode).
 - ``entering_joint_mode``: zero 0x374 until a 0x350 after it reports joint mode.
-- ``initialising``: the ``init_moves`` of motors 4-6 (thesis 4.2.1), one per clean sync,
-  then zeros; then ``running``. Joint states are valid from then on.
+- ``initialising``: the ``init_moves`` of motors 4-6 (docs/protocol.md, Start-up), one per
+  clean sync, then zeros; then ``running``. Joint states are valid from then on.
 - ``running``: the newest fresh velocity command, else zeros (the core decides).
 - ``resync``: zeros until ``clean_cycles_to_resume`` clean cycles.
 - ``folding_out`` / ``folding_in``: 0x375 / 0x376 at every clean sync (zeros at a faulty

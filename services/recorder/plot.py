@@ -1,4 +1,6 @@
-"""``manus plot``: what a run did, from its recording (thesis Figures 5.2 and 5.3).
+"""``manus plot``: what a run did, from its recording.
+
+Like the thesis's figures of its test paths (docs/protocol.md, Thesis test paths).
 
 Four panels:
 

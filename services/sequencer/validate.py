@@ -1,7 +1,7 @@
 """Whole-task validation before anything moves (deterministic; the shell asks the planner).
 
 Every step is checked on its own (openings in range, known pose names, via points that
-obey SPEC 5.1), and every move is planned from where the previous steps leave the arm:
+obey the via-point rules), and every move is planned from where the previous steps leave the arm:
 the arm's current configuration at first, the fold poses after a fold, the last knot of
 the previous plan after a move. The :class:`Validator` hands out one
 :class:`~schemas.planning.PlanRequest` at a time (with an explicit ``start``) and takes

@@ -2,7 +2,7 @@
 
 State lives in motor (encoder) space [deg], because that is what the drives integrate and
 what the encoders measure; DH angles come from :mod:`manus.joint_map` (joint 3's DH angle
-moves with motor 2, SPEC 2.2). Per step:
+moves with motor 2: docs/protocol.md, Encoder map). Per step:
 
 1. target motor speeds (already multiplied by each joint's gain error) through the
    first-order lag (:func:`~services.simulator.drives.lag_step`), or, in a fold procedure,
