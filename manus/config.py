@@ -107,11 +107,6 @@ class ArmConfig:
         """Upper joint limits [rad], shape (6,)."""
         return np.asarray(self.upper, dtype=float)
 
-    @property
-    def speed_array(self) -> np.ndarray:
-        """Joint speed limits [rad/s], shape (6,)."""
-        return np.asarray(self.max_speed, dtype=float)
-
     @classmethod
     def from_mapping(cls, data: dict[str, Any], *, source: str = "<mapping>") -> ArmConfig:
         """Build a config from thesis units: lengths in mm, angles in deg.

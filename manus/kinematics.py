@@ -462,21 +462,6 @@ def ik_nearest(
     return best
 
 
-def check_limits(q: np.ndarray, cfg: ArmConfig, *, where: str = "configuration") -> None:
-    """Raise :class:`KinematicsError` naming the first joint outside its limits."""
-    for j in range(N_JOINTS):
-        if not cfg.lower[j] <= q[j] <= cfg.upper[j]:
-            lim = cfg.lower[j] if q[j] < cfg.lower[j] else cfg.upper[j]
-            raise KinematicsError(
-                f"{where}: joint {j + 1} at {math.degrees(q[j]):.2f} deg is beyond its limit "
-                f"{math.degrees(lim):.1f} deg",
-                reason="joint_limit",
-                joint=j + 1,
-                value=float(q[j]),
-                limit=lim,
-            )
-
-
 def branch_of(q: np.ndarray, cfg: ArmConfig | None = None) -> tuple[int, int, int]:
     """The (shoulder, elbow, wrist) branch signs of a configuration [rad]."""
     cfg = cfg or DEFAULT_ARM

@@ -42,10 +42,6 @@ class FrameId(IntEnum):
     FOLD_IN = 0x376  # PC -> arm: fold in (likewise)
 
 
-REPLY_IDS = frozenset(
-    {FrameId.STOP, FrameId.CARTESIAN, FrameId.JOINT, FrameId.FOLD_OUT, FrameId.FOLD_IN}
-)
-
 JOINT_UNIT_DEG = 0.1
 """Position unit of joint fields and of joint increments [deg]."""
 
@@ -132,7 +128,7 @@ def message_text(msg_class: MessageClass, code: int) -> str:
     return f"unspecified {kind} {code}"
 
 
-def status_byte(mode: Mode, msg_class: MessageClass) -> int:
+def status_byte(mode: int, msg_class: MessageClass) -> int:
     """Status byte 0 from its two bit fields."""
     return (int(msg_class) & 0xC0) | (int(mode) & 0x0F)
 
@@ -181,7 +177,7 @@ def encode_status(frame: StatusFrame) -> bytes:
     """Payload of 0x350 (8 bytes)."""
     if not 0 <= frame.msg_code <= 255:
         raise ProtocolError(f"0x350 message code {frame.msg_code} outside 0..255")
-    byte0 = (int(frame.msg_class) & 0xC0) | (frame.mode & 0x0F)
+    byte0 = status_byte(frame.mode, frame.msg_class)
     return struct.pack(">BBhhh", byte0, frame.msg_code, *_i16(frame.fields, "0x350"))
 
 

@@ -111,7 +111,7 @@ def test_closed_forms_equal_the_frames_and_the_jacobian(q: np.ndarray) -> None:
         assert closed[:, 3:] == pytest.approx(axes, abs=1e-12)
         linear = np.cross(axes, origins[-1] - origins[:6])
         assert closed[:, :3] == pytest.approx(linear, abs=1e-12)
-        assert closed.T == pytest.approx(jacobian(q, cfg), abs=1e-12)
+        assert pytest.approx(jacobian(q, cfg), abs=1e-12) == closed.T
         assert gripper_position(q, cfg) == pytest.approx(origins[-1], abs=1e-12)
         assert gripper_position(q, cfg) == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
 
