@@ -12,6 +12,7 @@ in step order, each as ``<where>: step N (kind): <problem>``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.viapoints import ViaPointError, validate_path
@@ -66,34 +67,51 @@ def plan_request(
     )
 
 
+def _move_problems(step: TaskStep) -> list[str]:
+    if step.path is None:
+        return ["a move step needs a path"]
+    try:
+        validate_path(step.path)
+    except ViaPointError as exc:
+        return [str(exc)]
+    return []
+
+
+def _gripper_problems(step: TaskStep) -> list[str]:
+    if not 0.0 <= step.opening <= MAX_OPENING_M:
+        mm, top = step.opening * 1e3, MAX_OPENING_M * 1e3
+        return [f"gripper opening {mm:g} mm is outside 0..{top:g} mm"]
+    return []
+
+
+def _wait_problems(step: TaskStep) -> list[str]:
+    if not 0.0 <= step.duration <= MAX_WAIT_S:
+        return [f"wait {step.duration:g} s is outside 0..{MAX_WAIT_S:g} s"]
+    return []
+
+
+def _pose_problems(step: TaskStep) -> list[str]:
+    problems = []
+    if step.pose not in POSES:
+        problems.append(f"unknown pose {step.pose!r} (known: {', '.join(POSES)})")
+    if not 0.0 < step.duration <= MAX_WAIT_S:
+        problems.append(f"pose duration {step.duration:g} s is outside (0, {MAX_WAIT_S:g}] s")
+    return problems
+
+
+_STATIC_CHECKS: dict[str, Callable[[TaskStep], list[str]]] = {
+    "move": _move_problems,
+    "gripper": _gripper_problems,
+    "wait": _wait_problems,
+    "pose": _pose_problems,
+}
+"""The checks of a step by itself, by kind (folds have none)."""
+
+
 def static_problems(step: TaskStep) -> list[str]:
     """What is wrong with ``step`` by itself (no planning)."""
-    kind = step.kind
-    if kind == "move":
-        if step.path is None:
-            return ["a move step needs a path"]
-        try:
-            validate_path(step.path)
-        except ViaPointError as exc:
-            return [str(exc)]
-        return []
-    if kind == "gripper":
-        if not 0.0 <= step.opening <= MAX_OPENING_M:
-            mm, top = step.opening * 1e3, MAX_OPENING_M * 1e3
-            return [f"gripper opening {mm:g} mm is outside 0..{top:g} mm"]
-        return []
-    if kind == "wait":
-        if not 0.0 <= step.duration <= MAX_WAIT_S:
-            return [f"wait {step.duration:g} s is outside 0..{MAX_WAIT_S:g} s"]
-        return []
-    if kind == "pose":
-        problems = []
-        if step.pose not in POSES:
-            problems.append(f"unknown pose {step.pose!r} (known: {', '.join(POSES)})")
-        if not 0.0 < step.duration <= MAX_WAIT_S:
-            problems.append(f"pose duration {step.duration:g} s is outside (0, {MAX_WAIT_S:g}] s")
-        return problems
-    return []
+    check = _STATIC_CHECKS.get(step.kind)
+    return check(step) if check is not None else []
 
 
 class Validator:
