@@ -56,16 +56,12 @@ ALLOWED: dict[str, list[str]] = {
     # were fixed everywhere else: each text is part of an offending line. Fix the line
     # (the cited section is given) and drop its entry; empty this after the merge.
     "schemas/control.py": ["(SPEC 5.1)"],  # docs/protocol.md, Thesis via-point format
-    "schemas/state.py": [
-        "(SPEC 3.2)",  # docs/protocol.md, Status byte; Message codes
-        "of thesis 4.2.1",  # docs/protocol.md, Thesis start-up moves
-    ],
+    "schemas/state.py": ["(SPEC 3.2)"],  # docs/protocol.md, Status byte; Message codes
     "services/controller/core.py": ["the team brief's contract 4"],  # drop it
     "services/controller/laws.py": [
         "(thesis 4.2.3.4 with its sign corrected)",  # docs/protocol.md, Thesis control loop
         "map of SPEC 2.2",  # docs/protocol.md, Encoder map
     ],
-    "services/controller/tracking.py": ["the loop of thesis 4.2.3.4"],  # ditto, control loop
     "services/sequencer/core.py": ["Steps (SPEC 7, thesis 4.2.2)"],  # Thesis task form
 }
 """Offenders left in files being rewritten elsewhere: path -> texts of offending lines.

@@ -21,6 +21,7 @@ import sys
 import time
 from pathlib import Path
 
+from manus.config import load_arm_config
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import client_settings
 from manus_stack.commands.up import add_stack_arguments, stack_options
@@ -113,7 +114,7 @@ def _overview(recording: Path, out: Path, title: str) -> None:
     from services.recorder.plot import plot_recording
 
     try:
-        summary = plot_recording(recording, out, title=title)
+        summary = plot_recording(recording, out, arm=load_arm_config(), title=title)
     except RecordingError as exc:
         print(f"demo: cannot plot the recording: {exc}", file=sys.stderr)
         return
