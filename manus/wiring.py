@@ -31,7 +31,7 @@ from typing import Any, Generic, TypeVar
 
 from manus.errors import ManusError
 from schemas.base import Message
-from schemas.endpoints import TABLE, TRACE_PARTS, TRACE_ROOT, Endpoint, Kind, Queryable, Topic
+from schemas.endpoints import TABLE, TRACE_PARTS, Endpoint, Kind, Queryable, Topic
 
 C = TypeVar("C")
 """A service core."""
@@ -105,12 +105,18 @@ class Wiring(Generic[C, O]):
     answers: tuple[Answer[C, Any, Any, O], ...] = ()
     outputs: tuple[Topic[Any], ...] | None = None
     _outputs: dict[str, Endpoint] = field(default_factory=dict, init=False, repr=False)
+    _inputs: dict[str, Input[C, Any, O]] = field(default_factory=dict, init=False, repr=False)
+    _answers: dict[str, Answer[C, Any, Any, O]] = field(
+        default_factory=dict, init=False, repr=False
+    )
 
     def __post_init__(self) -> None:
         for inp in self.inputs:
             self._known(inp.endpoint, Kind.PUBLICATION, owned=False)
+            self._inputs[inp.endpoint.suffix] = inp
         for ans in self.answers:
             self._known(ans.endpoint, Kind.QUERYABLE, owned=True)
+            self._answers[ans.endpoint.trace(TRACE_PARTS[0])] = ans
         outputs = self.outputs
         if outputs is None:
             found = TABLE.owned_by(self.service, Kind.PUBLICATION)
@@ -143,7 +149,7 @@ class Wiring(Generic[C, O]):
 
     def input(self, suffix: str) -> Input[C, Any, O] | None:
         """The input of ``suffix`` (None: not subscribed)."""
-        return next((i for i in self.inputs if i.endpoint == suffix), None)
+        return self._inputs.get(suffix)
 
     def answer(self, suffix: str) -> Answer[C, Any, Any, O]:
         """The answer of queryable ``suffix``.
@@ -180,8 +186,9 @@ class Wiring(Generic[C, O]):
                 another type than the endpoint's.
         """
         found: Publications = []
+        outputs = self._outputs
         for suffix, msg in self.publications(out):
-            endpoint = self._outputs.get(suffix)
+            endpoint = outputs.get(suffix)
             if endpoint is None:
                 raise WiringError(
                     f"{self.service}: the core published on {str(suffix)!r}, which is not one "
@@ -202,15 +209,13 @@ class Wiring(Generic[C, O]):
         its answer, whose reply comes back on ``trace/<q>/reply``. Anything else is not
         for this core: nothing.
         """
-        inp = self.input(suffix)
+        inp = self._inputs.get(suffix)
         if inp is not None:
             return self.published(inp.handle(core, msg, t_ns))
-        name = _traced(suffix, TRACE_PARTS[0])
-        if name is not None:
-            ans = next((a for a in self.answers if a.endpoint == name), None)
-            if ans is not None:
-                reply, out = ans.handle(core, msg, t_ns)
-                return [(ans.endpoint.trace(TRACE_PARTS[1]), reply), *self.published(out)]
+        ans = self._answers.get(suffix)
+        if ans is not None:
+            reply, out = ans.handle(core, msg, t_ns)
+            return [(ans.endpoint.trace(TRACE_PARTS[1]), reply), *self.published(out)]
         return []
 
     def attach(
@@ -291,14 +296,6 @@ def _answer_callback(
         return reply
 
     return callback
-
-
-def _traced(suffix: str, part: str) -> str | None:
-    """``<q>`` of ``trace/<q>/<part>`` (None: not such a key)."""
-    head, tail = TRACE_ROOT + "/", "/" + part
-    if suffix.startswith(head) and suffix.endswith(tail):
-        return suffix[len(head) : -len(tail)]
-    return None
 
 
 def messages(out: Iterable[tuple[str, Message]] | None) -> Iterable[tuple[str, Message]]:

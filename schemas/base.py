@@ -92,7 +92,13 @@ class Message:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of plain values (lists, dicts, numbers, strings, bytes)."""
-        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        out: dict[str, Any] = {}
+        for name in _field_names(type(self)):
+            value = getattr(self, name)
+            kind = type(value)
+            # Scalars first: most fields are, and messages are encoded every cycle.
+            out[name] = value if kind in _SCALARS or value is None else _plain(value)
+        return out
 
     def encode(self) -> bytes:
         """MessagePack bytes of :meth:`to_dict`."""
@@ -130,6 +136,17 @@ class Message:
         schema["$id"] = cls.TYPE_NAME
         schema["title"] = cls.__name__
         return schema
+
+
+_SCALARS = frozenset({float, int, str, bool, bytes})
+_NAMES: dict[type, tuple[str, ...]] = {}
+
+
+def _field_names(cls: type) -> tuple[str, ...]:
+    names = _NAMES.get(cls)
+    if names is None:
+        names = _NAMES[cls] = tuple(f.name for f in dataclasses.fields(cls))
+    return names
 
 
 def _plain(value: Any) -> Any:

@@ -111,6 +111,8 @@ class Endpoint(str):
         doc: one line: what it is for.
         params: for a liveliness root, what follows it in a token's key
             (``<service>/<host>/<pid>``).
+        clients: for a queryable, the identities besides its owner that may query it
+            (the deployed access control, ``manus_stack.policy``); None: every identity.
     """
 
     kind: Kind
@@ -120,6 +122,7 @@ class Endpoint(str):
     audience: Audience
     doc: str
     params: str
+    clients: tuple[str, ...] | None
 
     def __new__(
         cls,
@@ -132,6 +135,7 @@ class Endpoint(str):
         audience: Audience = Audience.INTERNAL,
         doc: str = "",
         params: str = "",
+        clients: tuple[str, ...] | None = None,
     ) -> Any:
         if not suffix or suffix.startswith("/") or suffix.endswith("/") or "*" in suffix:
             raise SchemaError(f"endpoint {suffix!r}: a suffix is non-empty, without * or edge /")
@@ -147,6 +151,7 @@ class Endpoint(str):
         self.audience = audience
         self.doc = doc
         self.params = params
+        self.clients = clients
         return self
 
     @property
@@ -197,9 +202,22 @@ def _query(
     reply: type[R],
     doc: str,
     audience: Audience = Audience.INTERNAL,
+    clients: tuple[str, ...] | None = None,
 ) -> Queryable[M, R]:
-    return Queryable(suffix, Kind.QUERYABLE, owner, request, reply, audience=audience, doc=doc)  # type: ignore[no-any-return]
+    return Queryable(  # type: ignore[no-any-return]
+        suffix,
+        Kind.QUERYABLE,
+        owner,
+        request,
+        reply,
+        audience=audience,
+        doc=doc,
+        clients=clients,
+    )
 
+
+SUPERVISOR = "supervisor"
+"""The identity of a supervisor (user interfaces, other systems) in the deployment."""
 
 _BRIDGE, _CTRL, _SEQ = Service.CAN_BRIDGE, Service.CONTROLLER, Service.SEQUENCER
 _SUP = Audience.SUPERVISOR
@@ -266,6 +284,7 @@ SUBMIT = _query(
     sequencing.SubmitReply,
     "validate a whole task and start it; reply: id or every error",
     _SUP,
+    clients=(SUPERVISOR,),
 )
 TASK_CONTROL = _query(
     "sequencer/control",
@@ -274,6 +293,7 @@ TASK_CONTROL = _query(
     sequencing.TaskStatus,
     "cancel, pause, resume (or status of) the task",
     _SUP,
+    clients=(SUPERVISOR,),
 )
 TASK_STATUS = _query(
     "sequencer/status",

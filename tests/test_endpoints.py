@@ -308,8 +308,13 @@ def test_every_owner_may_publish_and_declare_what_the_table_says_it_owns() -> No
             assert _allowed(policy, e.owner, "declare_queryable", keys(e)), e
             for part in ep.TRACE_PARTS:
                 assert _allowed(policy, e.owner, "put", keys(e.trace(part))), (e, part)
-    for user, router in home.items():  # every service may hold its liveliness tokens
-        assert _allowed(policies[router], user, "liveliness_token", keys.alive(user)), user
+    for user, router in home.items():  # every service holds its own liveliness tokens only
+        own = _allowed(policies[router], user, "liveliness_token", keys.alive(user))
+        assert own == (user != ep.SUPERVISOR), user
+        for other in home:
+            if other != user:
+                theirs = keys.alive(other)
+                assert not _allowed(policies[router], user, "liveliness_token", theirs)
     # The supervisor's API is open to the supervisor identity.
     for e in ep.TABLE:
         if e.audience is ep.Audience.SUPERVISOR and e.kind is ep.Kind.QUERYABLE:
