@@ -217,7 +217,7 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
         return _convert_list(tp, value, path, meta)
     if isinstance(tp, type) and issubclass(tp, Message):
         return _build(tp, value, path)
-    scalar = _SCALARS.get(tp)
+    scalar = _DECODERS.get(tp)
     if scalar is None:  # pragma: no cover
         raise SchemaError(f"{path}: unsupported field type {tp!r}")
     return scalar(value, path, meta)
@@ -281,7 +281,7 @@ def _to_bytes(value: Any, path: str, meta: Any) -> bytes:
     return bytes(value)
 
 
-_SCALARS: dict[Any, Callable[[Any, str, Any], Any]] = {
+_DECODERS: dict[Any, Callable[[Any, str, Any], Any]] = {
     bool: _to_bool,
     int: _to_int,
     float: _to_float,
