@@ -27,7 +27,7 @@ import math
 import random
 import types
 import typing
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -87,39 +87,44 @@ def _value(tp: Any, meta: Any, rng: random.Random) -> Any:
         return [_value(args[0], meta, rng) for _ in range(n)]
     if isinstance(tp, type) and issubclass(tp, Message):
         return example(tp, rng)
-    if tp is bool:
-        return rng.random() < 0.5
+    make = _SCALAR.get(tp)
+    if make is None:
+        raise TypeError(f"no example value for {tp!r}")
+    return make(meta, rng)
+
+
+def _number(meta: Any, default: float) -> tuple[float, float]:
     lo, hi = meta.get("minimum"), meta.get("maximum")
-    if tp is int:
-        return rng.randint(int(lo if lo is not None else -5), int(hi if hi is not None else 5))
-    if tp is float:
-        a = float(lo) if lo is not None else -1.0
-        return rng.uniform(a, float(hi) if hi is not None else a + 2.0)
-    if tp is str:
-        choices = meta.get("choices")
-        return rng.choice(choices) if choices else rng.choice(["", "x", "fuzz"])
-    if tp is bytes:
-        return rng.randbytes(rng.randint(0, 8))
-    raise TypeError(f"no example value for {tp!r}")
+    a = float(lo) if lo is not None else -default
+    return a, float(hi) if hi is not None else a + 2 * default
+
+
+_SCALAR: dict[Any, Callable[[Any, random.Random], Any]] = {
+    bool: lambda meta, rng: rng.random() < 0.5,
+    int: lambda meta, rng: rng.randint(*(int(v) for v in _number(meta, 5.0))),
+    float: lambda meta, rng: rng.uniform(*_number(meta, 1.0)),
+    str: lambda meta, rng: rng.choice(meta.get("choices") or ["", "x", "fuzz"]),
+    bytes: lambda meta, rng: rng.randbytes(rng.randint(0, 8)),
+}
+"""A valid random value of each scalar field type, within the field's limits."""
+
+_WRONG: tuple[Callable[[random.Random, int], Any], ...] = (
+    lambda rng, depth: rng.randint(-(2**63), 2**63 - 1),
+    lambda rng, depth: rng.choice([math.nan, math.inf, -math.inf, 1e308, -0.0, rng.random()]),
+    lambda rng, depth: rng.choice(["", "x" * rng.randint(0, 300), "\u00e9\u4e2d", "running"]),
+    lambda rng, depth: rng.choice([None, True, False]),
+    lambda rng, depth: rng.randbytes(rng.randint(0, 40)),
+    lambda rng, depth: [_random_value(rng, depth + 1) for _ in range(rng.randint(0, 5))],
+    lambda rng, depth: {
+        rng.choice(["seq", "stamp_ns", "a", "", "id"]): _random_value(rng, depth + 1)
+    },
+    lambda rng, depth: {"steps": [_random_value(rng, depth + 1)]},
+)
+"""Makers of MessagePack values of any shape; the last three nest (not below depth 3)."""
 
 
 def _random_value(rng: random.Random, depth: int = 0) -> Any:
-    pick = rng.randrange(8 if depth < 3 else 5)
-    if pick == 0:
-        return rng.randint(-(2**63), 2**63 - 1)
-    if pick == 1:
-        return rng.choice([math.nan, math.inf, -math.inf, 1e308, -0.0, rng.uniform(-1e6, 1e6)])
-    if pick == 2:
-        return rng.choice(["", "x" * rng.randint(0, 300), "\u00e9\u4e2d", "running"])
-    if pick == 3:
-        return rng.choice([None, True, False])
-    if pick == 4:
-        return rng.randbytes(rng.randint(0, 40))
-    if pick == 5:
-        return [_random_value(rng, depth + 1) for _ in range(rng.randint(0, 5))]
-    if pick == 6:
-        return {rng.choice(["seq", "stamp_ns", "a", "", "id"]): _random_value(rng, depth + 1)}
-    return {"steps": [_random_value(rng, depth + 1)]}
+    return _WRONG[rng.randrange(len(_WRONG) if depth < 3 else 5)](rng, depth)
 
 
 def _pack(obj: Any) -> bytes:

@@ -136,10 +136,10 @@ def test_bridge_killed_or_hung_the_guardian_stops_the_arm_and_a_new_bridge_takes
     stack: FaultStack, sig: signal.Signals
 ) -> None:
     """SIGKILL or SIGSTOP leaves the bridge no chance to send anything, and the arm repeats
-    its last command (SPEC 3). The guardian, another node on the bus, sends 0x370 at the
-    first sync left unanswered. Then the bridge comes back (SIGCONT, or a new process as
-    compose's ``restart: on-failure`` would start) and takes over: nothing moves by itself,
-    and the next task runs."""
+    its last command (docs/protocol.md, The 60 ms cycle). The guardian, another node on the
+    bus, sends 0x370 at the first sync left unanswered. Then the bridge comes back (SIGCONT,
+    or a new process as compose's ``restart: on-failure`` would start) and takes over:
+    nothing moves by itself, and the next task runs."""
     _start_square(stack)
     bridge = stack.child("bridge")
     with stack.watch.lock:

@@ -1,13 +1,13 @@
 """The guardian's decision: stop the arm when a sync goes unanswered. Pure, time from inputs.
 
-The arm repeats its last command whenever a 0x37F sync gets no reply (SPEC 3), so a
-bridge that dies or hangs leaves it moving. The guardian is another node on the same CAN
-bus. For every sync it sees at time t it waits for a reply from another node (any frame
-with a reply id: 0x370, 0x371, 0x374, 0x375, 0x376) until ``t + deadline``; if none came,
-it sends 0x370 (stop) itself, inside the 20 ms window, and does so again at every sync
-that stays unanswered. A sync answered in time is never touched: the guardian sends
-nothing while the bridge answers. It never receives its own frames (a CAN socket does
-not by default, and the simulator's bus does not echo them).
+The arm repeats its last command whenever a 0x37F sync gets no reply (docs/protocol.md,
+The 60 ms cycle), so a bridge that dies or hangs leaves it moving. The guardian is another
+node on the same CAN bus. For every sync it sees at time t it waits for a reply from
+another node (any frame with a reply id: 0x370, 0x371, 0x374, 0x375, 0x376) until
+``t + deadline``; if none came, it sends 0x370 (stop) itself, inside the 20 ms window,
+and does so again at every sync that stays unanswered. A sync answered in time is never
+touched: the guardian sends nothing while the bridge answers. It never receives its own
+frames (a CAN socket does not by default, and the simulator's bus does not echo them).
 
 No clock: frames carry their arrival time, and :meth:`GuardianCore.due` is asked with
 the current time by the loop (:mod:`services.guardian.loop`).

@@ -5,7 +5,7 @@
     manus sim --nodes 2 --device-file /tmp/m.dev   # two PC nodes: /tmp/m.dev, /tmp/m.dev.1
     manus sim --can-interface slcan-pty --can-channel /tmp/manus-can   # ... plus a symlink
     manus sim --can-interface virtual --can-channel manus   # any python-can interface
-    manus sim --step-response fig51.png        # thesis Figure 5.1 in lock-step, then exit
+    manus sim --step-response fig51.png        # the thesis's step response, then exit
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
@@ -91,7 +91,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--step-response",
         metavar="PNG",
-        help="write the joint 2 step-response plot (thesis Figure 5.1) and exit",
+        help="write the joint 2 step-response plot (the thesis's experiment) and exit",
     )
 
 
