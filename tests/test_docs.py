@@ -51,19 +51,7 @@ THESIS_NUMBERS = [
 ]
 """The thesis cited by its own numbers: only docs/protocol.md may (it carries them)."""
 
-ALLOWED: dict[str, list[str]] = {
-    # Files under rewrite on the main branch (issue 15, items 1-4) while these citations
-    # were fixed everywhere else: each text is part of an offending line. Fix the line
-    # (the cited section is given) and drop its entry; empty this after the merge.
-    "schemas/control.py": ["(SPEC 5.1)"],  # docs/protocol.md, Thesis via-point format
-    "schemas/state.py": ["(SPEC 3.2)"],  # docs/protocol.md, Status byte; Message codes
-    "services/controller/core.py": ["the team brief's contract 4"],  # drop it
-    "services/controller/laws.py": [
-        "(thesis 4.2.3.4 with its sign corrected)",  # docs/protocol.md, Thesis control loop
-        "map of SPEC 2.2",  # docs/protocol.md, Encoder map
-    ],
-    "services/sequencer/core.py": ["Steps (SPEC 7, thesis 4.2.2)"],  # Thesis task form
-}
+ALLOWED: dict[str, list[str]] = {}
 """Offenders left in files being rewritten elsewhere: path -> texts of offending lines.
 Each entry must still be found (an entry that no longer matches fails too), so the list
 empties as the files are fixed."""
