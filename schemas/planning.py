@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from schemas.base import Message, field
+from schemas.collision import ClearanceReport
 
 INTERPOLATIONS = ("cubic", "quintic")
 PLAN_ERROR_REASONS = (
@@ -27,6 +28,7 @@ PLAN_ERROR_REASONS = (
     "speed_limit",  # a joint speed or acceleration limit is broken (no speed scaling asked)
     "no_state",  # no start configuration given and no joint state known
     "invalid",  # the request itself is inconsistent
+    "collision",  # the arm would come too close to the scene, a zone or itself
 )
 
 
@@ -122,6 +124,13 @@ class Trajectory(Message):
     preview_dt: float = field("sampling step of the preview", unit="s", default=0.0)
     time_scale: float = field("how much the planner stretched time (1: not at all)", default=1.0)
     notes: list[str] = field("what the planner wants the user to know", default_factory=list)
+    clearance: ClearanceReport | None = field(
+        "the smallest clearance along the trajectory (None: not checked, no scene)",
+        default=None,
+    )
+    scene_version: int = field(
+        "version of the scene it was checked against (-1: not checked)", default=-1, minimum=-1
+    )
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,9 @@ Steps (SPEC 5, thesis 4.2.3.1):
    ends (:mod:`.spline`);
 6. check joint limits, the wrist singularity and the IK branch along the whole curve,
    then joint speeds and accelerations, stretching time if asked (:mod:`.checks`);
-7. reply with the knots (piecewise Hermite), their Cartesian positions and a preview.
+7. sweep the final curve through the collision model: the scene, the protection zones
+   and the arm itself, with each class's clearance (:mod:`.collisions`);
+8. reply with the knots (piecewise Hermite), their Cartesian positions and a preview.
 
 No clock, no randomness, no I/O: the same request and joint state give the same reply.
 Trajectory time 0 is the first via point (the start configuration); knot i is via
@@ -26,11 +28,14 @@ from typing import Any
 
 import numpy as np
 
+from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
+from manus.scene import Scene, scene_from_setting
 from manus.viapoints import ViaPointError, validate_path
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner.checks import check_geometry, check_rates
+from services.planner.collisions import check_collisions
 from services.planner.config import PlannerConfig
 from services.planner.errors import PlanningError, refuse
 from services.planner.knots import check_start, solve_knots
@@ -57,6 +62,12 @@ class PlannerCore:
     def __init__(self, config: PlannerConfig | None = None) -> None:
         self.config = config or PlannerConfig()
         self.latest: JointState | None = None
+        self.collision: CollisionModel | None = None
+        self.set_scene(scene_from_setting(self.config.scene))
+
+    def set_scene(self, scene: Scene | None) -> None:
+        """Check every later plan against ``scene`` (None: no collision check)."""
+        self.collision = None if scene is None else CollisionModel(scene, self.config.arm)
 
     def on_joint_state(self, js: JointState) -> None:
         """Remember ``js`` as the default start if it is valid (invalid ones are ignored)."""
@@ -126,6 +137,9 @@ class PlannerCore:
         check_geometry(curve, path, branch_of(q_start, config.arm), config)
         rates = check_rates(curve, path, config, speed_scaling=request.speed_scaling)
         notes.extend(rates.notes)
+        clearance = None
+        if self.collision is not None:
+            clearance = check_collisions(self.collision, rates.curve, path)
         k = rates.time_scale
         duration = rates.curve.duration
         preview_dt = 0.0
@@ -149,6 +163,10 @@ class PlannerCore:
             preview_dt=preview_dt,
             time_scale=k,
             notes=notes,
+            clearance=clearance,
+            scene_version=-1
+            if self.collision is None or self.collision.scene is None
+            else self.collision.scene.version,
         )
 
 

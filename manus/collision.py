@@ -1,0 +1,450 @@
+"""The arm's collision model: distances from its bodies to the scene, the zones and itself.
+
+The arm's bodies are the URDF's collision geometry (:func:`manus.urdf.collision_shapes`),
+loaded with Pinocchio into a :class:`pinocchio.GeometryModel`; the scene's objects and
+keep-out zones are added to it as fixed bodies (placed through the mount), and
+:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call. The
+keep-in workspace is checked apart, exactly, from each body's convex cover (its end
+points or corners and a radius): a concave margin over a convex body is smallest at one
+of those points.
+
+Every check is one :class:`Check`: an arm body, what it is checked against, the class
+(``person``, ``chair``, ``environment``, ``self`` or ``zone``) and the clearance that
+class requires. A configuration's *margin* per check is distance minus clearance;
+negative means violated.
+
+Self-collision pairs are declared once, in :data:`SELF_PAIRS`: the gripper, its motor,
+the wrist and the forearm against the arm's base (column and shoulder). Adjacent bodies
+are excluded, and so is everything between the upper arm and the forearm-wrist-gripper
+chain: the DH model puts them in one plane (folded, on one line), while on the arm the
+forearm and the gripper fold beside the upper arm, so their distance in this model says
+nothing about the arm. The
+``column`` and the ``shoulder`` do not move (the shoulder turns about its own axis), so
+their distances to the scene are checked once, when the model is built
+(:meth:`CollisionModel.base_overlaps`), not per configuration.
+
+:meth:`CollisionModel.sweep` checks a whole motion: it samples it so that no point of
+the arm travels more than ``step`` (10 mm) between samples, and skips ahead where the
+smallest margin is larger than the travel in between (no point can close a gap faster
+than it moves: continuous checking by conservative advancement).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from manus.config import DEFAULT_ARM, ArmConfig
+from manus.scene import Primitive, Scene
+from manus.urdf import FINGER_THICKNESS, Shape, build_urdf, collision_shapes
+
+SELF_PAIRS: tuple[tuple[str, str], ...] = (
+    ("gripper", "column"),
+    ("gripper", "shoulder"),
+    ("gripper_motor", "column"),
+    ("gripper_motor", "shoulder"),
+    ("wrist", "column"),
+    ("forearm", "column"),
+)
+"""Self-collision pairs (arm body, arm body), the only place they are declared."""
+
+GRIPPER_BODIES = ("gripper", "gripper_motor")
+"""The bodies a zone with ``links: gripper`` applies to."""
+
+STATIC_BODIES = ("column", "shoulder")
+"""Bodies whose distance to the scene does not depend on the joint angles."""
+
+STEP_M = 0.010
+"""Largest travel of any point of the arm between two checked samples [m]."""
+
+
+class Check(NamedTuple):
+    """One distance the model watches.
+
+    Attributes:
+        body: the arm body.
+        other: the object, zone or arm body it is kept from.
+        cls: ``person``, ``chair``, ``environment``, ``self`` or ``zone``.
+        required: the clearance [m].
+    """
+
+    body: str
+    other: str
+    cls: str
+    required: float
+
+
+class Clearance(NamedTuple):
+    """The tightest check of one configuration (or of a motion).
+
+    Attributes:
+        margin: distance minus required clearance [m] (< 0: violated).
+        distance: distance between the two [m] (a keep-in zone: to its boundary).
+        check: which check.
+        time: time along the motion [s] (0 for a single configuration).
+        q: the configuration [rad], shape (6,).
+    """
+
+    margin: float
+    distance: float
+    check: Check
+    time: float
+    q: np.ndarray
+
+    def describe(self) -> str:
+        """``gripper 12.0 mm from head (person: needs 50 mm)``."""
+        c = self.check
+        kind = "inside" if c.cls == "zone" and c.other.startswith("keep_in ") else "from"
+        return (
+            f"{c.body} {self.distance * 1e3:.1f} mm {kind} {c.other} "
+            f"({c.cls}: needs {c.required * 1e3:.0f} mm)"
+        )
+
+
+class Sweep(NamedTuple):
+    """What :meth:`CollisionModel.sweep` found.
+
+    Attributes:
+        worst: the smallest margin over the checked samples.
+        violation: the first sample whose margin is negative (None: none).
+        checked: configurations whose distances were computed [-].
+        samples: configurations on the 10 mm grid [-].
+    """
+
+    worst: Clearance
+    violation: Clearance | None
+    checked: int
+    samples: int
+
+
+def _coal_shape(body: Primitive) -> tuple[coal.CollisionGeometry, np.ndarray]:
+    """The Coal geometry of a scene primitive and its placement in the chair frame."""
+    s = body.size
+    if body.shape == "box":
+        return coal.Box(*s), body.pose
+    if body.shape == "sphere":
+        return coal.Sphere(s[0]), body.pose
+    if body.shape == "cylinder":
+        return coal.Cylinder(s[0], s[1]), body.pose
+    if body.shape == "capsule":
+        return coal.Capsule(s[0], s[1]), body.pose
+    normal = np.asarray(s, dtype=float)
+    return coal.Halfspace(normal, float(normal @ body.pose[:3, 3])), np.eye(4)
+
+
+def _cover(shape: Shape) -> tuple[np.ndarray, float]:
+    """Points (k, 3) in the body's own frame and a radius whose hull covers the body."""
+    if shape.kind == "sphere":
+        return np.zeros((1, 3)), shape.size[0]
+    if shape.kind == "cylinder":
+        h = shape.size[1] / 2.0
+        return np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), shape.size[0]
+    hx, hy, hz = (v / 2.0 for v in shape.size)
+    corners = [[sx * hx, sy * hy, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    return np.array(corners), 0.0
+
+
+class CollisionModel:
+    """The arm's bodies, a scene and the checks between them.
+
+    Args:
+        scene: the surroundings (None: self-collision only).
+        cfg: arm geometry.
+        opening: gripper opening the gripper box is sized for [m] (default: fully open,
+            the planner's choice: it does not know the opening a move will have).
+    """
+
+    def __init__(
+        self, scene: Scene | None, cfg: ArmConfig | None = None, opening: float | None = None
+    ) -> None:
+        self.cfg = cfg or DEFAULT_ARM
+        self.scene = scene
+        urdf = build_urdf(self.cfg)
+        self.model = pin.buildModelFromXML(urdf)
+        self.data = self.model.createData()
+        gm = pin.buildGeomFromUrdfString(self.model, urdf, pin.GeometryType.COLLISION)
+        self.shapes = collision_shapes(self.cfg)
+        # Pinocchio names them <link>_<k>, in URDF order: give them the shapes' names.
+        for obj, shape in zip(gm.geometryObjects, self.shapes, strict=True):
+            obj.name = shape.name
+        self.body_index = {s.name: i for i, s in enumerate(self.shapes)}
+        self._gripper_box = gm.geometryObjects[self.body_index["gripper"]].geometry
+        self.checks: list[Check] = []
+        self._keep_in_bodies: list[tuple[Check, Primitive, list[int]]] = []
+        pairs: list[tuple[int, int]] = []
+        # Each clearance is baked into the other body as Coal's swept-sphere radius, so
+        # every pair's distance is its margin and computeDistances' argmin the tightest.
+        # The self pairs' bodies get inflated copies (the originals face the scene).
+        required = scene.clearance["self"] if scene is not None else 0.01
+        copies: dict[str, int] = {}
+        for a, b in SELF_PAIRS:
+            if b not in copies:
+                original = gm.geometryObjects[self.body_index[b]]
+                geometry = original.geometry.clone()
+                geometry.setSweptSphereRadius(required)
+                copies[b] = gm.addGeometryObject(
+                    pin.GeometryObject(
+                        f"{b}+self", original.parentJoint, original.placement, geometry
+                    )
+                )
+            pairs.append((self.body_index[a], copies[b]))
+            self.checks.append(Check(a, b, "self", required))
+        self._static: list[tuple[int, int, Check]] = []
+        if scene is not None:
+            to_base = np.linalg.inv(scene.mount)
+            fixed = [(o.name, o.cls, o.body, scene.clearance[o.cls]) for o in scene.objects]
+            for zone in scene.zones:
+                if zone.kind == "keep_out":
+                    fixed.append((zone.name, "zone", zone.body, zone.clearance))
+            for name, cls, body, required in fixed:
+                geometry, pose = _coal_shape(body)
+                geometry.setSweptSphereRadius(required)
+                placement = pin.SE3(to_base @ pose)
+                index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
+                owner = next((z for z in scene.zones if z.name == name), None)
+                for i, shape in enumerate(self.shapes):
+                    if (
+                        owner is not None
+                        and owner.links == "gripper"
+                        and shape.name not in GRIPPER_BODIES
+                    ):
+                        continue
+                    check = Check(shape.name, name, cls, required)
+                    if shape.name in STATIC_BODIES:
+                        self._static.append((i, index, check))
+                        continue
+                    pairs.append((i, index))
+                    self.checks.append(check)
+            for zone in scene.zones:
+                if zone.kind == "keep_in":
+                    bodies = [
+                        i
+                        for i, arm_body in enumerate(self.shapes)
+                        if zone.links == "all" or arm_body.name in GRIPPER_BODIES
+                    ]
+                    check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
+                    body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
+                    self._keep_in_bodies.append((check, body, bodies))
+        for first, second in pairs:
+            gm.addCollisionPair(pin.CollisionPair(first, second))
+        self.geom = gm
+        self.geom_data = pin.GeometryData(gm)
+        self._required = np.array([c.required for c in self.checks])
+        self._self_pairs = [k for k, c in enumerate(self.checks) if c.cls == "self"]
+        self._covers = [_cover(s) for s in self.shapes]
+        self._prepare_points()
+        self.set_opening(self.cfg.gripper_max if opening is None else opening)
+
+    # --- configuration queries ----------------------------------------------------------
+
+    def set_opening(self, opening: float) -> None:
+        """Size the gripper box for ``opening`` [m] (clamped to 0..gripper_max)."""
+        opening = min(max(opening, 0.0), self.cfg.gripper_max)
+        half = self._gripper_box.halfSide.copy()
+        half[0] = opening / 2.0 + FINGER_THICKNESS
+        self._gripper_box.halfSide = half
+        self._gripper_box.computeLocalAABB()
+        self.opening = opening
+
+    def margins(self, q: np.ndarray) -> np.ndarray:
+        """Distance minus clearance of every pair check at ``q`` [m], shape (len(checks),);
+        keep-in zones are not included (:meth:`keep_in_margins`)."""
+        pin.computeDistances(
+            self.model, self.data, self.geom, self.geom_data, np.asarray(q, dtype=float)
+        )
+        return np.array([r.min_distance for r in self.geom_data.distanceResults])
+
+    def tightest(self, q: np.ndarray) -> tuple[int, float, float]:
+        """The tightest pair check at ``q``: its index in :attr:`checks`, its margin [m],
+        and the smallest self-pair margin [m] (inf: none)."""
+        k = pin.computeDistances(self.model, self.data, self.geom, self.geom_data, q)
+        results = self.geom_data.distanceResults
+        own = min((results[i].min_distance for i in self._self_pairs), default=math.inf)
+        return k, results[k].min_distance, own
+
+    def keep_in_margins(self) -> list[tuple[float, Check]]:
+        """For each keep-in zone: the smallest inner distance of its bodies to its boundary
+        minus its clearance, at the configuration of the last :meth:`margins` call."""
+        return self._keep_in_at(self._world_points())
+
+    def clearance(self, q: np.ndarray, time: float = 0.0) -> Clearance:
+        """The tightest check at ``q``."""
+        q = np.asarray(q, dtype=float)
+        m = self.margins(q)
+        k = int(np.argmin(m)) if len(m) else -1
+        best = (
+            Clearance(float(m[k]), float(m[k] + self._required[k]), self.checks[k], time, q)
+            if k >= 0
+            else Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
+        )
+        for margin, check in self.keep_in_margins():
+            if margin < best.margin:
+                best = Clearance(margin, margin + check.required, check, time, q)
+        return best
+
+    def base_overlaps(self) -> list[str]:
+        """Scene objects that touch the arm's fixed base (column, shoulder), one line each."""
+        out = []
+        for i, j, check in self._static:
+            res = coal.DistanceResult()
+            placement = self.geom.geometryObjects[i].placement
+            other = self.geom.geometryObjects[j]
+            distance = coal.distance(
+                self.geom.geometryObjects[i].geometry,
+                coal.Transform3s(placement.rotation, placement.translation),
+                other.geometry,
+                coal.Transform3s(other.placement.rotation, other.placement.translation),
+                coal.DistanceRequest(),
+                res,
+            )
+            distance += check.required  # the object carries its clearance
+            if distance <= 0.0:
+                where = self.scene.where(_line_of(self.scene, check.other)) if self.scene else ""
+                out.append(
+                    f"{where}: {check.other}: overlaps the arm's {check.body} "
+                    f"(the base it stands on) by {-distance * 1e3:.1f} mm"
+                )
+        return out
+
+    # --- motions --------------------------------------------------------------------------
+
+    def sweep(
+        self,
+        times: np.ndarray,
+        qd_peaks: np.ndarray,
+        evaluate: Callable[[np.ndarray], np.ndarray],
+        *,
+        step: float = STEP_M,
+    ) -> Sweep:
+        """Check a motion against every check, continuously where the margins allow.
+
+        From each checked configuration the next one is as far along as no point of the
+        arm can have travelled more than the smallest margin there (so no gap can have
+        closed: conservative advancement), and never more than ``step`` where that
+        margin is smaller. The speed bound is Coal-free: per joint, its peak speed on the
+        segment times the farthest any body beyond it is from its axis (measured at the
+        configuration, plus the travel allowed). Every knot is checked.
+
+        Args:
+            times: knot times [s], shape (S+1,).
+            qd_peaks: largest |joint speed| on each segment [rad/s], shape (S, 6).
+            evaluate: positions at times [s], shape (n,) -> (n, 6) [rad].
+            step: largest travel of any point between two samples where the margins
+                are smaller than that [m].
+        """
+        times = np.asarray(times, dtype=float)
+        peaks = np.abs(np.asarray(qd_peaks, dtype=float))
+        t, seg, checked = float(times[0]), 0, 0
+        worst: Clearance | None = None
+        while True:
+            found, free, reach = self._at(evaluate(np.array([t]))[0], t)
+            checked += 1
+            if worst is None or found.margin < worst.margin:
+                worst = found
+            if found.margin < 0.0:
+                return Sweep(worst, found, checked, checked)
+            if t >= times[-1]:
+                return Sweep(worst, None, checked, checked)
+            while seg < len(times) - 2 and t >= times[seg + 1]:
+                seg += 1
+            travel = max(free, step)
+            speed = float(peaks[seg] @ (reach + travel))
+            t_next = t + travel / speed if speed > 0.0 else math.inf
+            t = min(t_next, float(times[seg + 1]))
+
+    def _at(self, q: np.ndarray, time: float) -> tuple[Clearance, float, np.ndarray]:
+        """At ``q``: the tightest check, how far every point may travel before any gap
+        could close [m], and each joint's reach (farthest body point from its axis) [m]."""
+        free = math.inf
+        best = Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
+        if self.checks:
+            k, margin, own = self.tightest(q)
+            best = Clearance(margin, margin + self._required[k], self.checks[k], time, q)
+            # Two arm bodies may close on each other at twice the speed bound; the other
+            # pairs' margins are at least the tightest one.
+            free = min(margin, own / 2.0)
+        points = self._world_points()
+        for margin, check in self._keep_in_at(points):
+            free = min(free, margin)
+            if margin < best.margin:
+                best = Clearance(margin, margin + check.required, check, time, q)
+        return best, max(free, 0.0), self._reach_at(points)
+
+    def _world_points(self) -> np.ndarray:
+        """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
+        H = np.array([self.data.oMi[j].homogeneous for j in range(self.model.njoints)])
+        self._joints_now = H
+        Hp = H[self._point_joint]
+        return np.asarray(np.einsum("nij,nj->ni", Hp[:, :3, :3], self._points) + Hp[:, :3, 3])
+
+    def _reach_at(self, world: np.ndarray) -> np.ndarray:
+        """Per joint, the farthest point of any body beyond it from its axis [m], (6,)."""
+        H = self._joints_now[1:]
+        d = world[None, :, :] - H[:, None, :3, 3]  # (6, n, 3)
+        along = np.einsum("jnk,jk->jn", d, H[:, :3, 2])
+        radial = np.sqrt(np.maximum(np.einsum("jnk,jnk->jn", d, d) - along * along, 0.0))
+        return np.asarray(np.where(self._beyond_mask, radial + self._radii, 0.0).max(axis=1))
+
+    def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check]]:
+        out = []
+        for check, zone, rows in self._keep_in:
+            inner = _inner_distances(zone, world[rows]) - self._radii[rows]
+            k = int(np.argmin(inner))
+            body = self.shapes[int(self._point_body[rows][k])].name
+            out.append((float(inner[k]) - check.required, check._replace(body=body)))
+        return out
+
+    def _prepare_points(self) -> None:
+        """Stack every body's cover points in its joint's frame (for reach and keep-in)."""
+        points, radii, joints, bodies = [], [], [], []
+        for i, (local, radius) in enumerate(self._covers):
+            obj = self.geom.geometryObjects[i]
+            M = obj.placement
+            points.append(local @ M.rotation.T + M.translation)
+            radii += [radius] * len(local)
+            joints += [obj.parentJoint] * len(local)
+            bodies += [i] * len(local)
+        self._points = np.vstack(points)
+        self._radii = np.array(radii)
+        self._point_joint = np.array(joints)
+        self._point_body = np.array(bodies)
+        self._rows_by_joint = [
+            (j, np.flatnonzero(self._point_joint == j)) for j in sorted(set(joints))
+        ]
+        self._beyond_mask = np.array([self._point_joint >= j for j in range(1, self.model.njoints)])
+        self._keep_in = [
+            (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
+            for check, zone, bodies in self._keep_in_bodies
+        ]
+
+
+def _inner_distances(zone: Primitive, points: np.ndarray) -> np.ndarray:
+    """Distance from each of ``points`` (k, 3) to the boundary of the convex ``zone``,
+    negative outside [m], shape (k,) (zone placed in the base frame)."""
+    T = zone.pose
+    local = (points - T[:3, 3]) @ T[:3, :3]
+    if zone.shape == "box":
+        half = np.asarray(zone.size) / 2.0
+        return np.asarray((half - np.abs(local)).min(axis=1))
+    if zone.shape == "sphere":
+        return np.asarray(zone.size[0] - np.linalg.norm(local, axis=1))
+    radius, length = zone.size
+    if zone.shape == "cylinder":
+        radial = radius - np.hypot(local[:, 0], local[:, 1])
+        axial = length / 2.0 - np.abs(local[:, 2])
+        return np.asarray(np.minimum(radial, axial))
+    # capsule: distance to the axis segment
+    z = np.clip(local[:, 2], -length / 2.0, length / 2.0)
+    return np.asarray(radius - np.linalg.norm(local - np.c_[0 * z, 0 * z, z], axis=1))
+
+
+def _line_of(scene: Scene, name: str) -> int:
+    for obj in scene.objects:
+        if obj.name == name:
+            return obj.line
+    return 0

@@ -1,0 +1,32 @@
+"""Clearances between the arm and what is around it (``manus.collision``, ``manus.scene``).
+
+A clearance names the arm body (``gripper``, ``forearm``, ...), what it was kept from (a
+scene object, a zone or another arm body), the class whose clearance applies
+(``person``, ``chair``, ``environment``, ``self``, ``zone``), the distance and the
+clearance that class requires. Planners, the controller's guard and the simulator's
+truth all report it in this one form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.base import Message, field
+
+CLEARANCE_CLASSES = ("person", "chair", "environment", "self", "zone")
+
+
+@dataclass(frozen=True)
+class ClearanceReport(Message):
+    """The tightest clearance of a trajectory, a run or a configuration."""
+
+    TYPE_NAME = "manus/ClearanceReport/1"
+
+    distance: float = field(
+        "distance between the body and the object (a keep-in zone: to its boundary)", unit="m"
+    )
+    required: float = field("clearance its class requires", unit="m", minimum=0.0)
+    body: str = field("the arm body (column, shoulder, upper_arm, forearm, wrist, gripper, ...)")
+    other: str = field("the scene object, zone or arm body")
+    cls: str = field("class whose clearance applies", choices=CLEARANCE_CLASSES)
+    time: float = field("when: trajectory time, or stamp time for a run", unit="s", default=0.0)
