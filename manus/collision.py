@@ -40,7 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from manus.config import DEFAULT_ARM, ArmConfig
-from manus.scene import Primitive, Scene
+from manus.scene import Primitive, Scene, SceneError
 from manus.urdf import FINGER_THICKNESS, Shape, build_urdf, collision_shapes
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
@@ -152,6 +152,10 @@ def _cover(shape: Shape) -> tuple[np.ndarray, float]:
 class CollisionModel:
     """The arm's bodies, a scene and the checks between them.
 
+    Raises:
+        SceneError: a scene object overlaps the arm's base (column or shoulder), naming
+            the file, its line and the object.
+
     Args:
         scene: the surroundings (None: self-collision only).
         cfg: arm geometry.
@@ -238,6 +242,9 @@ class CollisionModel:
         self._self_pairs = [k for k, c in enumerate(self.checks) if c.cls == "self"]
         self._covers = [_cover(s) for s in self.shapes]
         self._prepare_points()
+        overlaps = self.base_overlaps()
+        if overlaps:
+            raise SceneError(overlaps[0])
         self.set_opening(self.cfg.gripper_max if opening is None else opening)
 
     # --- configuration queries ----------------------------------------------------------
@@ -306,8 +313,9 @@ class CollisionModel:
             if distance <= 0.0:
                 where = self.scene.where(_line_of(self.scene, check.other)) if self.scene else ""
                 out.append(
-                    f"{where}: {check.other}: overlaps the arm's {check.body} "
-                    f"(the base it stands on) by {-distance * 1e3:.1f} mm"
+                    f"{where}: objects.{check.other}: overlaps the arm's {check.body} (its "
+                    f"base, at the mount) by {-distance * 1e3:.1f} mm: move the object or "
+                    "the mount"
                 )
         return out
 
