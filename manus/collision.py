@@ -456,3 +456,29 @@ def _line_of(scene: Scene, name: str) -> int:
         if obj.name == name:
             return obj.line
     return 0
+
+
+def straight_motion_problem(
+    model: CollisionModel, q_from: np.ndarray, q_to: np.ndarray, what: str
+) -> str | None:
+    """Check the straight joint-space motion from ``q_from`` to ``q_to`` [rad], the way
+    the arm's own fold procedures move (every motor at a constant speed, all arriving
+    together; the joint map is affine, so a straight line in joint space too).
+
+    Returns:
+        None when clear, else one line: ``what``, where along it, the body, the object
+        and the distance.
+    """
+    a, b = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
+    delta = b - a
+    sweep = model.sweep(
+        np.array([0.0, 1.0]), np.abs(delta)[None, :], lambda ts: a + np.outer(ts, delta)
+    )
+    bad = sweep.violation
+    if bad is None:
+        return None
+    start = ", ".join(f"{v:.0f}" for v in np.degrees(a))
+    return (
+        f"{what} from ({start}) deg would bring the {bad.describe()} "
+        f"{bad.time * 100:.0f} % of the way"
+    )

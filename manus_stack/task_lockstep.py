@@ -20,7 +20,7 @@ from schemas.state import JointState
 from services.controller.core import ControllerCore
 from services.planner.core import PlannerCore
 from services.sequencer.core import Action, Publish, SequencerCore
-from services.sequencer.validate import Validator
+from services.sequencer.validate import Validator, fold_checker
 from services.simulator.config import SimConfig
 
 NS = 1_000_000_000
@@ -38,6 +38,7 @@ class TaskLockStep:
         self.controller = ControllerCore()
         self.planner = PlannerCore()
         self.seq = SequencerCore()
+        self.fold_check = fold_checker(self.seq.config.scene, self.seq.config.arm)
         self.events: list[TaskEvent] = []
         self.requests: list[Message] = []
         ls = self.ls
@@ -93,7 +94,7 @@ class TaskLockStep:
         refused = self.seq.refuse(task)
         if refused is not None:
             return refused
-        v = Validator(task, self.seq.start_configuration())
+        v = Validator(task, self.seq.start_configuration(), self.fold_check)
         while (request := v.next_request()) is not None:
             v.on_reply(self.planner.plan(request))
         if v.errors:

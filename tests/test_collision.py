@@ -114,16 +114,15 @@ def test_margins_are_distance_minus_clearance() -> None:
     assert found.distance == pytest.approx(found.margin + found.check.required)
     k, margin, _own = MODEL.tightest(q)
     assert margin == pytest.approx(MODEL.margins(q).min())
-    assert MODEL.checks[k] == min(
-        zip(MODEL.margins(q), MODEL.checks, strict=True), key=lambda mc: mc[0]
-    )[1]
+    assert (
+        MODEL.checks[k]
+        == min(zip(MODEL.margins(q), MODEL.checks, strict=True), key=lambda mc: mc[0])[1]
+    )
 
 
 @settings(max_examples=15, deadline=None)
 @given(
-    st.lists(
-        st.lists(st.floats(-40.0, 40.0), min_size=6, max_size=6), min_size=1, max_size=3
-    ),
+    st.lists(st.lists(st.floats(-40.0, 40.0), min_size=6, max_size=6), min_size=1, max_size=3),
 )
 def test_sweep_finds_what_fine_sampling_finds(offsets: list[list[float]]) -> None:
     """Random joint-space cubic paths from the unfolded pose, against sampling every 5 ms:
@@ -146,3 +145,32 @@ def test_sweep_finds_what_fine_sampling_finds(offsets: list[list[float]]) -> Non
         assert sweep.violation.margin < 0.0
     assert sweep.worst.margin >= lowest - 0.002
     assert MODEL.clearance(sweep.worst.q).margin == pytest.approx(sweep.worst.margin, abs=1e-6)
+
+
+def validate(task_words: list[str], start_deg: tuple[float, ...]) -> list[str]:
+    """Validate ``manus run --fold-out WORDS --fold-in`` from ``start_deg`` as the
+    sequencer does."""
+    from services.sequencer.run_cli import with_folds
+    from services.sequencer.taskfile import task_from_args
+    from services.sequencer.validate import Validator, fold_checker
+
+    task = with_folds(task_from_args(task_words), fold_out=True, fold_in=True)
+    v = Validator(task, [math.radians(a) for a in start_deg], fold_checker("default"))
+    while (request := v.next_request()) is not None:
+        v.on_reply(CORE.plan(request))
+    return v.errors
+
+
+def test_a_fold_out_that_would_hit_the_armrest_is_refused() -> None:
+    square = str(ROOT / "paths" / "thesis_square.txt")
+    # The demo's task: fold out from the folded pose, the square, fold in.
+    assert validate([square, "40"], FOLDED_Q_DEG) == []
+    # Reaching back over the right armrest: folding out from there swings the upper
+    # arm through it (the arm's fold is a straight line in joint space).
+    errors = validate([square], (157.0, 59.0, -81.0, -69.0, -92.0, 0.0))
+    assert len(errors) == 1, errors
+    assert errors[0].startswith(
+        "--fold-out: step 1 (fold_out): fold out from (157, 59, -81, -69, -92, 0) "
+        "deg would bring the upper_arm "
+    )
+    assert "from armrest_right (chair: needs 15 mm)" in errors[0]

@@ -37,7 +37,8 @@ objects:
     size_mm: [600, 1000, 40]
     xyz_mm: [1100, 0, 720]
 zones:
-  - {name: workspace, kind: keep_in, shape: box, size_mm: [1700, 1400, 1700], xyz_mm: [350, -200, 950]}
+  - {name: workspace, kind: keep_in, shape: box,
+     size_mm: [1700, 1400, 1700], xyz_mm: [350, -200, 950]}
 """
 
 
@@ -80,18 +81,44 @@ def test_mount_places_the_arm_in_the_chair_frame(tmp_path: Path) -> None:
     [
         ("shape: sphere", "shape: cone", 7, "objects[0].shape", "unknown value 'cone'"),
         ("radius_mm: 110", "radius_mm: -5", 8, "objects[0].radius_mm", "must be > 0, got -5"),
-        ("size_mm: [600, 1000, 40]", "size_mm: [600, .nan, 40]", 13, "objects[1].size_mm[1]",
-         "must be a finite number"),
+        (
+            "size_mm: [600, 1000, 40]",
+            "size_mm: [600, .nan, 40]",
+            13,
+            "objects[1].size_mm[1]",
+            "must be a finite number",
+        ),
         ("    xyz_mm: [-20, 0, 1230]\n", "", 5, "objects[0].xyz_mm", "missing field"),
         ("    class: person\n", "", 5, "objects[0].class", "missing field"),
-        ("class: environment", "class: furniture", 11, "objects[1].class",
-         "unknown value 'furniture' (allowed: person, chair, environment)"),
-        ("radius_mm: 110", "radius_mm: 110\n    colour: red", 9, "objects[0].colour",
-         "unknown field"),
-        ("radius_mm: 110", "size_mm: [1, 2, 3]", 8, "objects[0].size_mm", "not a field of a sphere"),
+        (
+            "class: environment",
+            "class: furniture",
+            11,
+            "objects[1].class",
+            "unknown value 'furniture' (allowed: person, chair, environment)",
+        ),
+        (
+            "radius_mm: 110",
+            "radius_mm: 110\n    colour: red",
+            9,
+            "objects[0].colour",
+            "unknown field",
+        ),
+        (
+            "radius_mm: 110",
+            "size_mm: [1, 2, 3]",
+            8,
+            "objects[0].size_mm",
+            "not a field of a sphere",
+        ),
         ("kind: keep_in", "kind: keep_near", 16, "zones[0].kind", "unknown value 'keep_near'"),
-        ("  xyz_mm: [350, -420, 1000]", "  xyz_mm: [350, -420]", 3, "mount.xyz_mm",
-         "must be a list of 3 numbers"),
+        (
+            "  xyz_mm: [350, -420, 1000]",
+            "  xyz_mm: [350, -420]",
+            3,
+            "mount.xyz_mm",
+            "must be a list of 3 numbers",
+        ),
         ("name: table", "name: head", 10, "objects[1].name", "name 'head' already used on line 5"),
     ],
 )
@@ -135,15 +162,18 @@ def test_other_problems_name_the_file() -> None:
         load_scene("nowhere.yaml")
     with pytest.raises(SceneError, match=r"^<scene>:1: version: this stack reads version 1"):
         parse_scene(GOOD.replace("version: 1", "version: 2"))
-    with pytest.raises(SceneError, match=r"^<scene>:17: zones\[1\]\.kind: a second keep_in"):
-        parse_scene(GOOD + GOOD.splitlines(keepends=True)[-1].replace("workspace", "second"))
+    with pytest.raises(SceneError, match=r"^<scene>:18: zones\[1\]\.kind: a second keep_in"):
+        parse_scene(
+            GOOD + "  - {name: second, kind: keep_in, shape: sphere, radius_mm: 9,"
+            " xyz_mm: [0, 0, 0]}\n"
+        )
 
 
 def test_plane_normal_is_normalised() -> None:
     text = GOOD.replace(
         "zones:",
-        "  - {name: wall, class: environment, shape: plane, normal: [0, 3, 0], xyz_mm: [0, -900, 0]}"
-        "\nzones:",
+        "  - {name: wall, class: environment, shape: plane, normal: [0, 3, 0],"
+        " xyz_mm: [0, -900, 0]}\nzones:",
     )
     wall = parse_scene(text).objects[-1]
     assert wall.body.size == pytest.approx((0.0, 1.0, 0.0))

@@ -38,7 +38,7 @@ from services.sequencer.core import (
     Query,
     SequencerCore,
 )
-from services.sequencer.validate import Validator
+from services.sequencer.validate import Validator, fold_checker
 
 log = logging.getLogger("manus.sequencer")
 
@@ -65,6 +65,7 @@ class SequencerShell:
         query_timeout: float = 5.0,
     ) -> None:
         self.core = SequencerCore(config)
+        self.fold_check = fold_checker(self.core.config.scene, self.core.config.arm)
         self.node = Node("sequencer", settings, session=session, liveliness=False)
         self.query_timeout = query_timeout
         self.submitted = 0
@@ -127,7 +128,7 @@ class SequencerShell:
             start = self.core.start_configuration()
         if refused is not None:
             return self._refuse(refused)
-        validator = Validator(task, start)
+        validator = Validator(task, start, self.fold_check)
         while (request := validator.next_request()) is not None:
             try:
                 reply = self.node.query(

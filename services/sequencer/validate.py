@@ -3,17 +3,25 @@
 Every step is checked on its own (openings in range, known pose names, via points that
 obey SPEC 5.1), and every move is planned from where the previous steps leave the arm:
 the arm's current configuration at first, the fold poses after a fold, the last knot of
-the previous plan after a move. The :class:`Validator` hands out one
-:class:`~schemas.planning.PlanRequest` at a time (with an explicit ``start``) and takes
-the planner's reply; when it has none left, :attr:`Validator.errors` lists every problem
-in step order, each as ``<where>: step N (kind): <problem>``.
+the previous plan after a move. A fold is the arm's own motion (a straight line in joint
+space to the fold pose), so the sequencer checks it against the scene itself
+(:func:`fold_checker`, :func:`manus.collision.straight_motion_problem`). The
+:class:`Validator` hands out one :class:`~schemas.planning.PlanRequest` at a time (with
+an explicit ``start``) and takes the planner's reply; when it has none left,
+:attr:`Validator.errors` lists every problem in step order, each as
+``<where>: step N (kind): <problem>``.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
-from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
+import numpy as np
+
+from manus.collision import CollisionModel, straight_motion_problem
+from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
+from manus.scene import scene_from_setting
 from manus.viapoints import ViaPointError, validate_path
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import Task, TaskStep
@@ -102,14 +110,22 @@ class Validator:
     Args:
         task: the task.
         start: the arm's configuration now (DH [rad]); None: unknown (no joint state).
+        fold_check: checks a fold's own motion (from, to [rad], step kind) against the
+            scene: None when clear, else the problem (:func:`fold_checker`).
 
     Use: ``while (req := v.next_request()) is not None: v.on_reply(ask(req))``, with
     ``on_reply(None, error)`` when the planner could not be asked; then :attr:`errors`.
     :attr:`plans` holds each planned step's trajectory (index -> Trajectory).
     """
 
-    def __init__(self, task: Task, start: list[float] | None) -> None:
+    def __init__(
+        self,
+        task: Task,
+        start: list[float] | None,
+        fold_check: Callable[[list[float], list[float], str], str | None] | None = None,
+    ) -> None:
         self.task = task
+        self._fold_check = fold_check
         self._problems: list[list[str]] = [[] for _ in task.steps]
         self.plans: dict[int, Trajectory] = {}
         self._q: list[float] | None = list(start) if start is not None else None
@@ -142,6 +158,10 @@ class Validator:
             step = steps[i]
             self._cursor += 1
             if step.kind in FOLD_END:
+                if self._q is not None and self._fold_check is not None:
+                    problem = self._fold_check(self._q, FOLD_END[step.kind], step.kind)
+                    if problem is not None:
+                        self._problems[i].append(problem)
                 self._q = list(FOLD_END[step.kind])
                 continue
             if step.kind not in ("move", "pose"):
@@ -181,6 +201,28 @@ class Validator:
             return
         self.plans[i] = reply.trajectory
         self._q = list(reply.trajectory.positions[-1])
+
+
+def fold_checker(
+    scene: str, arm: ArmConfig | None = None
+) -> Callable[[list[float], list[float], str], str | None] | None:
+    """The ``fold_check`` of a :class:`Validator` for the scene setting ``scene``
+    (``default``, ``none`` or a file; None when ``none``).
+
+    Raises:
+        SceneError: the scene file is malformed.
+    """
+    loaded = scene_from_setting(scene)
+    if loaded is None:
+        return None
+    model = CollisionModel(loaded, arm)
+
+    def check(q_from: list[float], q_to: list[float], kind: str) -> str | None:
+        return straight_motion_problem(
+            model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"
+        )
+
+    return check
 
 
 def _near(q: list[float], ref: list[float], tol_deg: float = 5.0) -> bool:
