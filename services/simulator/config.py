@@ -79,6 +79,9 @@ class SimConfig:
         garbage: what position fields carry before a move mode is active: ``noise``
             (seeded random 16-bit values) or ``max`` (0x7FFF).
         faults: injected faults (none by default).
+        scene: what is around the arm (:mod:`manus.scene`): ``default`` (the shipped
+            wheelchair scene), ``none``, or a scene file; set it to the planner's. A body
+            that meets an object stops there (warning 3); the truth reports distances.
     """
 
     seed: int = 0
@@ -102,6 +105,7 @@ class SimConfig:
     base_radius_mm: float = 90.0
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
+    scene: str = "default"
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:
