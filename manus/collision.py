@@ -42,6 +42,7 @@ import pinocchio as pin
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.scene import Primitive, Scene, SceneError
 from manus.urdf import FINGER_THICKNESS, Shape, build_urdf, collision_shapes
+from schemas.collision import ClearanceReport
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
     ("gripper", "column"),
@@ -95,6 +96,18 @@ class Clearance(NamedTuple):
     check: Check
     time: float
     q: np.ndarray
+
+    def report(self) -> ClearanceReport:
+        """The message form."""
+        c = self.check
+        return ClearanceReport(
+            distance=float(self.distance),
+            required=float(c.required),
+            body=c.body,
+            other=c.other,
+            cls=c.cls,
+            time=float(self.time),
+        )
 
     def describe(self) -> str:
         """``gripper 12.0 mm from head (person: needs 50 mm)``."""
@@ -350,7 +363,7 @@ class CollisionModel:
         t, seg, checked = float(times[0]), 0, 0
         worst: Clearance | None = None
         while True:
-            found, free, reach = self._at(evaluate(np.array([t]))[0], t)
+            found, free, reach = self.probe(evaluate(np.array([t]))[0], t)
             checked += 1
             if worst is None or found.margin < worst.margin:
                 worst = found
@@ -365,7 +378,7 @@ class CollisionModel:
             t_next = t + travel / speed if speed > 0.0 else math.inf
             t = min(t_next, float(times[seg + 1]))
 
-    def _at(self, q: np.ndarray, time: float) -> tuple[Clearance, float, np.ndarray]:
+    def probe(self, q: np.ndarray, time: float = 0.0) -> tuple[Clearance, float, np.ndarray]:
         """At ``q``: the tightest check, how far every point may travel before any gap
         could close [m], and each joint's reach (farthest body point from its axis) [m]."""
         free = math.inf

@@ -12,24 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from manus.collision import Clearance, CollisionModel
+from manus.collision import CollisionModel
 from schemas.collision import ClearanceReport
 from schemas.planning import Path
 from services.planner.errors import refuse, via_label
 from services.planner.spline import PiecewisePolynomial
-
-
-def report(found: Clearance) -> ClearanceReport:
-    """The message form of a clearance."""
-    c = found.check
-    return ClearanceReport(
-        distance=float(found.distance),
-        required=float(c.required),
-        body=c.body,
-        other=c.other,
-        cls=c.cls,
-        time=float(found.time),
-    )
 
 
 def check_collisions(
@@ -62,4 +49,4 @@ def check_collisions(
             value=float(bad.distance),
             limit=float(bad.check.required),
         )
-    return report(sweep.worst)
+    return sweep.worst.report()
