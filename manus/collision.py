@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import coal
 import numpy as np
@@ -117,6 +117,22 @@ class Clearance(NamedTuple):
             f"{c.body} {self.distance * 1e3:.1f} mm {kind} {c.other} "
             f"({c.cls}: needs {c.required * 1e3:.0f} mm)"
         )
+
+
+class Probe(NamedTuple):
+    """One configuration as :meth:`CollisionModel.probe` sees it.
+
+    Attributes:
+        best: the tightest check.
+        free: per moving body, its smallest margin (never below 0) [m].
+        reach: per joint and moving body, the farthest the body is from the joint's
+            axis [m], shape (6, bodies): the body moves no faster than
+            ``|qd| @ reach`` [m/s].
+    """
+
+    best: Clearance
+    free: np.ndarray
+    reach: np.ndarray
 
 
 class Sweep(NamedTuple):
@@ -252,9 +268,9 @@ class CollisionModel:
         self.geom = gm
         self.geom_data = pin.GeometryData(gm)
         self._required = np.array([c.required for c in self.checks])
-        self._self_pairs = [k for k, c in enumerate(self.checks) if c.cls == "self"]
         self._covers = [_cover(s) for s in self.shapes]
         self._prepare_points()
+        self._per_body = self._split(pairs)
         overlaps = self.base_overlaps()
         if overlaps:
             raise SceneError(overlaps[0])
@@ -279,13 +295,10 @@ class CollisionModel:
         )
         return np.array([r.min_distance for r in self.geom_data.distanceResults])
 
-    def tightest(self, q: np.ndarray) -> tuple[int, float, float]:
-        """The tightest pair check at ``q``: its index in :attr:`checks`, its margin [m],
-        and the smallest self-pair margin [m] (inf: none)."""
+    def tightest(self, q: np.ndarray) -> tuple[int, float]:
+        """The tightest pair check at ``q``: its index in :attr:`checks` and its margin [m]."""
         k = pin.computeDistances(self.model, self.data, self.geom, self.geom_data, q)
-        results = self.geom_data.distanceResults
-        own = min((results[i].min_distance for i in self._self_pairs), default=math.inf)
-        return k, results[k].min_distance, own
+        return k, self.geom_data.distanceResults[k].min_distance
 
     def keep_in_margins(self) -> list[tuple[float, Check]]:
         """For each keep-in zone: the smallest inner distance of its bodies to its boundary
@@ -360,64 +373,120 @@ class CollisionModel:
         """
         times = np.asarray(times, dtype=float)
         peaks = np.abs(np.asarray(qd_peaks, dtype=float))
-        t, seg, checked = float(times[0]), 0, 0
+        # One vectorised evaluation on a grid no coarser than a step of the slowest
+        # bound; each advance lands on the last grid time it may reach (never beyond).
+        grid = self._grid(times, peaks, step)
+        Q = evaluate(grid)
+        i, seg, checked = 0, 0, 0
         worst: Clearance | None = None
         while True:
-            found, free, reach = self.probe(evaluate(np.array([t]))[0], t)
+            t = float(grid[i])
+            found, free, reach = self.probe(Q[i], t)
             checked += 1
             if worst is None or found.margin < worst.margin:
                 worst = found
             if found.margin < 0.0:
-                return Sweep(worst, found, checked, checked)
-            if t >= times[-1]:
-                return Sweep(worst, None, checked, checked)
+                return Sweep(worst, found, checked, len(grid))
+            if i == len(grid) - 1:
+                return Sweep(worst, None, checked, len(grid))
             while seg < len(times) - 2 and t >= times[seg + 1]:
                 seg += 1
-            travel = max(free, step)
-            speed = float(peaks[seg] @ (reach + travel))
-            t_next = t + travel / speed if speed > 0.0 else math.inf
-            t = min(t_next, float(times[seg + 1]))
+            # Each body may travel its own margin (or one step, where that is smaller).
+            travel = np.maximum(free, step)
+            speed = peaks[seg] @ (reach + travel)
+            moving = speed > 0.0
+            dt = float((travel[moving] / speed[moving]).min()) if moving.any() else math.inf
+            t_next = min(t + dt, float(times[seg + 1]))
+            i = max(i + 1, int(np.searchsorted(grid, t_next, side="right")) - 1)
 
-    def probe(self, q: np.ndarray, time: float = 0.0) -> tuple[Clearance, float, np.ndarray]:
-        """At ``q``: the tightest check, how far every point may travel before any gap
-        could close [m], and each joint's reach (farthest body point from its axis) [m]."""
-        free = math.inf
+    def _grid(self, times: np.ndarray, peaks: np.ndarray, step: float) -> np.ndarray:
+        """Sample times: every knot, and per segment no more than ``step`` of travel apart
+        for a body as far out as the arm reaches (a coarse bound: the sweep's own steps
+        are longer except near obstacles)."""
+        reach = float(np.linalg.norm(self._points, axis=1).max() + self._radii.max()) + 1.0
+        parts = [times[:1]]
+        for s in range(len(times) - 1):
+            t0, t1 = float(times[s]), float(times[s + 1])
+            v = float(peaks[s].sum()) * reach
+            n = max(1, math.ceil(v * (t1 - t0) / step))
+            parts.append(np.linspace(t0, t1, n + 1)[1:])
+        return np.concatenate(parts)
+
+    def probe(self, q: np.ndarray, time: float = 0.0) -> Probe:
+        """At ``q``, per moving body: its tightest margin (how far it may travel before any
+        of its gaps could close) and each joint's reach to it; and the tightest check."""
+        q = np.asarray(q, dtype=float)
+        pin.forwardKinematics(self.model, self.data, q)
+        free = np.full(len(self._moving), math.inf)
         best = Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
-        if self.checks:
-            k, margin, own = self.tightest(q)
-            best = Clearance(margin, margin + self._required[k], self.checks[k], time, q)
-            # Two arm bodies may close on each other at twice the speed bound; the other
-            # pairs' margins are at least the tightest one.
-            free = min(margin, own / 2.0)
+        tight, tight_row = math.inf, -1
+        update, distances, model, data = (
+            pin.updateGeometryPlacements,
+            pin.computeDistances,
+            self.model,
+            self.data,
+        )
+        for b, (gm, gd, rows) in enumerate(self._per_body):
+            if rows:
+                update(model, data, gm, gd)
+                k = distances(gm, gd)
+                margin = gd.distanceResults[k].min_distance
+                free[b] = margin
+                if margin < tight:
+                    tight, tight_row = margin, rows[k]
+        if tight_row >= 0:
+            check = self.checks[tight_row]
+            best = Clearance(tight, tight + check.required, check, time, q)
         points = self._world_points()
         for margin, check in self._keep_in_at(points):
-            free = min(free, margin)
+            free = np.minimum(free, margin)  # every body: the zone's tightest (cheaper)
             if margin < best.margin:
                 best = Clearance(margin, margin + check.required, check, time, q)
-        return best, max(free, 0.0), self._reach_at(points)
+        return Probe(best, np.maximum(free, 0.0), self._reach_at(points))
 
     def _world_points(self) -> np.ndarray:
         """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
-        H = np.array([self.data.oMi[j].homogeneous for j in range(self.model.njoints)])
+        oMi = self.data.oMi
+        H = np.array([oMi[j].homogeneous for j in range(self.model.njoints)])
         self._joints_now = H
         Hp = H[self._point_joint]
         return np.asarray(np.einsum("nij,nj->ni", Hp[:, :3, :3], self._points) + Hp[:, :3, 3])
 
     def _reach_at(self, world: np.ndarray) -> np.ndarray:
-        """Per joint, the farthest point of any body beyond it from its axis [m], (6,)."""
+        """Per joint and moving body, the farthest point of the body from the joint's axis
+        (0 for a body the joint does not move) [m], shape (6, moving bodies)."""
         H = self._joints_now[1:]
         d = world[None, :, :] - H[:, None, :3, 3]  # (6, n, 3)
         along = np.einsum("jnk,jk->jn", d, H[:, :3, 2])
         radial = np.sqrt(np.maximum(np.einsum("jnk,jnk->jn", d, d) - along * along, 0.0))
-        return np.asarray(np.where(self._beyond_mask, radial + self._radii, 0.0).max(axis=1))
+        radial = np.where(self._beyond_mask, radial + self._radii, 0.0)
+        per_body = np.maximum.reduceat(radial, self._body_starts, axis=1)
+        return np.asarray(per_body[:, self._moving])
 
     def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check]]:
+        """Per keep-in zone: its tightest margin and the check naming the body."""
         out = []
         for check, zone, rows in self._keep_in:
             inner = _inner_distances(zone, world[rows]) - self._radii[rows]
             k = int(np.argmin(inner))
             body = self.shapes[int(self._point_body[rows][k])].name
             out.append((float(inner[k]) - check.required, check._replace(body=body)))
+        return out
+
+    def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
+        """One geometry model per moving body with its pairs, for per-body margins: the
+        body, then its partners; with the rows of :attr:`checks` of its pairs."""
+        out = []
+        for b in self._moving:
+            gm = pin.GeometryModel()
+            gm.addGeometryObject(self.geom.geometryObjects[b])
+            rows = []
+            for k, (first, second) in enumerate(pairs):
+                if first == b:
+                    index = gm.addGeometryObject(self.geom.geometryObjects[second])
+                    gm.addCollisionPair(pin.CollisionPair(0, index))
+                    rows.append(k)
+            out.append((gm, pin.GeometryData(gm), rows))
         return out
 
     def _prepare_points(self) -> None:
@@ -438,6 +507,9 @@ class CollisionModel:
             (j, np.flatnonzero(self._point_joint == j)) for j in sorted(set(joints))
         ]
         self._beyond_mask = np.array([self._point_joint >= j for j in range(1, self.model.njoints)])
+        self._body_starts = np.searchsorted(self._point_body, np.arange(len(self.shapes)))
+        self._moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
+        """Arm bodies whose distances depend on the joint angles (indices into shapes)."""
         self._keep_in = [
             (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
             for check, zone, bodies in self._keep_in_bodies

@@ -112,7 +112,8 @@ def test_margins_are_distance_minus_clearance() -> None:
     q = np.radians(UNFOLDED_Q_DEG)
     found = MODEL.clearance(q)
     assert found.distance == pytest.approx(found.margin + found.check.required)
-    k, margin, _own = MODEL.tightest(q)
+    k, margin = MODEL.tightest(q)
+    assert MODEL.probe(q).best.margin == pytest.approx(min(margin, found.margin), abs=1e-6)
     assert margin == pytest.approx(MODEL.margins(q).min())
     assert (
         MODEL.checks[k]

@@ -22,7 +22,6 @@ Pure: no clock, no I/O; the same inputs give the same commands.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -54,7 +53,7 @@ class Verdict(NamedTuple):
 
 class _Anchor(NamedTuple):
     q: np.ndarray
-    free: float
+    free: np.ndarray
     reach: np.ndarray
     margin: float
 
@@ -140,7 +139,7 @@ class Guard:
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
-        return self.model.probe(q)[0]
+        return self.model.probe(q).best
 
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
         best, free, reach = self.model.probe(q)
@@ -149,11 +148,15 @@ class Guard:
         return _AnchorResult(best.margin, best)
 
     def _proven_clear(self, *qs: np.ndarray) -> bool:
+        """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
+        body closer to the anchor than its margin there."""
         a = self._anchor
-        if a is None or not math.isfinite(a.free) or a.free <= 0.0:
+        if a is None:
             return False
+        bound = np.isfinite(a.free)
+        free = a.free[bound]
         box = np.max([np.abs(q - a.q) for q in qs], axis=0)
-        return float(box @ (a.reach + a.free)) < a.free
+        return bool((free > 0.0).all() and (box @ (a.reach[:, bound] + free) < free).all())
 
 
 class _AnchorResult(NamedTuple):

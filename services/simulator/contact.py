@@ -63,7 +63,7 @@ class ContactModel:
             return self._cache[1]
         if not math.isclose(model.opening * 1e3, opening_mm, abs_tol=0.5):
             model.set_opening(opening_mm * 1e-3)
-        k, margin, _own = model.tightest(q)
+        k, margin = model.tightest(q)
         check = model.checks[k]
         found = Distance(float(margin), f"{check.body}/{check.other}")
         self._cache = (key, found)
