@@ -421,10 +421,19 @@ def default_scene() -> Scene:
     return load_scene(default_scene_path())
 
 
+SCENE_ENV = "MANUS_SCENE"
+"""Environment variable naming the scene every service uses when its setting is empty."""
+
+
 def scene_from_setting(setting: str) -> Scene | None:
-    """The scene a service's ``scene`` setting names: ``""`` or ``default`` -> the shipped
-    one, ``none`` -> no scene (no collision checks), else a file path."""
-    if setting in ("", "default"):
+    """The scene a service's ``scene`` setting names: ``""`` -> ``$MANUS_SCENE`` if set,
+    else the shipped one; ``default`` -> the shipped one; ``none`` -> no scene (no
+    collision checks); else a file path. Every service's setting defaults to ``""``, so
+    one environment variable gives the planner, sequencer, controller and simulator the
+    same scene."""
+    if setting == "":
+        setting = os.environ.get(SCENE_ENV, "") or "default"
+    if setting == "default":
         return default_scene()
     if setting == "none":
         return None

@@ -32,7 +32,8 @@ class SequencerConfig:
             the newest echo is older than this (docs/deployment.md, Faults).
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
-        scene: the scene folds are checked against (``default``, ``none`` or a file; the
+        scene: the scene folds are checked against (``""`` = ``$MANUS_SCENE`` or the
+            shipped one, ``default``, ``none`` or a file; the
             planner checks every move against its own, the same by default).
     """
 
@@ -45,7 +46,7 @@ class SequencerConfig:
     progress_step: float = 0.02
     heartbeat_timeout_s: float = 0.1
     link_timeout_s: float = 0.5
-    scene: str = "default"
+    scene: str = ""
 
     def __post_init__(self) -> None:
         for name in ("result_margin_s", "gripper_timeout_s", "fold_timeout_s", "cancel_timeout_s"):
