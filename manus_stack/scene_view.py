@@ -68,7 +68,7 @@ def _surfaces(shape: str, size: tuple[float, ...]) -> Iterator[np.ndarray]:
 
 def _placed(surface: np.ndarray, pose: np.ndarray) -> np.ndarray:
     flat = surface.reshape(3, -1)
-    return (pose[:3, :3] @ flat + pose[:3, 3:4]).reshape(surface.shape)
+    return np.asarray((pose[:3, :3] @ flat + pose[:3, 3:4]).reshape(surface.shape))
 
 
 def _draw(ax: Any, body: Primitive, **style: Any) -> None:

@@ -11,7 +11,9 @@ Four panels:
   ``state/joints`` when there is no controller);
 - commanded increments per motor [counts of 0.1 deg per 20 ms], as the arm executed
   them (``JointState.applied``);
-- the via-point error table of every ``controller/result`` [mm] (mean, max).
+- the via-point error table of every ``controller/result`` [mm] (mean, max);
+- when the simulator's truth carries it, the smallest true clearance between the arm
+  and the scene over time [mm] (a fifth panel), with the contacts.
 
 :func:`load_plot_data` extracts the series (testable without drawing); :func:`plot_recording`
 draws them with matplotlib's Agg backend and is what ``manus demo`` calls.
@@ -75,6 +77,9 @@ class PlotData:
     q_js: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     applied: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     results: list[GoalResult] = field(default_factory=list)
+    t_clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contacts: int = 0
 
 
 def _preview(traj: Trajectory) -> np.ndarray:
@@ -103,6 +108,8 @@ def load_plot_data(path: str | Path) -> PlotData:
     js_q: list[list[float]] = []
     js_applied: list[list[int]] = []
     truth: list[list[float]] = []
+    clear_t: list[float] = []
+    clear: list[float] = []
     for r, msg in rec.decoded(_SUFFIXES):
         t = (r.log_ns - t0) / 1e9
         if isinstance(msg, JointState):
@@ -120,6 +127,10 @@ def load_plot_data(path: str | Path) -> PlotData:
             data.results.append(msg)
         elif isinstance(msg, SimTruth):
             truth.append(msg.xyz)
+            if msg.clearance is not None:
+                clear_t.append(t)
+                clear.append(msg.clearance)
+                data.contacts = msg.contacts
         elif isinstance(msg, TrajectoryGoal):
             goals.append(msg.trajectory)
         elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
@@ -135,6 +146,8 @@ def load_plot_data(path: str | Path) -> PlotData:
     data.q_js = np.asarray(js_q, dtype=float).reshape(-1, 6)
     data.applied = np.asarray(js_applied, dtype=float).reshape(-1, 6)
     data.truth = np.asarray(truth, dtype=float).reshape(-1, 3)
+    data.t_clearance = np.asarray(clear_t)
+    data.clearance = np.asarray(clear, dtype=float)
     chosen = goals or plans
     if chosen:
         data.planned = [_preview(tr) for tr in chosen]
@@ -188,12 +201,16 @@ def plot_recording(
 
     data = load_plot_data(path)
     out = Path(output) if output is not None else Path(path).with_suffix(".png")
-    fig, axes = plt.subplots(2, 2, figsize=(14, 10))
+    rows = 3 if len(data.clearance) else 2
+    fig, axes = plt.subplots(rows, 2, figsize=(14, 5 * rows))
     try:
         _path_panel(axes[0][0], data)
         _joint_panel(axes[0][1], data)
         _increment_panel(axes[1][0], data)
         errors = _table_panel(axes[1][1], data)
+        if rows == 3:
+            _clearance_panel(axes[2][0], data)
+            axes[2][1].axis("off")
         fig.suptitle(title or Path(path).name)
         fig.tight_layout()
         fig.savefig(out, dpi=80)
@@ -266,6 +283,20 @@ def _increment_panel(a: Axes, data: PlotData) -> None:
     a.set_ylim(-10.5, 10.5)
     a.grid(True, alpha=0.3)
     a.legend(loc="best", fontsize=8, ncol=3)
+
+
+def _clearance_panel(a: Axes, data: PlotData) -> None:
+    a.plot(data.t_clearance, data.clearance * 1e3, color="tab:green", lw=1.0, label="true")
+    a.axhline(0.0, color="tab:red", lw=0.8, label="contact")
+    a.set_xlabel("time [s]")
+    a.set_ylabel("clearance [mm]")
+    lowest = float(data.clearance.min()) * 1e3
+    a.set_title(
+        f"smallest true clearance to the scene (simulator): {lowest:.1f} mm, "
+        f"{data.contacts} contact ticks"
+    )
+    a.grid(True, alpha=0.3)
+    a.legend(loc="best", fontsize=8)
 
 
 def _table_panel(a: Axes, data: PlotData) -> list[float]:
