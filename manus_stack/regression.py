@@ -7,8 +7,9 @@ of the same channel and rank, as encoded bytes. It reports the first difference 
 one caused by the earliest input): channel, rank, field path, both values. Outputs on
 both sides are counted; one side running out is a difference too.
 
-- ``planner``: ``state/joints`` and ``trace/planner/plan/request`` in,
-  ``trace/planner/plan/reply`` out (``compute_ms`` is wall time and is not compared).
+- ``planner``: ``state/joints``, ``trace/planner/plan/request`` and
+  ``trace/planner/scene/request`` in, ``trace/planner/plan/reply`` and
+  ``trace/planner/scene/reply`` out (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's ``state/joints``, ``state/status`` and ``state/bridge``
   (each handed over as :func:`manus_stack.controlled.controller_input` does) and the controller's
   query requests (``trace/controller/{goal,gripper,cancel,speed_scale}/request``) in;
@@ -40,6 +41,7 @@ import msgpack
 
 from manus_stack.controlled import controller_input
 from schemas.base import Message
+from schemas.collision import SceneUpdate
 from schemas.liveliness import LIVELINESS, LivelinessChange
 from schemas.planning import PlanRequest
 from schemas.state import JointState
@@ -234,7 +236,7 @@ def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
     return [s for s in suffixes if s in have]  # none: no input at all
 
 
-PLANNER_OUTPUTS = ("trace/planner/plan/reply",)
+PLANNER_OUTPUTS = ("trace/planner/plan/reply", "trace/planner/scene/reply")
 
 
 def check_planner(path: str | Path, config: PlannerConfig | None = None) -> CheckResult:
@@ -246,10 +248,13 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     window = (window[0], cmp.last_ns)
     recorded_ms = [_plain(r.payload) for r in cmp.recorded[PLANNER_OUTPUTS[0]]]
     inputs = 0
-    for rec, msg in _inputs(recording, ("state/joints", "trace/planner/plan/request"), window):
+    suffixes = ("state/joints", "trace/planner/plan/request", "trace/planner/scene/request")
+    for rec, msg in _inputs(recording, suffixes, window):
         inputs += 1
         if isinstance(msg, JointState):
             core.on_joint_state(msg)
+        elif isinstance(msg, SceneUpdate):
+            cmp.add(PLANNER_OUTPUTS[1], core.update_scene(msg).encode(), rec.log_ns)
         elif isinstance(msg, PlanRequest):
             reply = core.plan(msg)
             rank = len(cmp.replayed[PLANNER_OUTPUTS[0]])

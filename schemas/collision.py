@@ -30,3 +30,37 @@ class ClearanceReport(Message):
     other: str = field("the scene object, zone or arm body")
     cls: str = field("class whose clearance applies", choices=CLEARANCE_CLASSES)
     time: float = field("when: trajectory time, or stamp time for a run", unit="s", default=0.0)
+
+
+@dataclass(frozen=True)
+class SceneUpdate(Message):
+    """Replace the planner's scene at run time (a table moved, a cup added): the whole
+    scene, in the scene file format (docs/scene.md), validated whole before it is used."""
+
+    TYPE_NAME = "manus/SceneUpdate/1"
+
+    text: str = field("the scene file's YAML text")
+    source: str = field("a name for it in messages (e.g. the file it came from)", default="")
+    base_version: int = field(
+        "the version this update replaces; refused when the current one differs "
+        "(-1: whichever is current)",
+        default=-1,
+        minimum=-1,
+    )
+
+
+@dataclass(frozen=True)
+class SceneReply(Message):
+    """The planner's answer to a :class:`SceneUpdate`."""
+
+    TYPE_NAME = "manus/SceneReply/1"
+
+    accepted: bool = field("the scene is in use from the next plan on")
+    version: int = field(
+        "the version now in use (every plan reports the version it was checked against)",
+        minimum=0,
+    )
+    error: str = field(
+        "why it was refused: one line naming the source, line and field ('': accepted)",
+        default="",
+    )

@@ -15,6 +15,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | heartbeat              | pub        | Heartbeat (deadman)           | sequencer  |
 | bridge/command         | queryable  | ArmCommand -> ArmCommandReply | can_bridge |
 | planner/plan           | queryable  | PlanRequest -> PlanReply      | planner    |
+| planner/scene          | queryable  | SceneUpdate -> SceneReply     | planner    |
 | controller/goal        | queryable  | TrajectoryGoal -> GoalAck     | controller |
 | controller/gripper     | queryable  | GripperGoal -> GoalAck        | controller |
 | controller/cancel      | queryable  | CancelGoal -> GoalAck         | controller |
@@ -114,6 +115,11 @@ class Keys:
         return self("planner/plan")
 
     @property
+    def scene(self) -> str:
+        """The planner's scene, replaced at run time (``schemas.collision.SceneUpdate``)."""
+        return self("planner/scene")
+
+    @property
     def goal(self) -> str:
         return self("controller/goal")
 
@@ -186,7 +192,7 @@ def channel_types() -> dict[str, type[Message]]:
     reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
     travel as ``trace/<suffix>/request|reply`` (:func:`channel_type` maps the keys).
     """
-    from schemas import commands, control, planning, sequencing, state
+    from schemas import collision, commands, control, planning, sequencing, state
 
     table: dict[str, type[Message]] = {
         "state/joints": state.JointState,
@@ -202,6 +208,8 @@ def channel_types() -> dict[str, type[Message]]:
         "bridge/command#reply": commands.ArmCommandReply,
         "planner/plan#request": planning.PlanRequest,
         "planner/plan#reply": planning.PlanReply,
+        "planner/scene#request": collision.SceneUpdate,
+        "planner/scene#reply": collision.SceneReply,
         "controller/goal#request": control.TrajectoryGoal,
         "controller/goal#reply": control.GoalAck,
         "controller/gripper#request": control.GripperGoal,

@@ -23,6 +23,7 @@ point i and is reached at ``times[i]`` (the file's time, times ``time_scale``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -30,8 +31,9 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
-from manus.scene import Scene, scene_from_setting
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.viapoints import ViaPointError, validate_path
+from schemas.collision import SceneReply, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner.checks import check_geometry, check_rates
@@ -68,6 +70,27 @@ class PlannerCore:
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
         self.collision = None if scene is None else CollisionModel(scene, self.config.arm)
+
+    def update_scene(self, update: SceneUpdate) -> SceneReply:
+        """Replace the scene (the ``planner/scene`` queryable): validated whole, then
+        used from the next plan on with the next version; never raises."""
+        current = self.collision.scene if self.collision is not None else None
+        version = current.version if current is not None else 0
+        if update.base_version not in (-1, version):
+            return SceneReply(
+                accepted=False,
+                version=version,
+                error=f"the update replaces version {update.base_version}, but version "
+                f"{version} is in use: read it again",
+            )
+        try:
+            scene = parse_scene(update.text, update.source or "<scene update>")
+            scene = dataclasses.replace(scene, version=version + 1)
+            model = CollisionModel(scene, self.config.arm)
+        except SceneError as exc:
+            return SceneReply(accepted=False, version=version, error=str(exc))
+        self.collision = model
+        return SceneReply(accepted=True, version=scene.version)
 
     def on_joint_state(self, js: JointState) -> None:
         """Remember ``js`` as the default start if it is valid (invalid ones are ignored)."""

@@ -49,7 +49,7 @@ services ``--as`` accepts."""
 
 SERVICE_QUERYABLES: dict[str, tuple[str, ...]] = {
     "can_bridge": ("bridge/command",),
-    "planner": ("planner/plan",),
+    "planner": ("planner/plan", "planner/scene"),
     "controller": (
         "controller/goal",
         "controller/gripper",
