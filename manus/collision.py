@@ -18,7 +18,9 @@ the wrist and the forearm against the arm's base (column and shoulder). Adjacent
 are excluded, and so is everything between the upper arm and the forearm-wrist-gripper
 chain: the DH model puts them in one plane (folded, on one line), while on the arm the
 forearm and the gripper fold beside the upper arm, so their distance in this model says
-nothing about the arm. The
+nothing about the arm. Pairs that no
+configuration can bring within their clearance (an object beyond the sphere about the
+shoulder that holds the body) are left out. The
 ``column`` and the ``shoulder`` do not move (the shoulder turns about its own axis), so
 their distances to the scene are checked once, when the model is built
 (:meth:`CollisionModel.base_overlaps`), not per configuration.
@@ -263,13 +265,17 @@ class CollisionModel:
                     check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
                     body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
                     self._keep_in_bodies.append((check, body, bodies))
-        for first, second in pairs:
-            gm.addCollisionPair(pin.CollisionPair(first, second))
         self.geom = gm
-        self.geom_data = pin.GeometryData(gm)
-        self._required = np.array([c.required for c in self.checks])
         self._covers = [_cover(s) for s in self.shapes]
         self._prepare_points()
+        # Pairs no configuration can bring within their clearance are left out.
+        reachable = [self._can_meet(first, second) for first, second in pairs]
+        pairs = [p for p, keep in zip(pairs, reachable, strict=True) if keep]
+        self.checks = [c for c, keep in zip(self.checks, reachable, strict=True) if keep]
+        for first, second in pairs:
+            gm.addCollisionPair(pin.CollisionPair(first, second))
+        self.geom_data = pin.GeometryData(gm)
+        self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
         overlaps = self.base_overlaps()
         if overlaps:
@@ -392,8 +398,9 @@ class CollisionModel:
             while seg < len(times) - 2 and t >= times[seg + 1]:
                 seg += 1
             # Each body may travel its own margin (or one step, where that is smaller).
-            travel = np.maximum(free, step)
-            speed = peaks[seg] @ (reach + travel)
+            bound = np.isfinite(free)  # bodies with something to keep clear of
+            travel = np.maximum(free[bound], step)
+            speed = peaks[seg] @ (reach[:, bound] + travel)
             moving = speed > 0.0
             dt = float((travel[moving] / speed[moving]).min()) if moving.any() else math.inf
             t_next = min(t + dt, float(times[seg + 1]))
@@ -472,6 +479,31 @@ class CollisionModel:
             body = self.shapes[int(self._point_body[rows][k])].name
             out.append((float(inner[k]) - check.required, check._replace(body=body)))
         return out
+
+    def _can_meet(self, body: int, other: int) -> bool:
+        """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
+        the shoulder that holds ``body`` in every configuration (the joint placements'
+        lengths up to the body, plus its own extent)."""
+        obj = self.geom.geometryObjects[body]
+        rows = self._point_body == body
+        radius = sum(
+            float(np.linalg.norm(self.model.jointPlacements[k].translation))
+            for k in range(1, obj.parentJoint + 1)
+        )
+        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        fixed = self.geom.geometryObjects[other]
+        if fixed.parentJoint != 0:
+            return True  # another arm body (a self pair)
+        M = fixed.placement
+        gap = coal.distance(
+            coal.Sphere(radius),
+            coal.Transform3s(),
+            fixed.geometry,
+            coal.Transform3s(M.rotation, M.translation),
+            coal.DistanceRequest(),
+            coal.DistanceResult(),
+        )
+        return bool(gap <= 0.0)
 
     def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
         """One geometry model per moving body with its pairs, for per-body margins: the
