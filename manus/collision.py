@@ -41,7 +41,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from manus.config import DEFAULT_ARM, ArmConfig
+from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
 from manus.urdf import FINGER_THICKNESS, Shape, build_urdf, collision_shapes
 from schemas.collision import ClearanceReport
@@ -189,15 +189,13 @@ class CollisionModel:
 
     Args:
         scene: the surroundings (None: self-collision only).
-        cfg: arm geometry.
+        cfg: arm geometry (passed explicitly, as the kinematics take it).
         opening: gripper opening the gripper box is sized for [m] (default: fully open,
             the planner's choice: it does not know the opening a move will have).
     """
 
-    def __init__(
-        self, scene: Scene | None, cfg: ArmConfig | None = None, opening: float | None = None
-    ) -> None:
-        self.cfg = cfg or DEFAULT_ARM
+    def __init__(self, scene: Scene | None, cfg: ArmConfig, opening: float | None = None) -> None:
+        self.cfg = cfg
         self.scene = scene
         urdf = build_urdf(self.cfg)
         self.model = pin.buildModelFromXML(urdf)

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from manus.collision import CollisionModel
+from manus.config import ArmConfig
 from manus.scene import Primitive, Scene
 from manus.urdf import Shape
 
@@ -96,7 +97,9 @@ def _arm_primitive(shape: Shape, model: CollisionModel, index: int, mount: np.nd
     return Primitive("box" if shape.kind == "box" else shape.kind, size, mount @ pose)
 
 
-def draw_scene(scene: Scene, q: np.ndarray, png: str | Path, *, opening: float = 0.0) -> str:
+def draw_scene(
+    scene: Scene, q: np.ndarray, png: str | Path, *, arm: ArmConfig, opening: float = 0.0
+) -> str:
     """Draw ``scene`` with the arm at DH angles ``q`` [rad]; returns the tightest
     clearance in words (also the plot's title)."""
     import matplotlib
@@ -104,7 +107,7 @@ def draw_scene(scene: Scene, q: np.ndarray, png: str | Path, *, opening: float =
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    model = CollisionModel(scene, opening=opening)
+    model = CollisionModel(scene, arm, opening=opening)
     found = model.clearance(np.asarray(q, dtype=float))
     fig = plt.figure(figsize=(9, 8))
     ax = fig.add_subplot(projection="3d")

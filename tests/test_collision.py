@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from manus.collision import SELF_PAIRS, CollisionModel
-from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import default_scene
 from manus.viapoints import load_path, parse_viapoints
 from schemas.planning import PlanReply, PlanRequest
@@ -24,7 +24,7 @@ from services.planner.spline import PiecewisePolynomial
 ROOT = FilePath(__file__).resolve().parent.parent
 UNFOLDED = [math.radians(v) for v in UNFOLDED_Q_DEG]
 CORE = PlannerCore()
-MODEL = CollisionModel(default_scene())
+MODEL = CollisionModel(default_scene(), DEFAULT_ARM)
 
 
 def moves(*steps: tuple[float, ...]) -> str:
@@ -98,7 +98,7 @@ def test_self_pairs_are_declared_once_and_exist() -> None:
 
 
 def test_gripper_box_follows_the_opening() -> None:
-    model = CollisionModel(default_scene(), opening=0.0)
+    model = CollisionModel(default_scene(), DEFAULT_ARM, opening=0.0)
     q = np.radians(FOLDED_Q_DEG)
     closed = model.margins(q)
     model.set_opening(0.09)
@@ -156,7 +156,7 @@ def validate(task_words: list[str], start_deg: tuple[float, ...]) -> list[str]:
     from services.sequencer.validate import Validator, fold_checker
 
     task = with_folds(task_from_args(task_words), fold_out=True, fold_in=True)
-    v = Validator(task, [math.radians(a) for a in start_deg], fold_checker("default"))
+    v = Validator(task, [math.radians(a) for a in start_deg], fold_checker("default", DEFAULT_ARM))
     while (request := v.next_request()) is not None:
         v.on_reply(CORE.plan(request))
     return v.errors

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from manus.collision import CollisionModel
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
@@ -45,7 +45,7 @@ def test_a_trajectory_into_the_head_is_stopped_at_the_clearance() -> None:
     arm = ControlledArm(SimConfig(start_pose="unfolded"))
     arm.start()
     assert arm.submit(TrajectoryGoal(goal_id="head", trajectory=reply.trajectory)).accepted
-    model = CollisionModel(default_scene(), opening=arm.ls.sim.truth().gripper)
+    model = CollisionModel(default_scene(), DEFAULT_ARM, opening=arm.ls.sim.truth().gripper)
     closest = math.inf
     for _ in range(200):  # 12 s
         arm.ls.run_for(0.06)
@@ -69,7 +69,7 @@ def test_a_trajectory_into_the_head_is_stopped_at_the_clearance() -> None:
 
 
 def test_clear_paths_pass_unchanged_and_mostly_without_distances() -> None:
-    model = CollisionModel(default_scene())
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
     guard = Guard(model)
     q = list(UNFOLDED)
     counts = np.array([2, -1, 0, 3, 0, 0])
@@ -82,7 +82,7 @@ def test_clear_paths_pass_unchanged_and_mostly_without_distances() -> None:
 
 
 def test_idle_costs_nothing() -> None:
-    guard = Guard(CollisionModel(default_scene()))
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM))
     zero = np.zeros(6, dtype=np.int64)
     verdict = guard.filter(UNFOLDED, [0.0] * 6, zero, 0.0)
     assert verdict.scale == 1.0 and verdict.reason == "" and verdict.clearance is None

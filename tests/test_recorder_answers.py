@@ -14,7 +14,7 @@ from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
-from services.recorder.replay import SERVICE_OUTPUTS, SERVICE_QUERYABLES, schedule
+from services.recorder.replay import schedule, service_outputs_table, service_queryables_table
 
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
@@ -141,6 +141,7 @@ def test_exchanges_of_the_thesis_recording() -> None:
 
 def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None:
     recording = Recording(SQUARE)
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     assert SERVICE_OUTPUTS["planner"] == ()
     assert schedule(recording, as_service="planner") == []
     assert set(SERVICE_QUERYABLES) <= set(SERVICE_OUTPUTS)
@@ -153,6 +154,7 @@ def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None
 def test_the_stand_in_tables_cover_every_key_of_the_schemas() -> None:
     """Every published key has one publishing service (estop: anyone; liveliness: the
     recorder's channel), every queryable one serving service."""
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     names = set(channel_types())
     published = {n for n in names if "#" not in n} - {"estop", "liveliness"}
     outputs = [s for out in SERVICE_OUTPUTS.values() for s in out]

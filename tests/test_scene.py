@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from manus.collision import CollisionModel
-from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import (
     CLASSES,
     SceneError,
@@ -63,7 +63,7 @@ def test_default_scene_has_the_user_the_chair_and_the_room() -> None:
 
 
 def test_default_scene_leaves_the_fold_poses_clear() -> None:
-    model = CollisionModel(default_scene())
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
     for q_deg in (FOLDED_Q_DEG, UNFOLDED_Q_DEG):
         assert model.clearance(np.radians(q_deg)).margin > 0.0
 
@@ -145,7 +145,7 @@ def test_object_overlapping_the_arms_base_is_refused(tmp_path: Path) -> None:
     file = write(tmp_path, text)
     scene = load_scene(file)  # the file itself is well formed
     with pytest.raises(SceneError) as err:
-        CollisionModel(scene)
+        CollisionModel(scene, DEFAULT_ARM)
     assert str(err.value).startswith(f"{file}:15: objects.bag: overlaps the arm's column")
 
 

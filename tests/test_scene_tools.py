@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus_stack.cli import main
 from manus_stack.recordings import record_thesis_run
 from services.recorder.plot import load_plot_data, plot_recording
@@ -38,8 +39,8 @@ def test_scene_check_refuses_a_malformed_file(
 
 def test_plot_shows_the_true_clearance_of_a_run(tmp_path: Path) -> None:
     run = record_thesis_run("square", tmp_path / "square.mcap")
-    data = load_plot_data(run.output)
+    data = load_plot_data(run.output, DEFAULT_ARM)
     assert len(data.clearance) > 100 and data.contacts == 0
     assert 0.05 < float(data.clearance.min()) < 0.2  # the upper arm passes the thighs
-    summary = plot_recording(run.output, tmp_path / "square.png")
+    summary = plot_recording(run.output, tmp_path / "square.png", arm=DEFAULT_ARM)
     assert Path(summary.output).read_bytes()[:4] == b"\x89PNG"

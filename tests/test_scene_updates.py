@@ -11,6 +11,7 @@ from manus.node import Node, QueryError
 from manus.scene import default_scene_path
 from manus.session import ZenohSettings
 from manus.viapoints import load_path
+from schemas import endpoints as ep
 from schemas.collision import SceneReply, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
@@ -66,18 +67,18 @@ def test_scene_updates_over_the_bus(zenoh_settings: ZenohSettings) -> None:
         PlannerShell(zenoh_settings) as shell,
         Node("supervisor", zenoh_settings, liveliness=False) as client,
     ):
-        assert client.keys.scene == "test/planner/scene"
+        assert client.keys(ep.SCENE) == "test/planner/scene"
 
         def answers() -> bool:
             try:
-                client.query(client.keys.plan, SQUARE, PlanReply, timeout=1.0)
+                client.query(client.keys(ep.PLAN), SQUARE, PlanReply, timeout=1.0)
             except QueryError:
                 return False
             return True
 
         eventually(answers)
-        reply = client.query(client.keys.scene, SceneUpdate(text=CUP, source="cup"), SceneReply)
+        reply = client.query(client.keys(ep.SCENE), SceneUpdate(text=CUP, source="cup"), SceneReply)
         assert reply.accepted and reply.version == 1
-        plan = client.query(client.keys.plan, SQUARE, PlanReply)
+        plan = client.query(client.keys(ep.PLAN), SQUARE, PlanReply)
         assert plan.error is not None and "version 1" in plan.error.message
         assert shell.core.collision is not None

@@ -26,7 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from manus.collision import CollisionModel
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.joint_map import dh_increments_to_encoder
 from manus.quantize import COUNT_RAD_S
 from manus.scene import default_scene
@@ -52,7 +52,7 @@ def _circle_curve(request: PlanRequest) -> PiecewisePolynomial:
 
 
 def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
-    model = CollisionModel(default_scene())
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
     curve = _circle_curve(request)
     ex = curve.extremes(1)
     sweep = model.sweep(curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
@@ -69,7 +69,7 @@ def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
 
 
 def _distance_queries(seconds: float) -> dict[str, Any]:
-    model = CollisionModel(default_scene())
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
     rng = np.random.default_rng(0)
     qs = np.radians(UNFOLDED_Q_DEG) + rng.uniform(-0.5, 0.5, (200, 6))
     pairs = len(model.checks)
@@ -113,13 +113,11 @@ def _distance_queries(seconds: float) -> dict[str, Any]:
 
 
 def _guard(request: PlanRequest) -> dict[str, Any]:
-    model = CollisionModel(default_scene(), opening=0.0)
+    model = CollisionModel(default_scene(), DEFAULT_ARM, opening=0.0)
     curve = _circle_curve(request)
     ts = np.arange(0.0, curve.duration, 0.06)
     Q, V = curve.evaluate(ts), curve.evaluate(ts, order=1)
-    counts = [
-        np.round(dh_increments_to_encoder(v) / COUNT_RAD_S).astype(np.int64) for v in V
-    ]
+    counts = [np.round(dh_increments_to_encoder(v) / COUNT_RAD_S).astype(np.int64) for v in V]
     guard = Guard(model)
 
     def cycles(force: bool) -> list[float]:

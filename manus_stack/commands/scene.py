@@ -16,7 +16,7 @@ import sys
 import numpy as np
 
 from manus.collision import CollisionModel
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import UNFOLDED_Q_DEG, load_arm_config
 from manus.scene import describe, scene_from_setting
 
 
@@ -28,6 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         ("check", "validate a scene file; print what it holds as JSON"),
     ):
         p = sub.add_parser(name, help=text, description=text)
+        p.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
         p.add_argument(
             "--scene",
             default="",
@@ -52,14 +53,15 @@ def run(args: argparse.Namespace) -> int:
     if scene is None:
         print("manus scene: no scene ('none')", file=sys.stderr)
         return 1
-    CollisionModel(scene)  # refuses an object on the arm's base
+    arm = load_arm_config(args.arm_config)
+    CollisionModel(scene, arm)  # refuses an object on the arm's base
     if args.scene_command == "check":
         print(json.dumps(describe(scene)))
         return 0
     from manus_stack.scene_view import draw_scene
 
     q = [math.radians(v) for v in args.joints]
-    title = draw_scene(scene, np.asarray(q), args.output, opening=args.opening * 1e-3)
+    title = draw_scene(scene, np.asarray(q), args.output, arm=arm, opening=args.opening * 1e-3)
     print(title)
     print(f"plot: {args.output}")
     return 0

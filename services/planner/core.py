@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from typing import Any
 
 import numpy as np
@@ -65,11 +66,16 @@ class PlannerCore:
         self.config = config or PlannerConfig()
         self.latest: JointState | None = None
         self.collision: CollisionModel | None = None
+        self.checking = threading.Lock()
+        """Held while the collision model is used or replaced: its Pinocchio data is
+        scratch space shared by every check (a live shell plans on several threads)."""
         self.set_scene(scene_from_setting(self.config.scene))
 
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
-        self.collision = None if scene is None else CollisionModel(scene, self.config.arm)
+        model = None if scene is None else CollisionModel(scene, self.config.arm)
+        with self.checking:
+            self.collision = model
 
     def update_scene(self, update: SceneUpdate) -> SceneReply:
         """Replace the scene (the ``planner/scene`` queryable): validated whole, then
@@ -89,7 +95,8 @@ class PlannerCore:
             model = CollisionModel(scene, self.config.arm)
         except SceneError as exc:
             return SceneReply(accepted=False, version=version, error=str(exc))
-        self.collision = model
+        with self.checking:
+            self.collision = model
         return SceneReply(accepted=True, version=scene.version)
 
     def on_joint_state(self, js: JointState) -> None:
@@ -160,9 +167,11 @@ class PlannerCore:
         check_geometry(curve, path, branch_of(q_start, config.arm), config)
         rates = check_rates(curve, path, config, speed_scaling=request.speed_scaling)
         notes.extend(rates.notes)
-        clearance = None
-        if self.collision is not None:
-            clearance = check_collisions(self.collision, rates.curve, path)
+        clearance, version = None, -1
+        with self.checking:
+            if self.collision is not None:
+                clearance = check_collisions(self.collision, rates.curve, path)
+                version = self.collision.scene.version if self.collision.scene else -1
         k = rates.time_scale
         duration = rates.curve.duration
         preview_dt = 0.0
@@ -187,9 +196,7 @@ class PlannerCore:
             time_scale=k,
             notes=notes,
             clearance=clearance,
-            scene_version=-1
-            if self.collision is None or self.collision.scene is None
-            else self.collision.scene.version,
+            scene_version=version,
         )
 
 

@@ -1,30 +1,30 @@
 """The planner's live shell: a Zenoh queryable around :class:`PlannerCore`.
 
-Answers ``<prefix>/planner/plan`` (PlanRequest -> PlanReply) and ``<prefix>/planner/scene``
-(SceneUpdate -> SceneReply: the scene replaced at run time, between two plans) and
-follows
-``<prefix>/state/joints`` for the default start configuration (valid states only).
-Planning runs outside the node lock on a snapshot of the newest joint state, so a long
-plan never delays joint-state updates; plans (and scene updates) take turns on their own
-lock, because the collision model's Pinocchio data is shared by every check.
+Its wiring map (:data:`services.planner.wiring.WIRING`): answers ``planner/plan``
+(PlanRequest -> PlanReply) and ``planner/scene`` (SceneUpdate -> SceneReply: the scene
+replaced at run time) and follows the joint states for the default start configuration
+(valid states only). Planning runs outside the node lock on the newest joint state (one
+attribute, replaced whole by each update), so a long plan never delays joint-state
+updates; concurrent plans take turns only for their collision check (the collision
+model's Pinocchio data is shared: :attr:`PlannerCore.checking`). ``compute_ms`` is the
+time the answer took.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
-import threading
-import time
 
 import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
-from schemas.collision import SceneReply, SceneUpdate
-from schemas.planning import PlanReply, PlanRequest
-from schemas.state import JointState
+from schemas.base import Message
+from schemas.endpoints import Endpoint
+from schemas.planning import PlanReply
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
+from services.planner.wiring import WIRING
 
 log = logging.getLogger("manus.planner")
 
@@ -49,35 +49,20 @@ class PlannerShell:
         self.node = Node("planner", settings, session=session, liveliness=False)
         self.plans = 0
         self.refusals = 0
-        self._planning = threading.Lock()
-        self.node.subscribe(self.node.keys.joints, JointState, self._on_joint_state)
-        self.node.queryable(self.node.keys.plan, PlanRequest, self._on_plan, locked=False)
-        self.node.queryable(self.node.keys.scene, SceneUpdate, self._on_scene)
+        WIRING.attach(self.node, self.core, on_reply=self._answered)
         self.node.announce()  # alive once it listens and answers
 
-    def _on_joint_state(self, js: JointState, rx_ns: int) -> None:
-        self.core.on_joint_state(js)
-
-    def _on_plan(self, request: PlanRequest) -> PlanReply:
-        started = time.perf_counter()
-        with self.node.lock:
-            latest = self.core.latest
-        with self._planning:  # one plan at a time: the collision model's data is shared
-            reply = self.core.plan(request, latest)
-        elapsed_ms = (time.perf_counter() - started) * 1e3
+    def _answered(
+        self, endpoint: Endpoint, request: Message, reply: Message, took: float
+    ) -> Message:
+        if not isinstance(reply, PlanReply):
+            return reply
         with self.node.lock:
             self.plans += 1
             self.refusals += not reply.ok
         if reply.error is not None:
             log.info("refused a plan (%s): %s", reply.error.reason, reply.error.message)
-        return dataclasses.replace(reply, compute_ms=elapsed_ms)
-
-    def _on_scene(self, update: SceneUpdate) -> SceneReply:
-        with self._planning:  # between plans
-            reply = self.core.update_scene(update)
-        log.info("scene update %s: %s", "accepted" if reply.accepted else "refused",
-                 f"version {reply.version}" if reply.accepted else reply.error)  # fmt: skip
-        return reply
+        return dataclasses.replace(reply, compute_ms=took * 1e3)
 
     def close(self) -> None:
         """Leave the bus."""

@@ -204,7 +204,7 @@ class Validator:
 
 
 def fold_checker(
-    scene: str, arm: ArmConfig | None = None
+    scene: str, arm: ArmConfig
 ) -> Callable[[list[float], list[float], str], str | None] | None:
     """The ``fold_check`` of a :class:`Validator` for the scene setting ``scene``
     (``default``, ``none`` or a file; None when ``none``).
