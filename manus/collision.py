@@ -417,9 +417,10 @@ class CollisionModel:
             parts.append(np.linspace(t0, t1, n + 1)[1:])
         return np.concatenate(parts)
 
-    def probe(self, q: np.ndarray, time: float = 0.0) -> Probe:
+    def probe(self, q: np.ndarray, time: float = 0.0, *, reach: bool = True) -> Probe:
         """At ``q``, per moving body: its tightest margin (how far it may travel before any
-        of its gaps could close) and each joint's reach to it; and the tightest check."""
+        of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
+        False: cheaper); and the tightest check."""
         q = np.asarray(q, dtype=float)
         pin.forwardKinematics(self.model, self.data, q)
         free = np.full(len(self._moving), math.inf)
@@ -447,7 +448,8 @@ class CollisionModel:
             free = np.minimum(free, margin)  # every body: the zone's tightest (cheaper)
             if margin < best.margin:
                 best = Clearance(margin, margin + check.required, check, time, q)
-        return Probe(best, np.maximum(free, 0.0), self._reach_at(points))
+        reaches = self._reach_at(points) if reach else np.zeros((6, len(self._moving)))
+        return Probe(best, np.maximum(free, 0.0), reaches)
 
     def _world_points(self) -> np.ndarray:
         """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""

@@ -103,6 +103,8 @@ class Guard:
         if abs(model.opening - opening) > 0.005:
             model.set_opening(opening)
         now = self._anchor_at(q_s)
+        if now.margin >= self.slow_zone_m and self._proven_clear(q_next, q_end):
+            return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
         if m_next.margin < floor:
@@ -139,7 +141,7 @@ class Guard:
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
-        return self.model.probe(q).best
+        return self.model.probe(q, reach=False).best
 
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
         best, free, reach = self.model.probe(q)
