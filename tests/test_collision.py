@@ -175,3 +175,36 @@ def test_a_fold_out_that_would_hit_the_armrest_is_refused() -> None:
         "deg would bring the upper_arm "
     )
     assert "from armrest_right (chair: needs 15 mm)" in errors[0]
+
+
+ZONES = """\
+version: 1
+mount: {xyz_mm: [350, -420, 1000]}
+objects: []
+zones:
+  - {name: box, kind: keep_in, shape: box, size_mm: [2000, 2000, 2000], xyz_mm: [350, -420, 1000]}
+  - {name: cup_area, kind: keep_out, links: gripper, shape: sphere, radius_mm: 60,
+     xyz_mm: [558, -315, 1200]}
+"""
+"""A keep-out sphere around the unfolded gripper (for the gripper only) and a big box."""
+
+
+def test_zones_keep_the_gripper_out_and_the_arm_in() -> None:
+    from manus.scene import parse_scene
+
+    scene = parse_scene(ZONES, "zones.yaml")
+    model = CollisionModel(scene, DEFAULT_ARM)
+    unfolded = np.radians(UNFOLDED_Q_DEG)
+    found = model.clearance(unfolded)
+    assert found.margin < 0 and found.check.other == "cup_area"
+    assert found.check.body in ("gripper", "gripper_motor") and found.check.cls == "zone"
+    # links: gripper: the other bodies are not checked against it.
+    assert {c.body for c in model.checks if c.other == "cup_area"} == {"gripper", "gripper_motor"}
+    # The keep-in box shrunk around the shoulder: the arm is outside it.
+    tight = parse_scene(ZONES.replace("[2000, 2000, 2000]", "[600, 600, 600]"), "zones.yaml")
+    inside = CollisionModel(tight, DEFAULT_ARM).keep_in_margins()
+    model_tight = CollisionModel(tight, DEFAULT_ARM)
+    model_tight.margins(unfolded)
+    ((margin, check),) = model_tight.keep_in_margins()
+    assert margin < 0 and check.other == "keep_in box" and check.body != ""
+    assert len(inside) == 1
