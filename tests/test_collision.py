@@ -208,3 +208,13 @@ def test_zones_keep_the_gripper_out_and_the_arm_in() -> None:
     ((margin, check),) = model_tight.keep_in_margins()
     assert margin < 0 and check.other == "keep_in box" and check.body != ""
     assert len(inside) == 1
+
+
+def test_the_sequencer_refuses_a_task_whose_move_would_hit_the_head(tmp_path: FilePath) -> None:
+    head = tmp_path / "head.txt"
+    head.write_text(moves((-289, 157, 15), (-289, 158, 15)))
+    square = str(ROOT / "paths" / "thesis_square.txt")
+    errors = validate([square, "40", str(head)], FOLDED_Q_DEG)
+    assert len(errors) == 1, errors
+    assert errors[0].startswith(f"{head}: step 4 (move): planner refused (collision): between ")
+    assert "from head (person: needs 50 mm)" in errors[0]
