@@ -18,23 +18,19 @@ the wrist and the forearm against the arm's base (column and shoulder). Adjacent
 are excluded, and so is everything between the upper arm and the forearm-wrist-gripper
 chain: the DH model puts them in one plane (folded, on one line), while on the arm the
 forearm and the gripper fold beside the upper arm, so their distance in this model says
-nothing about the arm. Pairs that no
-configuration can bring within their clearance (an object beyond the sphere about the
-shoulder that holds the body) are left out. The
+nothing about the arm. Pairs that no configuration can bring within their clearance (an
+object beyond the sphere about the shoulder that holds the body) are left out. The
 ``column`` and the ``shoulder`` do not move (the shoulder turns about its own axis), so
 their distances to the scene are checked once, when the model is built
 (:meth:`CollisionModel.base_overlaps`), not per configuration.
 
-:meth:`CollisionModel.sweep` checks a whole motion: it samples it so that no point of
-the arm travels more than ``step`` (10 mm) between samples, and skips ahead where the
-smallest margin is larger than the travel in between (no point can close a gap faster
-than it moves: continuous checking by conservative advancement).
+:func:`manus.sweep.sweep` checks a whole motion through :meth:`CollisionModel.probe`
+(each moving body's margin and its reach from each joint's axis).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import coal
@@ -43,7 +39,8 @@ import pinocchio as pin
 
 from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
-from manus.urdf import FINGER_THICKNESS, Shape, build_urdf, collision_shapes
+from manus.shapes import coal_shape, cover, inner_distances
+from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
 from schemas.collision import ClearanceReport
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
@@ -61,9 +58,6 @@ GRIPPER_BODIES = ("gripper", "gripper_motor")
 
 STATIC_BODIES = ("column", "shoulder")
 """Bodies whose distance to the scene does not depend on the joint angles."""
-
-STEP_M = 0.010
-"""Largest travel of any point of the arm between two checked samples [m]."""
 
 
 class Check(NamedTuple):
@@ -137,49 +131,6 @@ class Probe(NamedTuple):
     reach: np.ndarray
 
 
-class Sweep(NamedTuple):
-    """What :meth:`CollisionModel.sweep` found.
-
-    Attributes:
-        worst: the smallest margin over the checked samples.
-        violation: the first sample whose margin is negative (None: none).
-        checked: configurations whose distances were computed [-].
-        samples: configurations on the 10 mm grid [-].
-    """
-
-    worst: Clearance
-    violation: Clearance | None
-    checked: int
-    samples: int
-
-
-def _coal_shape(body: Primitive) -> tuple[coal.CollisionGeometry, np.ndarray]:
-    """The Coal geometry of a scene primitive and its placement in the chair frame."""
-    s = body.size
-    if body.shape == "box":
-        return coal.Box(*s), body.pose
-    if body.shape == "sphere":
-        return coal.Sphere(s[0]), body.pose
-    if body.shape == "cylinder":
-        return coal.Cylinder(s[0], s[1]), body.pose
-    if body.shape == "capsule":
-        return coal.Capsule(s[0], s[1]), body.pose
-    normal = np.asarray(s, dtype=float)
-    return coal.Halfspace(normal, float(normal @ body.pose[:3, 3])), np.eye(4)
-
-
-def _cover(shape: Shape) -> tuple[np.ndarray, float]:
-    """Points (k, 3) in the body's own frame and a radius whose hull covers the body."""
-    if shape.kind == "sphere":
-        return np.zeros((1, 3)), shape.size[0]
-    if shape.kind == "cylinder":
-        h = shape.size[1] / 2.0
-        return np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), shape.size[0]
-    hx, hy, hz = (v / 2.0 for v in shape.size)
-    corners = [[sx * hx, sy * hy, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-    return np.array(corners), 0.0
-
-
 class CollisionModel:
     """The arm's bodies, a scene and the checks between them.
 
@@ -235,7 +186,7 @@ class CollisionModel:
                 if zone.kind == "keep_out":
                     fixed.append((zone.name, "zone", zone.body, zone.clearance))
             for name, cls, body, required in fixed:
-                geometry, pose = _coal_shape(body)
+                geometry, pose = coal_shape(body)
                 geometry.setSweptSphereRadius(required)
                 placement = pin.SE3(to_base @ pose)
                 index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
@@ -264,7 +215,7 @@ class CollisionModel:
                     body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
                     self._keep_in_bodies.append((check, body, bodies))
         self.geom = gm
-        self._covers = [_cover(s) for s in self.shapes]
+        self._covers = [cover(s) for s in self.shapes]
         self._prepare_points()
         # Pairs no configuration can bring within their clearance are left out.
         reachable = [self._can_meet(first, second) for first, second in pairs]
@@ -351,72 +302,6 @@ class CollisionModel:
 
     # --- motions --------------------------------------------------------------------------
 
-    def sweep(
-        self,
-        times: np.ndarray,
-        qd_peaks: np.ndarray,
-        evaluate: Callable[[np.ndarray], np.ndarray],
-        *,
-        step: float = STEP_M,
-    ) -> Sweep:
-        """Check a motion against every check, continuously where the margins allow.
-
-        From each checked configuration the next one is as far along as no point of the
-        arm can have travelled more than the smallest margin there (so no gap can have
-        closed: conservative advancement), and never more than ``step`` where that
-        margin is smaller. The speed bound is Coal-free: per joint, its peak speed on the
-        segment times the farthest any body beyond it is from its axis (measured at the
-        configuration, plus the travel allowed). Every knot is checked.
-
-        Args:
-            times: knot times [s], shape (S+1,).
-            qd_peaks: largest |joint speed| on each segment [rad/s], shape (S, 6).
-            evaluate: positions at times [s], shape (n,) -> (n, 6) [rad].
-            step: largest travel of any point between two samples where the margins
-                are smaller than that [m].
-        """
-        times = np.asarray(times, dtype=float)
-        peaks = np.abs(np.asarray(qd_peaks, dtype=float))
-        # One vectorised evaluation on a grid no coarser than a step of the slowest
-        # bound; each advance lands on the last grid time it may reach (never beyond).
-        grid = self._grid(times, peaks, step)
-        Q = evaluate(grid)
-        i, seg, checked = 0, 0, 0
-        worst: Clearance | None = None
-        while True:
-            t = float(grid[i])
-            found, free, reach = self.probe(Q[i], t)
-            checked += 1
-            if worst is None or found.margin < worst.margin:
-                worst = found
-            if found.margin < 0.0:
-                return Sweep(worst, found, checked, len(grid))
-            if i == len(grid) - 1:
-                return Sweep(worst, None, checked, len(grid))
-            while seg < len(times) - 2 and t >= times[seg + 1]:
-                seg += 1
-            # Each body may travel its own margin (or one step, where that is smaller).
-            bound = np.isfinite(free)  # bodies with something to keep clear of
-            travel = np.maximum(free[bound], step)
-            speed = peaks[seg] @ (reach[:, bound] + travel)
-            moving = speed > 0.0
-            dt = float((travel[moving] / speed[moving]).min()) if moving.any() else math.inf
-            t_next = min(t + dt, float(times[seg + 1]))
-            i = max(i + 1, int(np.searchsorted(grid, t_next, side="right")) - 1)
-
-    def _grid(self, times: np.ndarray, peaks: np.ndarray, step: float) -> np.ndarray:
-        """Sample times: every knot, and per segment no more than ``step`` of travel apart
-        for a body as far out as the arm reaches (a coarse bound: the sweep's own steps
-        are longer except near obstacles)."""
-        reach = float(np.linalg.norm(self._points, axis=1).max() + self._radii.max()) + 1.0
-        parts = [times[:1]]
-        for s in range(len(times) - 1):
-            t0, t1 = float(times[s]), float(times[s + 1])
-            v = float(peaks[s].sum()) * reach
-            n = max(1, math.ceil(v * (t1 - t0) / step))
-            parts.append(np.linspace(t0, t1, n + 1)[1:])
-        return np.concatenate(parts)
-
     def probe(self, q: np.ndarray, time: float = 0.0, *, reach: bool = True) -> Probe:
         """At ``q``, per moving body: its tightest margin (how far it may travel before any
         of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
@@ -474,7 +359,7 @@ class CollisionModel:
         """Per keep-in zone: its tightest margin and the check naming the body."""
         out = []
         for check, zone, rows in self._keep_in:
-            inner = _inner_distances(zone, world[rows]) - self._radii[rows]
+            inner = inner_distances(zone, world[rows]) - self._radii[rows]
             k = int(np.argmin(inner))
             body = self.shapes[int(self._point_body[rows][k])].name
             out.append((float(inner[k]) - check.required, check._replace(body=body)))
@@ -533,6 +418,8 @@ class CollisionModel:
             bodies += [i] * len(local)
         self._points = np.vstack(points)
         self._radii = np.array(radii)
+        self.extent = float(np.linalg.norm(self._points, axis=1).max() + self._radii.max())
+        """Farthest any body point is from its joint's origin [m] (a coarse speed bound)."""
         self._point_joint = np.array(joints)
         self._point_body = np.array(bodies)
         self._rows_by_joint = [
@@ -548,54 +435,8 @@ class CollisionModel:
         ]
 
 
-def _inner_distances(zone: Primitive, points: np.ndarray) -> np.ndarray:
-    """Distance from each of ``points`` (k, 3) to the boundary of the convex ``zone``,
-    negative outside [m], shape (k,) (zone placed in the base frame)."""
-    T = zone.pose
-    local = (points - T[:3, 3]) @ T[:3, :3]
-    if zone.shape == "box":
-        half = np.asarray(zone.size) / 2.0
-        return np.asarray((half - np.abs(local)).min(axis=1))
-    if zone.shape == "sphere":
-        return np.asarray(zone.size[0] - np.linalg.norm(local, axis=1))
-    radius, length = zone.size
-    if zone.shape == "cylinder":
-        radial = radius - np.hypot(local[:, 0], local[:, 1])
-        axial = length / 2.0 - np.abs(local[:, 2])
-        return np.asarray(np.minimum(radial, axial))
-    # capsule: distance to the axis segment
-    z = np.clip(local[:, 2], -length / 2.0, length / 2.0)
-    return np.asarray(radius - np.linalg.norm(local - np.c_[0 * z, 0 * z, z], axis=1))
-
-
 def _line_of(scene: Scene, name: str) -> int:
     for obj in scene.objects:
         if obj.name == name:
             return obj.line
     return 0
-
-
-def straight_motion_problem(
-    model: CollisionModel, q_from: np.ndarray, q_to: np.ndarray, what: str
-) -> str | None:
-    """Check the straight joint-space motion from ``q_from`` to ``q_to`` [rad], the way
-    the arm's own fold procedures move (every motor at a constant speed, all arriving
-    together; the joint map is affine, so a straight line in joint space too).
-
-    Returns:
-        None when clear, else one line: ``what``, where along it, the body, the object
-        and the distance.
-    """
-    a, b = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
-    delta = b - a
-    sweep = model.sweep(
-        np.array([0.0, 1.0]), np.abs(delta)[None, :], lambda ts: a + np.outer(ts, delta)
-    )
-    bad = sweep.violation
-    if bad is None:
-        return None
-    start = ", ".join(f"{v:.0f}" for v in np.degrees(a))
-    return (
-        f"{what} from ({start}) deg would bring the {bad.describe()} "
-        f"{bad.time * 100:.0f} % of the way"
-    )

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 from manus.collision import SELF_PAIRS, CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import default_scene
+from manus.sweep import sweep
 from manus.viapoints import load_path, parse_viapoints
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.config import PlannerConfig
@@ -137,15 +138,15 @@ def test_sweep_finds_what_fine_sampling_finds(offsets: list[list[float]]) -> Non
     times = np.arange(len(q)) * 2.0
     curve = PiecewisePolynomial.hermite(times, q, np.zeros_like(q))
     ex = curve.extremes(1)
-    sweep = MODEL.sweep(curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
+    swept = sweep(MODEL, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
     fine = curve.evaluate(np.arange(0.0, times[-1] + 1e-9, 0.001))
     lowest = min(MODEL.clearance(qi).margin for qi in fine[::5])
-    if sweep.violation is None:
+    if swept.violation is None:
         assert lowest >= -0.010
     else:
-        assert sweep.violation.margin < 0.0
-    assert sweep.worst.margin >= lowest - 0.002
-    assert MODEL.clearance(sweep.worst.q).margin == pytest.approx(sweep.worst.margin, abs=1e-6)
+        assert swept.violation.margin < 0.0
+    assert swept.worst.margin >= lowest - 0.002
+    assert MODEL.clearance(swept.worst.q).margin == pytest.approx(swept.worst.margin, abs=1e-6)
 
 
 def validate(task_words: list[str], start_deg: tuple[float, ...]) -> list[str]:

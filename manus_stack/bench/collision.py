@@ -30,6 +30,7 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.joint_map import dh_increments_to_encoder
 from manus.quantize import COUNT_RAD_S
 from manus.scene import default_scene
+from manus.sweep import sweep
 from manus.viapoints import load_path
 from manus_stack.bench.plan import _over_zenoh, _stats_ms, _timed
 from schemas.planning import PlanRequest
@@ -55,14 +56,14 @@ def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
     model = CollisionModel(default_scene(), DEFAULT_ARM)
     curve = _circle_curve(request)
     ex = curve.extremes(1)
-    sweep = model.sweep(curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
+    swept = sweep(model, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
     checked = _stats_ms(_timed(lambda: check_collisions(model, curve, request.path), runs))
     with_check, without = PlannerCore(), PlannerCore(PlannerConfig(scene="none"))
     return {
         "check_only": checked,
-        "configurations_checked": sweep.checked,
-        "grid_samples": sweep.samples,
-        "smallest_clearance": sweep.worst.describe(),
+        "configurations_checked": swept.checked,
+        "grid_samples": swept.samples,
+        "smallest_clearance": swept.worst.describe(),
         "plan_with_check": _stats_ms(_timed(lambda: with_check.plan(request), runs)),
         "plan_without_check": _stats_ms(_timed(lambda: without.plan(request), runs)),
     }

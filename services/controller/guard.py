@@ -14,7 +14,7 @@ Most cycles compute no distance at all: from the last configuration whose distan
 were computed (the anchor), no point of the arm can have moved further than its joint
 moves times each joint's reach, and while that bound stays under the anchor's margin
 nothing can be violated (conservative advancement, as in
-:meth:`manus.collision.CollisionModel.sweep`).
+:func:`manus.sweep.sweep`).
 
 Pure: no clock, no I/O; the same inputs give the same commands.
 """

@@ -1,7 +1,7 @@
 """The planner's collision check: every trajectory it returns, against the scene.
 
 The whole curve (after any time stretching) is swept by
-:meth:`manus.collision.CollisionModel.sweep`: samples no more than 10 mm of any point's
+:func:`manus.sweep.sweep`: samples no more than 10 mm of any point's
 travel apart, skipping only where the margins prove no gap can close. A violation
 refuses the plan as ``collision``, naming the segment (its via points and lines), the
 time, the arm body, the object and the distance; otherwise the smallest clearance goes
@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from manus.collision import CollisionModel
+from manus.sweep import sweep
 from schemas.collision import ClearanceReport
 from schemas.planning import Path
 from services.planner.errors import refuse, via_label
@@ -29,8 +30,8 @@ def check_collisions(
     """
     ex = curve.extremes(1)
     peaks = np.maximum(np.abs(ex.low), np.abs(ex.high))
-    sweep = model.sweep(curve.times, peaks, curve.evaluate)
-    bad = sweep.violation
+    found = sweep(model, curve.times, peaks, curve.evaluate)
+    bad = found.violation
     if bad is not None:
         seg = int(
             np.clip(np.searchsorted(curve.times, bad.time, side="right") - 1, 0, len(curve.h) - 1)
@@ -49,4 +50,4 @@ def check_collisions(
             value=float(bad.distance),
             limit=float(bad.check.required),
         )
-    return sweep.worst.report()
+    return found.worst.report()

@@ -5,7 +5,7 @@ obey SPEC 5.1), and every move is planned from where the previous steps leave th
 the arm's current configuration at first, the fold poses after a fold, the last knot of
 the previous plan after a move. A fold is the arm's own motion (a straight line in joint
 space to the fold pose), so the sequencer checks it against the scene itself
-(:func:`fold_checker`, :func:`manus.collision.straight_motion_problem`). The
+(:func:`fold_checker`, :func:`manus.sweep.straight_motion_problem`). The
 :class:`Validator` hands out one :class:`~schemas.planning.PlanRequest` at a time (with
 an explicit ``start``) and takes the planner's reply; when it has none left,
 :attr:`Validator.errors` lists every problem in step order, each as
@@ -19,9 +19,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from manus.collision import CollisionModel, straight_motion_problem
+from manus.collision import CollisionModel
 from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.scene import scene_from_setting
+from manus.sweep import straight_motion_problem
 from manus.viapoints import ViaPointError, validate_path
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import Task, TaskStep
