@@ -3,8 +3,11 @@
 The arm's bodies are the URDF's collision geometry (:func:`manus.urdf.collision_shapes`),
 loaded with Pinocchio into a :class:`pinocchio.GeometryModel`; the scene's objects and
 keep-out zones are added to it as fixed bodies (placed through the mount), and
-:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call. The
-keep-in workspace is checked apart, exactly, from each body's convex cover (its end
+:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call. Each
+class's clearance is baked into the fixed body as Coal's swept-sphere radius, so a
+pair's distance is its margin and the call's answer (the closest pair) is the tightest
+check; :meth:`CollisionModel.probe` asks one small geometry model per moving body, which
+gives each body its own margin. The keep-in workspace is checked apart, exactly, from each body's convex cover (its end
 points or corners and a radius): a concave margin over a convex body is smallest at one
 of those points.
 
