@@ -219,3 +219,21 @@ def test_the_sequencer_refuses_a_task_whose_move_would_hit_the_head(tmp_path: Fi
     assert len(errors) == 1, errors
     assert errors[0].startswith(f"{head}: step 4 (move): planner refused (collision): between ")
     assert "from head (person: needs 50 mm)" in errors[0]
+
+
+def test_manus_plan_prints_the_smallest_clearance_and_where(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import json
+
+    from manus_stack.cli import main
+
+    assert main(["plan", str(ROOT / "paths" / "thesis_circle.txt")]) == 0
+    out, err = capsys.readouterr()
+    clearance = json.loads(out)["clearance"]
+    assert clearance["other"] == "table" and clearance["class"] == "environment"
+    assert clearance["distance_mm"] > clearance["required_mm"] == 15.0
+    assert err.startswith(f"smallest clearance: {clearance['body']} ")
+    assert f"from table (environment: needs 15 mm) at t = {clearance['time_s']:.2f} s" in err
+    assert main(["plan", str(ROOT / "paths" / "thesis_circle.txt"), "--scene", "none"]) == 0
+    assert json.loads(capsys.readouterr().out)["clearance"] is None
