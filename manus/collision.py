@@ -7,9 +7,9 @@ keep-out zones are added to it as fixed bodies (placed through the mount), and
 class's clearance is baked into the fixed body as Coal's swept-sphere radius, so a
 pair's distance is its margin and the call's answer (the closest pair) is the tightest
 check; :meth:`CollisionModel.probe` asks one small geometry model per moving body, which
-gives each body its own margin. The keep-in workspace is checked apart, exactly, from each body's convex cover (its end
-points or corners and a radius): a concave margin over a convex body is smallest at one
-of those points.
+gives each body its own margin. The keep-in workspace is checked apart, exactly, from
+each body's convex cover (its end points or corners and a radius): a concave margin over
+a convex body is smallest at one of those points.
 
 Every check is one :class:`Check`: an arm body, what it is checked against, the class
 (``person``, ``chair``, ``environment``, ``self`` or ``zone``) and the clearance that

@@ -10,7 +10,7 @@ like a via-point file); :class:`Scene` holds SI units, in the chair frame.
 
 Every problem is a :class:`SceneError` naming the file, the line and the field
 (``scene.yaml:14: objects[2].radius_mm: must be > 0, got -5``): PyYAML's node tree
-carries a position for every value, which ``tomllib`` does not. The check that an
+carries a position for every value, which ``tomllib`` does not (:mod:`manus.yaml_fields`). The check that an
 object does not overlap the arm's base is made with the collision model
 (:meth:`manus.collision.CollisionModel.check_base_clear`), which knows the base.
 """
@@ -28,6 +28,7 @@ import numpy as np
 import yaml
 
 from manus.errors import ManusError
+from manus.yaml_fields import FieldReader, join
 
 CLASSES = ("person", "chair", "environment")
 """Object classes, each with its own clearance."""
@@ -174,135 +175,51 @@ def pose_matrix(
 # --- reading -------------------------------------------------------------------------
 
 
-class _Reader:
-    """Walks the PyYAML node tree, converting values and naming positions in errors."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, node: yaml.Node | None, path: str, problem: str) -> SceneError:
-        line = node.start_mark.line + 1 if node is not None else 0
-        where = f"{self.source}:{line}" if line else self.source
-        return SceneError(f"{where}: {path}: {problem}" if path else f"{where}: {problem}")
-
-    def mapping(
-        self, node: yaml.Node, path: str, required: tuple[str, ...], optional: tuple[str, ...]
-    ) -> dict[str, yaml.Node]:
-        if not isinstance(node, yaml.MappingNode):
-            raise self.fail(node, path, "must be a mapping (key: value lines)")
-        out: dict[str, yaml.Node] = {}
-        for key_node, value_node in node.value:
-            key = str(key_node.value)
-            if key not in required and key not in optional:
-                allowed = ", ".join(required + optional)
-                raise self.fail(key_node, _join(path, key), f"unknown field (allowed: {allowed})")
-            if key in out:
-                raise self.fail(key_node, _join(path, key), "given twice")
-            out[key] = value_node
-        for key in required:
-            if key not in out:
-                raise self.fail(node, _join(path, key), "missing field")
-        return out
-
-    def number(
-        self, node: yaml.Node, path: str, *, positive: bool = False, minimum: float | None = None
-    ) -> float:
-        if not isinstance(node, yaml.ScalarNode) or node.tag not in (
-            "tag:yaml.org,2002:int",
-            "tag:yaml.org,2002:float",
-        ):
-            raise self.fail(node, path, f"must be a number, got {node.value!r}")
-        value = _scalar_number(node)
-        if not math.isfinite(value):
-            raise self.fail(node, path, f"must be a finite number, got {node.value}")
-        if positive and value <= 0.0:
-            raise self.fail(node, path, f"must be > 0, got {node.value}")
-        if minimum is not None and value < minimum:
-            raise self.fail(node, path, f"must be >= {minimum:g}, got {node.value}")
-        if abs(value) > 1e5:
-            raise self.fail(node, path, f"must be within +-100000 (mm or deg), got {node.value}")
-        return value
-
-    def vector(
-        self, node: yaml.Node, path: str, n: int = 3, *, positive: bool = False
-    ) -> list[float]:
-        if not isinstance(node, yaml.SequenceNode) or len(node.value) != n:
-            raise self.fail(node, path, f"must be a list of {n} numbers")
-        return [self.number(v, f"{path}[{i}]", positive=positive) for i, v in enumerate(node.value)]
-
-    def text(self, node: yaml.Node, path: str, choices: tuple[str, ...] | None = None) -> str:
-        if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
-            raise self.fail(node, path, f"must be a name, got {node.value!r}")
-        value = str(node.value)
-        if choices is not None and value not in choices:
-            raise self.fail(node, path, f"unknown value {value!r} (allowed: {', '.join(choices)})")
-        if choices is None and not value.replace("_", "").replace("-", "").isalnum():
-            raise self.fail(node, path, f"names are letters, digits, _ and -, got {value!r}")
-        return value
-
-    def items(self, node: yaml.Node, path: str) -> list[yaml.Node]:
-        if not isinstance(node, yaml.SequenceNode):
-            raise self.fail(node, path, "must be a list (lines starting with -)")
-        return list(node.value)
+class _Reader(FieldReader):
+    """A :class:`FieldReader` that also reads poses and primitives."""
 
     def pose(self, fields: dict[str, yaml.Node], path: str) -> np.ndarray:
-        xyz = [v * 1e-3 for v in self.vector(fields["xyz_mm"], _join(path, "xyz_mm"))]
+        xyz = [v * 1e-3 for v in self.vector(fields["xyz_mm"], join(path, "xyz_mm"))]
         rpy = [0.0, 0.0, 0.0]
         if "rpy_deg" in fields:
-            rpy = [math.radians(v) for v in self.vector(fields["rpy_deg"], _join(path, "rpy_deg"))]
+            rpy = [math.radians(v) for v in self.vector(fields["rpy_deg"], join(path, "rpy_deg"))]
         return pose_matrix(xyz, rpy)
 
     def primitive(
         self, fields: dict[str, yaml.Node], path: str, shapes: tuple[str, ...]
     ) -> Primitive:
-        shape = self.text(fields["shape"], _join(path, "shape"), shapes)
+        shape = self.text(fields["shape"], join(path, "shape"), shapes)
         wanted = SHAPES[shape]
         for key in ("size_mm", "radius_mm", "length_mm", "normal"):
             if key in fields and key not in wanted:
-                raise self.fail(fields[key], _join(path, key), f"not a field of a {shape}")
+                raise self.fail(fields[key], join(path, key), f"not a field of a {shape}")
         for key in wanted:
             if key not in fields:
                 raise self.fail(
-                    fields["shape"], _join(path, key), f"missing field (a {shape} needs it)"
+                    fields["shape"], join(path, key), f"missing field (a {shape} needs it)"
                 )
         pose = self.pose(fields, path)
         if shape == "box":
             size = tuple(
                 v * 1e-3
-                for v in self.vector(fields["size_mm"], _join(path, "size_mm"), positive=True)
+                for v in self.vector(fields["size_mm"], join(path, "size_mm"), positive=True)
             )
         elif shape == "sphere":
             size = (
-                self.number(fields["radius_mm"], _join(path, "radius_mm"), positive=True) * 1e-3,
+                self.number(fields["radius_mm"], join(path, "radius_mm"), positive=True) * 1e-3,
             )
         elif shape == "plane":
-            normal = np.array(self.vector(fields["normal"], _join(path, "normal")))
+            normal = np.array(self.vector(fields["normal"], join(path, "normal")))
             norm = float(np.linalg.norm(normal))
             if norm < 1e-9:
-                raise self.fail(fields["normal"], _join(path, "normal"), "must not be zero")
+                raise self.fail(fields["normal"], join(path, "normal"), "must not be zero")
             size = tuple(float(v) for v in normal / norm)
         else:
             size = (
-                self.number(fields["radius_mm"], _join(path, "radius_mm"), positive=True) * 1e-3,
-                self.number(fields["length_mm"], _join(path, "length_mm"), positive=True) * 1e-3,
+                self.number(fields["radius_mm"], join(path, "radius_mm"), positive=True) * 1e-3,
+                self.number(fields["length_mm"], join(path, "length_mm"), positive=True) * 1e-3,
             )
         return Primitive(shape=shape, size=size, pose=pose)
-
-
-def _scalar_number(node: yaml.ScalarNode) -> float:
-    """The value of an int or float scalar, as YAML 1.1 spells them (.nan, .inf, 1_000)."""
-    text = str(node.value).replace("_", "").lower()
-    special = {".nan": math.nan, ".inf": math.inf, "+.inf": math.inf, "-.inf": -math.inf}
-    if text in special:
-        return special[text]
-    try:
-        return float(text)
-    except ValueError:
-        return float(int(text, 0))  # 0x.., 0o.. integers
-
-
-def _join(path: str, key: str) -> str:
-    return f"{path}.{key}" if path else key
 
 
 _BODY_FIELDS = ("rpy_deg", "size_mm", "radius_mm", "length_mm", "normal")
@@ -314,7 +231,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     Raises:
         SceneError: the first problem, naming ``source``, the line and the field.
     """
-    reader = _Reader(source)
+    reader = _Reader(source, SceneError)
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
