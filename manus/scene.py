@@ -10,9 +10,10 @@ like a via-point file); :class:`Scene` holds SI units, in the chair frame.
 
 Every problem is a :class:`SceneError` naming the file, the line and the field
 (``scene.yaml:14: objects[2].radius_mm: must be > 0, got -5``): PyYAML's node tree
-carries a position for every value, which ``tomllib`` does not (:mod:`manus.yaml_fields`). The check that an
-object does not overlap the arm's base is made with the collision model
-(:meth:`manus.collision.CollisionModel.check_base_clear`), which knows the base.
+carries a position for every value, which ``tomllib`` does not
+(:mod:`manus.yaml_fields`). The check that an object does not overlap the arm's base is
+made by the collision model, which knows the base
+(:meth:`manus.collision.CollisionModel.base_overlaps`; building the model refuses it).
 """
 
 from __future__ import annotations
