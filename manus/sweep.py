@@ -54,7 +54,7 @@ def sweep(
     closed: conservative advancement), and never more than ``step`` where that
     margin is smaller. The speed bound is Coal-free: per joint, its peak speed on the
     segment times the farthest any body beyond it is from its axis (measured at the
-    configuration, plus the travel allowed). Every knot is checked.
+    configuration, plus the travel allowed), segment by segment.
 
     Args:
         times: knot times [s], shape (S+1,).
@@ -83,14 +83,36 @@ def sweep(
             return Sweep(worst, None, checked, len(grid))
         while seg < len(times) - 2 and t >= times[seg + 1]:
             seg += 1
-        # Each body may travel its own margin (or one step, where that is smaller).
-        bound = np.isfinite(free)  # bodies with something to keep clear of
-        travel = np.maximum(free[bound], step)
-        speed = peaks[seg] @ (reach[:, bound] + travel)
-        moving = speed > 0.0
-        dt = float((travel[moving] / speed[moving]).min()) if moving.any() else math.inf
-        t_next = min(t + dt, float(times[seg + 1]))
+        t_next = _advance(t, seg, times, peaks, free, reach, step)
         i = max(i + 1, int(np.searchsorted(grid, t_next, side="right")) - 1)
+
+
+def _advance(
+    t: float,
+    seg: int,
+    times: np.ndarray,
+    peaks: np.ndarray,
+    free: np.ndarray,
+    reach: np.ndarray,
+    step: float,
+) -> float:
+    """The latest time [s] no body can have travelled past its allowance from ``t``: its
+    margin, or ``step`` where that is smaller; each segment at its own peak speeds."""
+    bound = np.isfinite(free)  # bodies with something to keep clear of
+    if not bound.any():
+        return float(times[-1])
+    travel = np.maximum(free[bound], step)
+    radius = reach[:, bound] + travel  # (6, bodies): distance from each axis, at most
+    left = travel.copy()  # what each body may still travel [m]
+    while True:
+        end = float(times[seg + 1])
+        speed = peaks[seg] @ radius
+        need = np.where(speed > 0.0, left / np.where(speed > 0.0, speed, 1.0), math.inf)
+        dt = float(need.min())
+        if t + dt <= end or seg == len(times) - 2:
+            return min(t + dt, float(times[-1]))
+        left = left - speed * (end - t)
+        t, seg = end, seg + 1
 
 
 def _grid(model: CollisionModel, times: np.ndarray, peaks: np.ndarray, step: float) -> np.ndarray:
