@@ -64,3 +64,15 @@ class SceneReply(Message):
         "why it was refused: one line naming the source, line and field ('': accepted)",
         default="",
     )
+
+
+@dataclass(frozen=True)
+class SceneState(Message):
+    """The scene the planner checks against, published when a :class:`SceneUpdate`
+    replaces it, so that the controller's guard and the sequencer's fold check follow."""
+
+    TYPE_NAME = "manus/SceneState/1"
+
+    version: int = field("its version (the one every plan reports)", minimum=0)
+    text: str = field("the scene file's YAML text")
+    source: str = field("its name in messages", default="")

@@ -264,6 +264,13 @@ SCENE = _query(
     _SUP,
     clients=(SUPERVISOR,),
 )
+SCENE_STATE = _pub(
+    "planner/scene_state",
+    Service.PLANNER,
+    collision.SceneState,
+    "the scene every plan is checked against, when an update replaces it",
+    _SUP,
+)
 JOINT_VELOCITY = _pub(
     "cmd/joint_velocity", _CTRL, commands.JointVelocityCommand, "the command for the next sync"
 )
@@ -431,6 +438,7 @@ TABLE = Table(
         SIM_TRUTH,
         PLAN,
         SCENE,
+        SCENE_STATE,
         JOINT_VELOCITY,
         GOAL,
         GRIPPER_GOAL,

@@ -12,7 +12,7 @@ from manus.scene import default_scene_path
 from manus.session import ZenohSettings
 from manus.viapoints import load_path
 from schemas import endpoints as ep
-from schemas.collision import SceneReply, SceneUpdate
+from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
 from services.planner.shell import PlannerShell
@@ -77,8 +77,54 @@ def test_scene_updates_over_the_bus(zenoh_settings: ZenohSettings) -> None:
             return True
 
         eventually(answers)
+        states: list[SceneState] = []
+        client.subscribe(client.keys(ep.SCENE_STATE), SceneState, lambda m, t: states.append(m))
         reply = client.query(client.keys(ep.SCENE), SceneUpdate(text=CUP, source="cup"), SceneReply)
         assert reply.accepted and reply.version == 1
         plan = client.query(client.keys(ep.PLAN), SQUARE, PlanReply)
         assert plan.error is not None and "version 1" in plan.error.message
         assert shell.core.collision is not None
+
+        def published() -> bool:  # the subscription may take a moment to reach the router
+            if states:
+                return True
+            client.query(client.keys(ep.SCENE), SceneUpdate(text=CUP, source="cup"), SceneReply)
+            return False
+
+        eventually(published)
+        assert states[0].source == "cup" and states[0].version >= 1
+        assert shell.core.scene_state is not None
+        assert 1 <= states[-1].version <= shell.core.scene_state.version
+
+
+def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> None:
+    from manus.config import DEFAULT_ARM
+    from services.controller.core import ControllerCore
+    from services.planner.wiring import WIRING
+    from services.sequencer.validate import scene_fold_checker
+
+    planner = PlannerCore()
+    reply, published = WIRING.answer(ep.SCENE.suffix).handle(
+        planner, SceneUpdate(text=CUP, source="cup.yaml"), 0
+    )
+    assert reply.accepted
+    ((endpoint, state),) = published
+    assert endpoint == ep.SCENE_STATE and isinstance(state, SceneState)
+    assert (state.version, state.source, state.text) == (1, "cup.yaml", CUP)
+    refused, nothing = WIRING.answer(ep.SCENE.suffix).handle(
+        planner, SceneUpdate(text="version: 1\n"), 0
+    )
+    assert not refused.accepted and nothing == []
+
+    controller = ControllerCore()
+    assert controller.guard is not None
+    assert controller.on_scene(state) == []
+    model = controller.guard.guard.model
+    assert model.scene is not None and model.scene.version == 1
+    assert any(c.other == "cup" for c in model.checks)
+    # A scene that does not build leaves the guard as it was.
+    controller.on_scene(SceneState(version=2, text="nonsense: [", source="bad"))
+    assert controller.guard.guard.model is model
+
+    assert scene_fold_checker(state, DEFAULT_ARM) is not None
+    assert scene_fold_checker(SceneState(version=2, text="x: 1\n"), DEFAULT_ARM) is None

@@ -35,7 +35,7 @@ from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.trajectory import TrajectoryError
 from schemas import endpoints as ep
-from schemas.collision import ClearanceReport
+from schemas.collision import ClearanceReport, SceneState
 from schemas.control import (
     CancelGoal,
     GoalAck,
@@ -57,7 +57,7 @@ from services.controller.goals import (
     trajectory_error,
 )
 from services.controller.gripper import GripperRun, gripper_command
-from services.controller.guard import run_guard
+from services.controller.guard import run_guard, scene_guard
 from services.controller.outbox import Outbox, Output
 from services.controller.reference import Reference
 from services.controller.tracking import Step, TrajectoryRun
@@ -219,6 +219,14 @@ class ControllerCore:
         if bs.phase in STOPPING_PHASES and self._active():
             self._abort_all(f"bridge phase {bs.phase}: {bs.detail}")
             return self._flush(bs.stamp_ns)
+        return []
+
+    def on_scene(self, scene: SceneState) -> Output:
+        """The planner's scene replaced at run time: the guard follows it (one that does
+        not build keeps the guard as it was; the planner validated it already)."""
+        guard = scene_guard(scene, self.config.arm)
+        if guard is not None and self.guard is not None:
+            self.guard = guard
         return []
 
     def on_heartbeat(self, hb: Heartbeat) -> Output:

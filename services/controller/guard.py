@@ -30,8 +30,8 @@ from manus.collision import Clearance, CollisionModel
 from manus.config import ArmConfig
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
-from manus.scene import scene_from_setting
-from schemas.collision import ClearanceReport
+from manus.scene import SceneError, parse_scene, scene_from_setting
+from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
 
@@ -192,6 +192,16 @@ class RunGuard:
     def result(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance of the goal (forgotten once read)."""
         return self.lowest.pop(goal_id, None)
+
+
+def scene_guard(state: SceneState, arm: ArmConfig) -> RunGuard | None:
+    """The guard for a scene published by the planner (None: it does not build)."""
+    try:
+        scene = parse_scene(state.text, state.source)
+        scene = dataclasses.replace(scene, version=state.version)
+        return RunGuard(Guard(CollisionModel(scene, arm)))
+    except SceneError:
+        return None
 
 
 def run_guard(scene: str, arm: ArmConfig) -> RunGuard | None:

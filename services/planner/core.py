@@ -34,7 +34,7 @@ from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.viapoints import ViaPointError, validate_path
-from schemas.collision import SceneReply, SceneUpdate
+from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner.checks import check_geometry, check_rates
@@ -66,6 +66,8 @@ class PlannerCore:
         self.config = config or PlannerConfig()
         self.latest: JointState | None = None
         self.collision: CollisionModel | None = None
+        self.scene_state: SceneState | None = None
+        """The last accepted update (None: the scene read at start)."""
         self.checking = threading.Lock()
         """Held while the collision model is used or replaced: its Pinocchio data is
         scratch space shared by every check (a live shell plans on several threads)."""
@@ -97,6 +99,7 @@ class PlannerCore:
             return SceneReply(accepted=False, version=version, error=str(exc))
         with self.checking:
             self.collision = model
+        self.scene_state = SceneState(version=scene.version, text=update.text, source=scene.source)
         return SceneReply(accepted=True, version=scene.version)
 
     def on_joint_state(self, js: JointState) -> None:

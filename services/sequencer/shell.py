@@ -24,6 +24,7 @@ import zenoh
 from manus.node import Node, QueryError, now_ns
 from manus.session import ZenohSettings
 from schemas import endpoints as ep
+from schemas.collision import SceneState
 from schemas.planning import PlanReply
 from schemas.sequencing import SubmitReply, Task, TaskControl
 from services.sequencer.config import SequencerConfig
@@ -32,7 +33,7 @@ from services.sequencer.core import (
     Query,
     SequencerCore,
 )
-from services.sequencer.validate import Validator, fold_checker
+from services.sequencer.validate import Validator, fold_checker, scene_fold_checker
 from services.sequencer.wiring import WIRING
 
 log = logging.getLogger("manus.sequencer")
@@ -69,6 +70,8 @@ class SequencerShell:
         self._stop = threading.Event()
         self._publish = WIRING.attach(self.node, self.core, self._do)
         self.node.watch_liveliness(self._on_alive)
+        # Folds follow the planner's scene when a supervisor replaces it.
+        self.node.subscribe(self.node.keys(ep.SCENE_STATE), SceneState, self._on_scene)
         self.node.queryable(self.node.keys(ep.SUBMIT), Task, self._on_submit, locked=False)
         self._worker = threading.Thread(target=self._work, name="sequencer-queries", daemon=True)
         self._ticker = threading.Thread(target=self._tick, name="sequencer-tick", daemon=True)
@@ -77,6 +80,11 @@ class SequencerShell:
         self.node.announce()  # alive once it listens and answers
 
     # -- bus inputs (the wiring map's, under the node lock) ---------------------------------
+
+    def _on_scene(self, state: SceneState, rx_ns: int) -> None:
+        check = scene_fold_checker(state, self.core.config.arm)
+        if check is not None:
+            self.fold_check = check
 
     def _on_alive(self, service: str, alive: bool) -> None:
         self._do(self.core.on_liveliness(service, alive, now_ns()))

@@ -14,6 +14,7 @@ an explicit ``start``) and takes the planner's reply; when it has none left,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -21,9 +22,10 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
-from manus.scene import scene_from_setting
+from manus.scene import SceneError, parse_scene, scene_from_setting
 from manus.sweep import straight_motion_problem
 from manus.viapoints import ViaPointError, validate_path
+from schemas.collision import SceneState
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import Task, TaskStep
 from services.sequencer.poses import POSES, pose_path
@@ -216,8 +218,22 @@ def fold_checker(
     loaded = scene_from_setting(scene)
     if loaded is None:
         return None
-    model = CollisionModel(loaded, arm)
+    return _checker(CollisionModel(loaded, arm))
 
+
+def scene_fold_checker(
+    state: SceneState, arm: ArmConfig
+) -> Callable[[list[float], list[float], str], str | None] | None:
+    """The ``fold_check`` for a scene the planner published (None: it does not build)."""
+    try:
+        scene = dataclasses.replace(parse_scene(state.text, state.source), version=state.version)
+        model = CollisionModel(scene, arm)
+    except SceneError:
+        return None
+    return _checker(model)
+
+
+def _checker(model: CollisionModel) -> Callable[[list[float], list[float], str], str | None]:
     def check(q_from: list[float], q_to: list[float], kind: str) -> str | None:
         return straight_motion_problem(
             model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"
