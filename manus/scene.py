@@ -316,7 +316,8 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
 
 
 def load_scene(path: str | os.PathLike[str]) -> Scene:
-    """Read the scene file at ``path``.
+    """Read the scene file at ``path`` (parsed once per file contents: a scene is not
+    changed after it is read, so every service of a process shares it).
 
     Raises:
         SceneError: unreadable, or any problem of :func:`parse_scene`.
@@ -326,7 +327,18 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
         text = file.read_text()
     except OSError as exc:
         raise SceneError(f"{file}: cannot read the scene file: {exc.strerror}") from exc
-    return parse_scene(text, str(file))
+    key = (str(file), text)
+    scene = _PARSED.get(key)
+    if scene is None:
+        scene = parse_scene(text, str(file))
+        if len(_PARSED) >= 16:
+            _PARSED.clear()
+        _PARSED[key] = scene
+    return scene
+
+
+_PARSED: dict[tuple[str, str], Scene] = {}
+"""Scenes already parsed, by file name and text."""
 
 
 def default_scene_path() -> Path:

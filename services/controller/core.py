@@ -458,7 +458,7 @@ class ControllerCore:
         out: Output = [(ep.JOINT_VELOCITY, cmd)]
         if xyz is not None:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
-            out.append((ep.FEEDBACK, dataclasses.replace(fb, guard=guarded or "")))
+            out.append((ep.FEEDBACK, dataclasses.replace(fb, guard=guarded) if guarded else fb))
         return out + self._flush(js.stamp_ns)
 
 

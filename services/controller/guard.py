@@ -22,6 +22,7 @@ Pure: no clock, no I/O; the same inputs give the same commands.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -33,6 +34,9 @@ from manus.quantize import COUNT_RAD_S
 from manus.scene import SceneError, parse_scene, scene_from_setting
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
+
+_NOTHING = (0,) * 6
+"""``JointState.applied`` when the command in flight is not a joint move."""
 
 
 class Verdict(NamedTuple):
@@ -52,9 +56,12 @@ class Verdict(NamedTuple):
 
 
 class _Anchor(NamedTuple):
-    q: np.ndarray
-    free: np.ndarray
-    reach: np.ndarray
+    q: list[float]
+    """where the distances were computed [rad]"""
+    free: list[float]
+    """margins of the bodies that have something to keep clear of [m]"""
+    radius: list[list[float]]
+    """per body, each joint's reach to it plus its margin [m]"""
     margin: float
 
 
@@ -85,25 +92,29 @@ class Guard:
         """Configurations whose distances were computed (most cycles need none)."""
 
     def filter(
-        self, q: list[float], applied: list[float], counts: np.ndarray, opening: float
+        self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
     ) -> Verdict:
         """Guard ``counts`` (motor increments, (6,)) for the snapshot angles ``q`` [rad]
         and the motor counts in flight ``applied`` (6 values), gripper ``opening`` [m]."""
         counts = np.asarray(counts, dtype=np.int64)
-        v_now = np.array(encoder_increments_to_dh_list(applied)) * COUNT_RAD_S
-        if not counts.any() and not v_now.any():
+        motor = counts.tolist()
+        if not any(motor) and not any(applied):
             return Verdict(counts, 1.0, "", None)
-        q_s = np.asarray(q, dtype=float)
-        v_cmd = np.array(encoder_increments_to_dh_list(counts.tolist())) * COUNT_RAD_S
-        q_next = q_s + v_now * self.cycle_s  # [s+60], already decided
-        q_end = q_next + v_cmd * (self.cycle_s + self.runout_s)
-        if self._proven_clear(q_s, q_next, q_end):
+        # Plain floats on the common path (proven clear): a cycle costs microseconds.
+        ahead = self.cycle_s + self.runout_s
+        now_dh = encoder_increments_to_dh_list(applied)
+        cmd_dh = encoder_increments_to_dh_list(motor)
+        nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
+        end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
+        if self._proven_clear(list(q), nxt, end):
             return Verdict(counts, 1.0, "", None)
+        q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
+        v_cmd = np.array(cmd_dh) * COUNT_RAD_S
         model = self.model
         if abs(model.opening - opening) > 0.005:
             model.set_opening(opening)
         now = self._anchor_at(q_s)
-        if now.margin >= self.slow_zone_m and self._proven_clear(q_next, q_end):
+        if now.margin >= self.slow_zone_m and self._proven_clear(nxt, end):
             return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
@@ -146,19 +157,22 @@ class Guard:
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
         best, free, reach = self.model.probe(q)
         self.computed += 1
-        self._anchor = _Anchor(q.copy(), free, reach, best.margin)
+        bound = np.isfinite(free)
+        radius = (reach[:, bound] + free[bound]).T.tolist()
+        self._anchor = _Anchor(q.tolist(), free[bound].tolist(), radius, best.margin)
         return _AnchorResult(best.margin, best)
 
-    def _proven_clear(self, *qs: np.ndarray) -> bool:
+    def _proven_clear(self, *qs: list[float]) -> bool:
         """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
         body closer to the anchor than its margin there."""
         a = self._anchor
-        if a is None:
+        if a is None or not all(f > 0.0 for f in a.free):
             return False
-        bound = np.isfinite(a.free)
-        free = a.free[bound]
-        box = np.max([np.abs(q - a.q) for q in qs], axis=0)
-        return bool((free > 0.0).all() and (box @ (a.reach[:, bound] + free) < free).all())
+        box = [max(abs(q[j] - a.q[j]) for q in qs) for j in range(len(a.q))]
+        return all(
+            sum(b * r for b, r in zip(box, radius, strict=True)) < free
+            for radius, free in zip(a.radius, a.free, strict=True)
+        )
 
 
 class _AnchorResult(NamedTuple):
@@ -180,7 +194,7 @@ class RunGuard:
 
     def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
         """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
-        applied = [float(c) for c in js.applied[1:7]] if js.applied_kind == "joint" else [0.0] * 6
+        applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
         verdict = self.guard.filter(js.position, applied, counts, js.gripper)
         found = verdict.clearance
         if goal_id and found is not None:
