@@ -157,7 +157,8 @@ def validate(task_words: list[str], start_deg: tuple[float, ...]) -> list[str]:
     from services.sequencer.validate import Validator, fold_checker
 
     task = with_folds(task_from_args(task_words), fold_out=True, fold_in=True)
-    v = Validator(task, [math.radians(a) for a in start_deg], fold_checker("default", DEFAULT_ARM))
+    start = [math.radians(a) for a in start_deg]
+    v = Validator(task, start, DEFAULT_ARM, fold_checker("default", DEFAULT_ARM))
     while (request := v.next_request()) is not None:
         v.on_reply(CORE.plan(request))
     return v.errors

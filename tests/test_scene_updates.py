@@ -101,6 +101,7 @@ def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> 
     from manus.config import DEFAULT_ARM
     from services.controller.core import ControllerCore
     from services.planner.wiring import WIRING
+    from services.sequencer.core import SequencerCore
     from services.sequencer.validate import scene_fold_checker
 
     planner = PlannerCore()
@@ -128,3 +129,6 @@ def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> 
 
     assert scene_fold_checker(state, DEFAULT_ARM) is not None
     assert scene_fold_checker(SceneState(version=2, text="x: 1\n"), DEFAULT_ARM) is None
+    sequencer = SequencerCore()
+    before = sequencer.fold_check
+    assert sequencer.on_scene(state) == [] and sequencer.fold_check is not before
