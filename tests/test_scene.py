@@ -178,3 +178,32 @@ def test_plane_normal_is_normalised() -> None:
     wall = parse_scene(text).objects[-1]
     assert wall.body.size == pytest.approx((0.0, 1.0, 0.0))
     assert math.isclose(wall.body.pose[1, 3], -0.9)
+
+
+def test_a_malformed_scene_stops_the_services_before_anything_moves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from manus_stack.cli import main
+    from services.controller.config import ControllerConfig
+    from services.controller.core import ControllerCore
+    from services.planner.config import PlannerConfig
+    from services.planner.core import PlannerCore
+    from services.sequencer.config import SequencerConfig
+    from services.sequencer.core import SequencerCore
+    from services.simulator.config import SimConfig
+    from services.simulator.core import SimCore
+
+    bad = write(tmp_path, GOOD.replace("radius_mm: 110", "radius_mm: .nan"))
+    expected = f"{bad}:8: objects[0].radius_mm: must be a finite number, got .nan"
+    for build in (
+        lambda: PlannerCore(PlannerConfig(scene=str(bad))),
+        lambda: ControllerCore(ControllerConfig(scene=str(bad))),
+        lambda: SequencerCore(SequencerConfig(scene=str(bad))),
+        lambda: SimCore(SimConfig(scene=str(bad))),
+    ):
+        with pytest.raises(SceneError) as err:
+            build()
+        assert str(err.value) == expected
+    root = Path(__file__).resolve().parent.parent
+    assert main(["plan", str(root / "paths" / "thesis_circle.txt"), "--scene", str(bad)]) == 1
+    assert capsys.readouterr().err == f"manus plan: error: {expected}\n"
