@@ -100,6 +100,10 @@ class Guard:
         motor = counts.tolist()
         if not any(motor) and not any(applied):
             return Verdict(counts, 1.0, "", None)
+        model = self.model
+        if abs(model.opening - opening) > 0.005:  # a wider gripper: the proof is void
+            model.set_opening(opening)
+            self._anchor = None
         # Plain floats on the common path (proven clear): a cycle costs microseconds.
         ahead = self.cycle_s + self.runout_s
         now_dh = encoder_increments_to_dh_list(applied)
@@ -110,9 +114,6 @@ class Guard:
             return Verdict(counts, 1.0, "", None)
         q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
         v_cmd = np.array(cmd_dh) * COUNT_RAD_S
-        model = self.model
-        if abs(model.opening - opening) > 0.005:
-            model.set_opening(opening)
         now = self._anchor_at(q_s)
         if now.margin >= self.slow_zone_m and self._proven_clear(nxt, end):
             return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
