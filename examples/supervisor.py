@@ -8,7 +8,10 @@ positions in metres). It
 2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
    the reply is a SubmitReply: a task id, or every validation error),
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
-   pause it after a while and resume it (``<prefix>/sequencer/control``).
+   pause it after a while and resume it (``<prefix>/sequencer/control``);
+4. with ``--scene FILE``, first replaces the scene every plan is checked against
+   (``<prefix>/planner/scene``: a SceneUpdate with the file's YAML text; the reply is a
+   SceneReply: the new version, or the error naming line and field).
 
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
@@ -78,6 +81,7 @@ def main() -> int:
     parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
+    parser.add_argument("--scene", metavar="FILE", help="replace the scene first (YAML)")
     args = parser.parse_args()
     p = args.prefix
 
@@ -109,6 +113,15 @@ def main() -> int:
                 answer: dict[str, Any] = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
                 return answer
             raise RuntimeError(f"{key}: no reply (is the sequencer running?)")
+
+        if args.scene:
+            with open(args.scene, encoding="utf-8") as f:
+                update = {"text": f.read(), "source": args.scene, "base_version": -1}
+            scene = ask("planner/scene", update)
+            if not scene["accepted"]:
+                print(f"scene refused: {scene['error']}", flush=True)
+                return 2
+            print(f"scene: version {scene['version']}", flush=True)
 
         submitted = ask("sequencer/submit", task_from_words(args.task))
         if not submitted["accepted"]:

@@ -132,3 +132,23 @@ def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> 
     sequencer = SequencerCore()
     before = sequencer.fold_check
     assert sequencer.on_scene(state) == [] and sequencer.fold_check is not before
+
+
+def test_the_example_supervisor_replaces_the_scene(
+    zenoh_settings: ZenohSettings, router_endpoint: str, tmp_path: FilePath
+) -> None:
+    import subprocess
+    import sys
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(CUP.replace("radius_mm: 40", "radius_mm: -40"))
+    with PlannerShell(zenoh_settings) as shell:
+        proc = subprocess.run(
+            [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect",
+             router_endpoint, "--prefix", "test", "--scene", str(bad), "paths/x.txt"],
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        assert f"scene refused: {bad}:" in proc.stdout
+        assert "radius_mm: must be > 0, got -40" in proc.stdout
+        assert shell.core.scene_state is None  # nothing changed
