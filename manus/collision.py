@@ -163,60 +163,11 @@ class CollisionModel:
         self._gripper_box = gm.geometryObjects[self.body_index["gripper"]].geometry
         self.checks: list[Check] = []
         self._keep_in_bodies: list[tuple[Check, Primitive, list[int]]] = []
-        pairs: list[tuple[int, int]] = []
-        # Each clearance is baked into the other body as Coal's swept-sphere radius, so
-        # every pair's distance is its margin and computeDistances' argmin the tightest.
-        # The self pairs' bodies get inflated copies (the originals face the scene).
-        required = scene.clearance["self"] if scene is not None else 0.01
-        copies: dict[str, int] = {}
-        for a, b in SELF_PAIRS:
-            if b not in copies:
-                original = gm.geometryObjects[self.body_index[b]]
-                geometry = original.geometry.clone()
-                geometry.setSweptSphereRadius(required)
-                copies[b] = gm.addGeometryObject(
-                    pin.GeometryObject(
-                        f"{b}+self", original.parentJoint, original.placement, geometry
-                    )
-                )
-            pairs.append((self.body_index[a], copies[b]))
-            self.checks.append(Check(a, b, "self", required))
         self._static: list[tuple[int, int, Check]] = []
+        pairs = self._self_pairs(gm, scene.clearance["self"] if scene is not None else 0.01)
         if scene is not None:
-            to_base = np.linalg.inv(scene.mount)
-            fixed = [(o.name, o.cls, o.body, scene.clearance[o.cls]) for o in scene.objects]
-            for zone in scene.zones:
-                if zone.kind == "keep_out":
-                    fixed.append((zone.name, "zone", zone.body, zone.clearance))
-            for name, cls, body, required in fixed:
-                geometry, pose = coal_shape(body)
-                geometry.setSweptSphereRadius(required)
-                placement = pin.SE3(to_base @ pose)
-                index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
-                owner = next((z for z in scene.zones if z.name == name), None)
-                for i, shape in enumerate(self.shapes):
-                    if (
-                        owner is not None
-                        and owner.links == "gripper"
-                        and shape.name not in GRIPPER_BODIES
-                    ):
-                        continue
-                    check = Check(shape.name, name, cls, required)
-                    if shape.name in STATIC_BODIES:
-                        self._static.append((i, index, check))
-                        continue
-                    pairs.append((i, index))
-                    self.checks.append(check)
-            for zone in scene.zones:
-                if zone.kind == "keep_in":
-                    bodies = [
-                        i
-                        for i, arm_body in enumerate(self.shapes)
-                        if zone.links == "all" or arm_body.name in GRIPPER_BODIES
-                    ]
-                    check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
-                    body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
-                    self._keep_in_bodies.append((check, body, bodies))
+            pairs += self._scene_pairs(gm, scene)
+            self._keep_in_zones(scene)
         self.geom = gm
         self._covers = [cover(s) for s in self.shapes]
         self._prepare_points()
@@ -233,6 +184,68 @@ class CollisionModel:
         if overlaps:
             raise SceneError(overlaps[0])
         self.set_opening(self.cfg.gripper_max if opening is None else opening)
+
+    def _self_pairs(self, gm: Any, required: float) -> list[tuple[int, int]]:
+        """The pairs of :data:`SELF_PAIRS`. Each clearance is baked into the other body
+        as Coal's swept-sphere radius, so every pair's distance is its margin and
+        computeDistances' argmin the tightest; the self pairs' bodies get inflated
+        copies (the originals face the scene)."""
+        pairs: list[tuple[int, int]] = []
+        copies: dict[str, int] = {}
+        for a, b in SELF_PAIRS:
+            if b not in copies:
+                original = gm.geometryObjects[self.body_index[b]]
+                geometry = original.geometry.clone()
+                geometry.setSweptSphereRadius(required)
+                copies[b] = gm.addGeometryObject(
+                    pin.GeometryObject(
+                        f"{b}+self", original.parentJoint, original.placement, geometry
+                    )
+                )
+            pairs.append((self.body_index[a], copies[b]))
+            self.checks.append(Check(a, b, "self", required))
+        return pairs
+
+    def _scene_pairs(self, gm: Any, scene: Scene) -> list[tuple[int, int]]:
+        """The scene's objects and keep-out zones as fixed bodies (their clearance as
+        swept-sphere radius) and their pairs with the arm's moving bodies; the static
+        bodies' pairs go to :meth:`base_overlaps`."""
+        to_base = np.linalg.inv(scene.mount)
+        fixed = [(o.name, o.cls, o.body, scene.clearance[o.cls], "all") for o in scene.objects]
+        fixed += [
+            (z.name, "zone", z.body, z.clearance, z.links)
+            for z in scene.zones
+            if z.kind == "keep_out"
+        ]
+        pairs: list[tuple[int, int]] = []
+        for name, cls, body, required, links in fixed:
+            geometry, pose = coal_shape(body)
+            geometry.setSweptSphereRadius(required)
+            placement = pin.SE3(to_base @ pose)
+            index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
+            for i, shape in enumerate(self.shapes):
+                if links == "gripper" and shape.name not in GRIPPER_BODIES:
+                    continue
+                check = Check(shape.name, name, cls, required)
+                if shape.name in STATIC_BODIES:
+                    self._static.append((i, index, check))
+                else:
+                    pairs.append((i, index))
+                    self.checks.append(check)
+        return pairs
+
+    def _keep_in_zones(self, scene: Scene) -> None:
+        to_base = np.linalg.inv(scene.mount)
+        for zone in scene.zones:
+            if zone.kind == "keep_in":
+                bodies = [
+                    i
+                    for i, arm_body in enumerate(self.shapes)
+                    if zone.links == "all" or arm_body.name in GRIPPER_BODIES
+                ]
+                check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
+                body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
+                self._keep_in_bodies.append((check, body, bodies))
 
     # --- configuration queries ----------------------------------------------------------
 

@@ -112,6 +112,17 @@ class Guard:
         end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
         if self._proven_clear(list(q), nxt, end):
             return Verdict(counts, 1.0, "", None)
+        return self._decide(counts, list(q), nxt, end, cmd_dh)
+
+    def _decide(
+        self,
+        counts: np.ndarray,
+        q: list[float],
+        nxt: list[float],
+        end: list[float],
+        cmd_dh: list[float],
+    ) -> Verdict:
+        """Compute the distances: pass, slow down or stop (not proven clear already)."""
         q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
         v_cmd = np.array(cmd_dh) * COUNT_RAD_S
         now = self._anchor_at(q_s)

@@ -1,8 +1,8 @@
 """Whole-task validation before anything moves (deterministic; the core asks the planner).
 
 Every step is checked on its own (openings in range, known pose names, via points that
-obey SPEC 5.1: each kind's :meth:`~services.sequencer.steps.Step.problems`), and every
-move is planned from where the previous steps leave the arm: the arm's current
+obey the via-point rules: each kind's :meth:`~services.sequencer.steps.Step.problems`),
+and every move is planned from where the previous steps leave the arm: the arm's current
 configuration at first, the fold poses after a fold, the last knot of the previous plan
 after a move. A fold is the arm's own motion (a straight line in joint space to the fold
 pose), so it is checked against the scene here (``fold_check``: :func:`fold_checker`,
