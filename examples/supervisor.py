@@ -10,7 +10,10 @@ positions in metres). It
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
    pause it after a while and resume it (``<prefix>/sequencer/control``),
 4. watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
-   vanishes, the sequencer died and no final event will come, so it stops waiting.
+   vanishes, the sequencer died and no final event will come, so it stops waiting;
+5. with ``--scene FILE``, first replaces the scene every plan is checked against
+   (``<prefix>/planner/scene``: a SceneUpdate with the file's YAML text; the reply is a
+   SceneReply: the new version, or the error naming line and field).
 
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
@@ -81,6 +84,7 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
+    parser.add_argument("--scene", metavar="FILE", help="replace the scene first (YAML)")
     return parser.parse_args()
 
 
@@ -173,12 +177,26 @@ def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
     return 1
 
 
+def replace_scene(seq: Sequencer, file: str) -> bool:
+    """``planner/scene``: replace the scene every plan is checked against; accepted?"""
+    with open(file, encoding="utf-8") as f:
+        update = {"text": f.read(), "source": file, "base_version": -1}
+    scene = seq.ask("planner/scene", update)
+    if not scene["accepted"]:
+        print(f"scene refused: {scene['error']}", flush=True)
+        return False
+    print(f"scene: version {scene['version']}", flush=True)
+    return True
+
+
 def main() -> int:
     args = parse_args()
     session = open_session(args.connect)
     try:
         seq = Sequencer(session, args.prefix)
         print(f"alive: {', '.join(sorted(seq.alive())) or 'nothing'}", flush=True)
+        if args.scene and not replace_scene(seq, args.scene):
+            return 2
         submitted = seq.ask("sequencer/submit", task_from_words(args.task))
         if not submitted["accepted"]:
             print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)

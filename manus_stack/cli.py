@@ -36,6 +36,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("manus_stack.commands.replay", "replay an MCAP onto the bus, or --check a core"),
     "export": ("services.recorder.export_cli", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
     "plot": ("services.recorder.plot_cli", "plot a recording: yz path, joints, increments, errors"),
+    "scene": ("manus_stack.commands.scene", "draw the arm in its scene, or check a scene file"),
 }
 """Subcommand -> (module, one-line help)."""
 

@@ -38,7 +38,17 @@ from enum import StrEnum
 from typing import Any, Generic, TypeVar
 
 from manus.errors import SchemaError
-from schemas import commands, control, guardian, health, liveliness, planning, sequencing, state
+from schemas import (
+    collision,
+    commands,
+    control,
+    guardian,
+    health,
+    liveliness,
+    planning,
+    sequencing,
+    state,
+)
 from schemas.base import Message
 
 M = TypeVar("M", bound=Message)
@@ -256,6 +266,22 @@ PLAN = _query(
     planning.PlanReply,
     "via points -> joint trajectory",
 )
+SCENE = _query(
+    "planner/scene",
+    Service.PLANNER,
+    collision.SceneUpdate,
+    collision.SceneReply,
+    "replace the scene every plan is checked against (validated whole, versioned)",
+    _SUP,
+    clients=(SUPERVISOR,),
+)
+SCENE_STATE = _pub(
+    "planner/scene_state",
+    Service.PLANNER,
+    collision.SceneState,
+    "the scene every plan is checked against, when an update replaces it",
+    _SUP,
+)
 JOINT_VELOCITY = _pub(
     "cmd/joint_velocity", _CTRL, commands.JointVelocityCommand, "the command for the next sync"
 )
@@ -448,6 +474,8 @@ TABLE = Table(
         ESTOP,
         SIM_TRUTH,
         PLAN,
+        SCENE,
+        SCENE_STATE,
         JOINT_VELOCITY,
         GOAL,
         GRIPPER_GOAL,

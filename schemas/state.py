@@ -222,3 +222,19 @@ class SimTruth(Message):
         unit="rad/s",
         default_factory=list,
     )
+    clearance: float | None = field(
+        "smallest true distance between the arm and the scene (objects and the arm itself, "
+        "no clearances, no zones) now; None: no scene",
+        unit="m",
+        default=None,
+    )
+    clearance_pair: str = field("body/object of `clearance` (e.g. gripper/head)", default="")
+    min_clearance: float | None = field(
+        "smallest `clearance` at any tick since power-up (None: no scene)", unit="m", default=None
+    )
+    contacts: int = field(
+        "ticks on which a body met an object (or the arm itself) and the arm was stopped",
+        default=0,
+        minimum=0,
+    )
+    contact: str = field("body/object of the last contact ('': none yet)", default="")

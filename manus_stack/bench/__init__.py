@@ -14,5 +14,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "replay": ("manus_stack.bench.replay", False),
     "guardian": ("manus_stack.bench.guardian", False),
     "fuzz": ("manus_stack.bench.fuzz", False),
+    "collision": ("manus_stack.bench.collision", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
