@@ -27,6 +27,7 @@ from schemas.control import (
     SpeedScale,
     TrajectoryGoal,
 )
+from schemas.jog import JogCommand, JogLevel
 from schemas.planning import PlanRequest, Trajectory
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.can_bridge.config import BridgeConfig
@@ -40,6 +41,7 @@ QUERYABLES = (
     "controller/gripper",
     "controller/cancel",
     "controller/speed_scale",
+    "controller/jog_level",
 )
 """The controller's queryables (key suffixes)."""
 
@@ -59,6 +61,8 @@ def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
         return core.on_bridge_state(msg)
     if suffix == "heartbeat" and isinstance(msg, Heartbeat):
         return core.on_heartbeat(msg)
+    if suffix == "jog" and isinstance(msg, JogCommand):
+        return core.on_jog(msg)
     if suffix.startswith("trace/") and suffix.endswith("/request"):
         name = suffix.removeprefix("trace/").removesuffix("/request")
         ack: GoalAck | None = None
@@ -70,6 +74,8 @@ def controller_input(core: ControllerCore, suffix: str, msg: Message) -> Output:
             ack = core.cancel(msg)
         elif isinstance(msg, SpeedScale) and name == "controller/speed_scale":
             ack = core.set_speed_scale(msg)
+        elif isinstance(msg, JogLevel) and name == "controller/jog_level":
+            ack = core.set_jog_level(msg)
         if ack is not None:
             return [(f"trace/{name}/reply", ack)]
     return []
@@ -94,7 +100,7 @@ class ControlledArm:
         self.core = ControllerCore(config)
         self._results: list[GoalResult] = []
         self._scanned = 0
-        for suffix in ("state/joints", "state/status", "state/bridge", "heartbeat"):
+        for suffix in ("state/joints", "state/status", "state/bridge", "heartbeat", "jog"):
             self.ls.subscribe(suffix, self._handler(suffix))
         for name in QUERYABLES:
             request = f"trace/{name}/request"

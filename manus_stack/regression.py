@@ -260,11 +260,12 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     return cmp.result("planner", inputs)
 
 
-CONTROLLER_QUERIES = ("goal", "gripper", "cancel", "speed_scale")
+CONTROLLER_QUERIES = ("goal", "gripper", "cancel", "speed_scale", "jog_level")
 CONTROLLER_OUTPUTS = (
     "cmd/joint_velocity",
     "controller/feedback",
     "controller/result",
+    "controller/jog_state",
     *(f"trace/controller/{q}/reply" for q in CONTROLLER_QUERIES),
 )
 CONTROLLER_INPUTS = (
@@ -272,6 +273,7 @@ CONTROLLER_INPUTS = (
     "state/status",
     "state/bridge",
     "heartbeat",
+    "jog",
     *(f"trace/controller/{q}/request" for q in CONTROLLER_QUERIES),
 )
 

@@ -13,12 +13,15 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | cmd/joint_velocity     | pub        | JointVelocityCommand          | controller |
 | estop                  | pub        | EStop                         | anyone     |
 | heartbeat              | pub        | Heartbeat (deadman)           | sequencer  |
+| jog                    | pub        | JogCommand (live control)     | supervisor |
 | bridge/command         | queryable  | ArmCommand -> ArmCommandReply | can_bridge |
 | planner/plan           | queryable  | PlanRequest -> PlanReply      | planner    |
 | controller/goal        | queryable  | TrajectoryGoal -> GoalAck     | controller |
 | controller/gripper     | queryable  | GripperGoal -> GoalAck        | controller |
 | controller/cancel      | queryable  | CancelGoal -> GoalAck         | controller |
 | controller/speed_scale | queryable  | SpeedScale -> GoalAck         | controller |
+| controller/jog_level   | queryable  | JogLevel -> GoalAck           | controller |
+| controller/jog_state   | pub        | JogState                      | controller |
 | controller/feedback    | pub        | ControllerFeedback            | controller |
 | controller/result      | pub        | GoalResult                    | controller |
 | sequencer/...          | (see schemas.sequencing)                   | sequencer  |
@@ -106,6 +109,19 @@ class Keys:
         return self("heartbeat")
 
     @property
+    def jog(self) -> str:
+        """The live control stream (``schemas.jog.JogCommand``)."""
+        return self("jog")
+
+    @property
+    def jog_level(self) -> str:
+        return self("controller/jog_level")
+
+    @property
+    def jog_state(self) -> str:
+        return self("controller/jog_state")
+
+    @property
     def bridge_command(self) -> str:
         return self("bridge/command")
 
@@ -186,7 +202,7 @@ def channel_types() -> dict[str, type[Message]]:
     reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
     travel as ``trace/<suffix>/request|reply`` (:func:`channel_type` maps the keys).
     """
-    from schemas import commands, control, planning, sequencing, state
+    from schemas import commands, control, jog, planning, sequencing, state
 
     table: dict[str, type[Message]] = {
         "state/joints": state.JointState,
@@ -198,6 +214,10 @@ def channel_types() -> dict[str, type[Message]]:
         "cmd/joint_velocity": commands.JointVelocityCommand,
         "estop": commands.EStop,
         "heartbeat": control.Heartbeat,
+        "jog": jog.JogCommand,
+        "controller/jog_level#request": jog.JogLevel,
+        "controller/jog_level#reply": control.GoalAck,
+        "controller/jog_state": jog.JogState,
         "bridge/command#request": commands.ArmCommand,
         "bridge/command#reply": commands.ArmCommandReply,
         "planner/plan#request": planning.PlanRequest,

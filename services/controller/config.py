@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ConfigError
+from services.controller.jog_config import JogConfig
 
 MS = 1_000_000
 """One millisecond [ns]."""
@@ -81,6 +82,7 @@ class ControllerConfig:
             grow by up to half a band while the true ones shrink.
         backlash_dead_zone_deg: an estimated belt output this close to its target is
             not pushed [deg].
+        jog: live control (:class:`~services.controller.jog_config.JogConfig`).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -107,6 +109,7 @@ class ControllerConfig:
     rounding_joint_m: float = 0.2
     backlash_deg: tuple[float, ...] = (0.0,) * 6
     backlash_dead_zone_deg: float = 0.02
+    jog: JogConfig = field(default_factory=JogConfig)
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)

@@ -39,7 +39,12 @@ from services.recorder.standin import StandIn
 
 SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
     "can_bridge": ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx"),
-    "controller": ("cmd/joint_velocity", "controller/feedback", "controller/result"),
+    "controller": (
+        "cmd/joint_velocity",
+        "controller/feedback",
+        "controller/result",
+        "controller/jog_state",
+    ),
     "simulator": ("sim/truth",),
     "sequencer": ("sequencer/events", "heartbeat"),
     "planner": (),
@@ -55,6 +60,7 @@ SERVICE_QUERYABLES: dict[str, tuple[str, ...]] = {
         "controller/gripper",
         "controller/cancel",
         "controller/speed_scale",
+        "controller/jog_level",
     ),
     "sequencer": ("sequencer/submit", "sequencer/control", "sequencer/status"),
 }
