@@ -44,6 +44,7 @@ class TaskLockStep:
         ls.subscribe("state/joints", self._on_joints)
         ls.subscribe("state/status", lambda m, t: self.controller.on_status(m))  # type: ignore[arg-type]
         ls.subscribe("heartbeat", lambda m, t: self.controller.on_heartbeat(m))  # type: ignore[arg-type]
+        ls.subscribe("jog", lambda m, t: self.controller.on_jog(m))  # type: ignore[arg-type]
         ls.subscribe("state/bridge", lambda m, t: self.do(self.seq.on_bridge_state(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/feedback", lambda m, t: self.do(self.seq.on_feedback(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/result", lambda m, t: self.do(self.seq.on_result(m, t), t))  # type: ignore[arg-type]

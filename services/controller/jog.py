@@ -43,6 +43,11 @@ _TOLERANCE = 1e-9
 """Relative slack of the range checks (a value at the cap is allowed)."""
 
 
+BAD_JOG_PAYLOAD = "the payload does not decode"
+"""What :meth:`ControllerCore.on_bad_jog` is told of a garbage jog payload (live and in
+a replay alike)."""
+
+
 class JogError(ManusError, ValueError):
     """A jog command that cannot be executed (the message names the field, value, limit)."""
 
@@ -96,12 +101,12 @@ def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
     share = cfg.share(level)
     lin, ang, pour = list(cmd.linear), list(cmd.angular), cmd.pour
     joints, grip = list(cmd.joints), cmd.gripper
-    if cmd.units == "unitless":
-        lin = [v * cfg.max_linear for v in lin]
-        ang = [v * cfg.max_angular for v in ang]
-        pour *= cfg.max_angular
-        joints = [v * cfg.max_joint for v in joints]
-        grip *= cfg.max_gripper
+    if cmd.units == "unitless":  # a deflection of the level's share of the caps
+        lin = [v * cfg.max_linear * share for v in lin]
+        ang = [v * cfg.max_angular * share for v in ang]
+        pour *= cfg.max_angular * share
+        joints = [v * cfg.max_joint * share for v in joints]
+        grip *= cfg.max_gripper * share
     else:
         for name, size, cap, unit, k in (
             ("linear", _norm(lin), cfg.max_linear, "mm/s", 1000.0),
@@ -115,14 +120,12 @@ def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
                     f"`{name}` speed {size * k:.1f} {unit} is above the cap {cap * k:.1f} {unit}"
                 )
     # One factor for a twist (its direction, and a straight line, are kept).
-    f = min(
-        1.0,
-        *(cap * share / size for size, cap in (
-            (_norm(lin), cfg.max_linear),
-            (_norm(ang) + abs(pour), cfg.max_angular),
-            (max(map(abs, joints)), cfg.max_joint),
-        ) if size > 0.0),
-    )  # fmt: skip
+    sizes = (
+        (_norm(lin), cfg.max_linear),
+        (_norm(ang) + abs(pour), cfg.max_angular),
+        (max(map(abs, joints)), cfg.max_joint),
+    )
+    f = min([1.0] + [cap * share / size for size, cap in sizes if size > 0.0])
     grip = max(-cfg.max_gripper * share, min(cfg.max_gripper * share, grip))
     target = JogTarget(
         cmd.kind,

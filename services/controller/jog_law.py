@@ -22,8 +22,8 @@ limit, refused by the arm), the reference restarts from the prediction
 
 Drink mode: the angular velocity is a yaw about the base z axis only, so the reference
 keeps the gripper's pitch and roll (the cup level) exactly; ``pour`` turns about the
-gripper's y axis through the rim point (``rim_offset`` in the gripper frame): the origin
-moves by w x (p - p_rim).
+gripper's y axis through the rim point (``rim_offset`` in the gripper frame), so the
+rim stays where it is while the cup tilts.
 """
 
 from __future__ import annotations
@@ -170,8 +170,15 @@ class JogRun:
         if zone.scale < 1.0:
             share, limit = share * zone.scale, zone
         if share < 1.0:
-            q1 = [a + share * d for a, d in zip(q0, step, strict=True)]
-            pose1 = fk(q1, config.arm)
+            if self.kind == "joints":
+                q1 = [a + share * d for a, d in zip(q0, step, strict=True)]
+            else:  # the same share of the Cartesian step: still on the line
+                pose1 = _between(self.pose, pose1, share)
+                q1 = _solve(q0, pose1, cfg, config)
+                moved = dh_increments([b - a for a, b in zip(q0, q1, strict=True)])
+                over = max(abs(v) for v in moved) / cap
+                if over > 1.0:  # the solve's own rounding: never above the cap
+                    q1 = [a + (b - a) / over for a, b in zip(q0, q1, strict=True)]
             self.speed = self.speed * share
         self.q_ref, self.pose = q1, pose1
         return StepResult(q1, limit, reanchored)
@@ -197,14 +204,23 @@ class JogRun:
                 v = R @ v
         elif self.frame == "gripper":
             v, w = R @ v, R @ w
-        if pour != 0.0:
-            w_pour = pour * R[:, 1]
-            v = v - np.cross(w_pour, R @ np.asarray(cfg.rim_offset))  # about the rim
-            w = w + w_pour
+        if pour != 0.0:  # turn about the rim point first (exactly, not to first order)
+            turn = rodrigues(pour * dt * R[:, 1])
+            rim = p + R @ np.asarray(cfg.rim_offset)
+            R, p = turn @ R, rim + turn @ (p - rim)
         moved = np.eye(4)
         moved[:3, :3] = rodrigues(w * dt) @ R
         moved[:3, 3] = p + v * dt
         return moved
+
+
+def _between(a: np.ndarray, b: np.ndarray, share: float) -> np.ndarray:
+    """The pose ``share`` of the way from pose ``a`` to pose ``b`` (4, 4): position on the
+    segment, rotation about the fixed axis between them."""
+    out = np.eye(4)
+    out[:3, 3] = a[:3, 3] + share * (b[:3, 3] - a[:3, 3])
+    out[:3, :3] = rodrigues(share * rotation_error(b[:3, :3], a[:3, :3])) @ a[:3, :3]
+    return out
 
 
 def dh_increments(dq: list[float]) -> list[float]:

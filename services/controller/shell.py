@@ -2,11 +2,13 @@
 
 Subscribes ``<prefix>/state/joints``, ``<prefix>/state/status`` and
 ``<prefix>/state/bridge`` (goals run only while the bridge is ``running``) and
-``<prefix>/heartbeat`` (the supervisor's deadman, for goals with ``heartbeat_timeout``); answers the
+``<prefix>/heartbeat`` (the supervisor's deadman, for goals with ``heartbeat_timeout``) and
+``<prefix>/jog`` (live control: a payload that does not decode stops the jog); answers the
 queryables ``controller/goal`` (TrajectoryGoal), ``controller/gripper`` (GripperGoal),
-``controller/cancel`` (CancelGoal) and ``controller/speed_scale`` (SpeedScale), each with
-a GoalAck; publishes what the core returns on ``cmd/joint_velocity``,
-``controller/feedback`` and ``controller/result``. Everything runs under the node lock,
+``controller/cancel`` (CancelGoal), ``controller/speed_scale`` (SpeedScale) and
+``controller/jog_level`` (JogLevel), each with a GoalAck; publishes what the core returns
+on ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result`` and
+``controller/jog_state``. Everything runs under the node lock,
 so the core sees one message at a time, in arrival order.
 """
 
@@ -21,13 +23,20 @@ from manus.node import Node, Publisher
 from manus.session import ZenohSettings
 from schemas.base import Message
 from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
+from schemas.jog import JogCommand, JogLevel
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
+from services.controller.jog import BAD_JOG_PAYLOAD
 
 log = logging.getLogger("manus.controller")
 
-PUBLISHED = ("cmd/joint_velocity", "controller/feedback", "controller/result")
+PUBLISHED = (
+    "cmd/joint_velocity",
+    "controller/feedback",
+    "controller/result",
+    "controller/jog_state",
+)
 """Key suffixes the controller publishes on."""
 
 
@@ -59,10 +68,13 @@ class ControllerShell:
         self.node.subscribe(keys.status, ArmStatus, self._on_status)
         self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
         self.node.subscribe(keys.heartbeat, Heartbeat, self._on_heartbeat)
+        self.node.subscribe(keys.jog, JogCommand, self._on_jog)
+        self.node.on_bad_payload = self._on_bad_payload
         self.node.queryable(keys.goal, TrajectoryGoal, self._on_goal)
         self.node.queryable(keys.gripper_goal, GripperGoal, self.core.submit_gripper)
         self.node.queryable(keys.cancel, CancelGoal, self.core.cancel)
         self.node.queryable(keys.speed_scale, SpeedScale, self.core.set_speed_scale)
+        self.node.queryable(keys.jog_level, JogLevel, self.core.set_jog_level)
         self.node.announce()  # alive once it listens and answers
 
     def _publish(self, out: Output) -> None:
@@ -81,6 +93,14 @@ class ControllerShell:
 
     def _on_heartbeat(self, hb: Heartbeat, rx_ns: int) -> None:
         self._publish(self.core.on_heartbeat(hb))
+
+    def _on_jog(self, cmd: JogCommand, rx_ns: int) -> None:
+        self._publish(self.core.on_jog(cmd))
+
+    def _on_bad_payload(self, key: str) -> None:
+        if key == self.node.keys.jog:
+            with self.node.lock:
+                self._publish(self.core.on_bad_jog(BAD_JOG_PAYLOAD))
 
     def _on_goal(self, goal: TrajectoryGoal) -> Message:
         ack = self.core.submit(goal)

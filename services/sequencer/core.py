@@ -32,6 +32,11 @@ flight) takes effect as soon as that finishes. **Cancel** ends the task and stop
 arm: a running goal is cancelled (bounded deceleration), a fold is stopped by the bridge
 (``stop``, then ``clear`` so the arm is ready for the next task). A controller that does
 not confirm a cancel or pause within ``cancel_timeout_s`` gets the bridge's ``stop``.
+
+**The user takes over**: when the controller ends the running goal because a jog command
+arrived (result ``preempted``, reason starting :data:`~schemas.jog.USER_TOOK_OVER`), the
+task pauses (event ``paused`` with reason "user took over") instead of failing; it
+resumes only when asked, from wherever the user left the arm.
 """
 
 from __future__ import annotations
@@ -50,6 +55,7 @@ from schemas.control import (
     Heartbeat,
     TrajectoryGoal,
 )
+from schemas.jog import USER_TOOK_OVER
 from schemas.planning import Path, PlanReply, Trajectory
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus, TaskStep
 from schemas.state import BridgeState, JointState
@@ -308,6 +314,11 @@ class SequencerCore:
             return self._cancelled("cancelled by request")
         if res.status == "succeeded":
             return self._step_done()
+        if res.status == "preempted" and res.reason.startswith(USER_TOOK_OVER):
+            if self._kind() in ("move", "pose") and self._traj is not None:
+                self._resume = (self._traj, self._t)
+                self._base = self._progress
+            return self._paused(USER_TOOK_OVER)
         if res.status == "cancelled" and phase == "pausing":
             if self._kind() in ("move", "pose") and self._traj is not None:
                 self._resume = (self._traj, self._t)
@@ -531,12 +542,13 @@ class SequencerCore:
         self._pause_requested = True  # planning, acking, folding: at their end
         return []
 
-    def _paused(self) -> list[Action]:
+    def _paused(self, reason: str = "") -> list[Action]:
         self._pause_requested = False
         self.state = "paused"
         self._phase = "paused"
         self._deadline = None
-        return [self._event("paused", progress=self._task_progress(), step=self.step)]
+        progress = self._task_progress()
+        return [self._event("paused", progress=progress, step=self.step, reason=reason)]
 
     def _cancel(self) -> list[Action]:
         self._cancel_requested = True
