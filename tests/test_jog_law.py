@@ -158,8 +158,12 @@ def test_refusal_and_stops_latch_until_a_zero_command() -> None:
     assert moving(jog)
     jog.receive(cmd(linear=[0.05, 0.0, 0.0]), None, None)
     assert not moving(jog) and "no valid joint state" in jog.reason
-    jog.receive(cmd(), 2_000, "the bridge is in phase 'stopped'")
-    assert jog.refused == 3
+    stopped = "the bridge is in phase 'stopped'"
+    jog.receive(cmd(), 2_000, stopped)  # a release is always taken
+    assert jog.refused == 2 and not jog.latched
+    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)
+    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)  # held: one refusal
+    assert jog.refused == 3 and not moving(jog) and stopped in jog.reason
 
 
 def test_levels() -> None:

@@ -177,17 +177,19 @@ class Jog:
     def receive(self, cmd: JogCommand, stamp_ns: int | None, not_ready: str | None) -> None:
         """A command from the stream; ``stamp_ns``: the newest joint state's stamp (None:
         none yet); ``not_ready``: why nothing may move now (None: it may)."""
+        what = f"jog command seq {cmd.seq} from {cmd.source!r} refused"
         try:
-            if stamp_ns is None:
-                raise JogError("no valid joint state yet (is the bridge running?)")
-            if not_ready is not None:
-                raise JogError(not_ready)
             target = resolve(cmd, self.level, self.cfg)
         except JogError as exc:
-            self.refuse(f"jog command seq {cmd.seq} from {cmd.source!r} refused: {exc}")
+            self.refuse(f"{what}: {exc}")
+            return
+        if target is not None and (stamp_ns is None or not_ready is not None):
+            # counted once per stop: a joystick held through an e-stop is one refusal
+            self.refused += 0 if self.latched else 1
+            self.stop(f"{what}: {not_ready or 'no valid joint state yet (is the bridge running?)'}")
             return
         self.command_seq = cmd.seq
-        if target is None:
+        if target is None or stamp_ns is None:
             if self.target is not None or self.latched:
                 self.reason, self.announce = ("released" if self.latched else ""), True
             self.target, self.run, self.latched = None, None, ""
