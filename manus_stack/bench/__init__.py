@@ -12,5 +12,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
+    "jog": ("manus_stack.bench.jog", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
