@@ -6,7 +6,9 @@ positions in metres). It
 
 1. checks the services' liveliness tokens (``<prefix>/alive/*``),
 2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
-   the reply is a SubmitReply: a task id, or every validation error),
+   the reply is a SubmitReply: a task id, or every validation error); when the task
+   cannot be planned from where the arm is (a folded arm, as after power-up) but can be
+   after the arm's own fold-out, it unfolds the arm first (``--no-fold-out``: never),
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
    pause it after a while and resume it (``<prefix>/sequencer/control``).
 
@@ -78,6 +80,9 @@ def main() -> int:
     parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
+    parser.add_argument("--no-fold-out", action="store_true",
+                        help="never unfold the arm first (a task that cannot be planned "
+                             "from where the arm is is refused)")  # fmt: skip
     args = parser.parse_args()
     p = args.prefix
 
@@ -110,7 +115,16 @@ def main() -> int:
                 return answer
             raise RuntimeError(f"{key}: no reply (is the sequencer running?)")
 
-        submitted = ask("sequencer/submit", task_from_words(args.task))
+        task = task_from_words(args.task)
+        submitted = ask("sequencer/submit", task)
+        if not submitted["accepted"] and not args.no_fold_out:
+            unfolded = dict(
+                task, steps=[{"kind": "fold_out", "where": "--fold-out"}, *task["steps"]]
+            )
+            retry = ask("sequencer/submit", unfolded)
+            if retry["accepted"]:
+                print("not plannable from where the arm is: unfolding it first", flush=True)
+                submitted = retry
         if not submitted["accepted"]:
             print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)
             return 2
