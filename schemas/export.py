@@ -16,6 +16,8 @@ from typing import Any
 
 from schemas.base import Message
 from schemas.commands import EStop
+from schemas.control import GoalAck
+from schemas.jog import JogCommand, JogLevel, JogState
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
 
 SUPERVISOR_FILE = Path(__file__).with_name("supervisor.schema.json")
@@ -33,6 +35,15 @@ SUPERVISOR_KEYS: dict[str, dict[str, str]] = {
                                 "resumed, cancelled, succeeded, failed"},
     "estop": {"kind": "publication (to publish)", "type": "EStop",
               "doc": "emergency stop: the bridge latches it; the running task fails"},
+    "jog": {"kind": "publication (to publish)", "type": "JogCommand",
+            "doc": "live control at 10-50 Hz: twist, joint or gripper speeds; the controller's "
+                   "deadman (150 ms) stops the arm when it stops coming; a running task "
+                   "pauses (user took over)"},
+    "controller/jog_level": {"kind": "queryable", "request": "JogLevel", "reply": "GoalAck",
+                             "doc": "set the jog speed level (1..5)"},
+    "controller/jog_state": {"kind": "publication", "type": "JogState",
+                             "doc": "the jog as the controller runs it: level, slow-down "
+                                    "and stop reasons, refusals, gripper pose"},
     "alive/<service>": {"kind": "liveliness token",
                         "doc": "one per running service: sequencer, planner, controller, "
                                "can_bridge, simulator, recorder"},
@@ -41,6 +52,7 @@ SUPERVISOR_KEYS: dict[str, dict[str, str]] = {
 
 SUPERVISOR_TYPES: tuple[type[Message], ...] = (
     Task, SubmitReply, TaskControl, TaskStatus, TaskEvent, EStop,
+    JogCommand, JogLevel, JogState, GoalAck,
 )  # fmt: skip
 
 
@@ -77,7 +89,8 @@ def supervisor_document() -> dict[str, Any]:
             "Zenoh keys under a prefix (default 'manus'), MessagePack payloads (maps with "
             "exactly the fields below; SI units). Submit a Task to <prefix>/sequencer/submit "
             "(a Zenoh get with the payload); the reply is a SubmitReply. Follow "
-            "<prefix>/sequencer/events. Control with TaskControl on <prefix>/sequencer/control."
+            "<prefix>/sequencer/events. Control with TaskControl on <prefix>/sequencer/control. "
+            "Drive the arm live by publishing JogCommand on <prefix>/jog."
         ),
         "keys": SUPERVISOR_KEYS,
         "$defs": {cls.__name__: cls.json_schema() for cls in SUPERVISOR_TYPES},
