@@ -1,0 +1,153 @@
+"""``manus jog``: drive the arm from a terminal's keyboard (live control, ``schemas/jog.py``).
+
+A raw-terminal teleop (:mod:`termios`, no curses): it reads keys as they are pressed
+(:mod:`manus_stack.teleop` maps them), publishes one JogCommand on ``<prefix>/jog`` every
+1 / ``--rate`` seconds (a stop when nothing is held, so the controller's deadman only
+matters when this program or its link dies), sets the speed level on
+``controller/jog_level``, and redraws a status screen from ``controller/jog_state``,
+``state/status`` and ``state/bridge``. The terminal is restored on exit, on Ctrl-C, on
+SIGTERM and on a crash. Standard input and output must be a terminal: otherwise it says
+so and exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import select
+import signal
+import sys
+import termios
+import time
+import tty
+from types import FrameType
+from typing import Any
+
+from manus.node import Node, QueryError
+from manus.session import add_bus_arguments, bus_settings
+from manus_stack.teleop import Teleop, screen
+from schemas.control import GoalAck
+from schemas.jog import JogCommand, JogLevel, JogState
+from schemas.state import ArmStatus, BridgeState
+
+NOT_A_TTY = 2
+"""Exit status when standard input or output is not a terminal."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Bus settings, the stream's rate, how long a key holds, a speed level to start at."""
+    parser.description = __doc__.split("\n\n")[0] + "\n\n" + _keys_help()
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    add_bus_arguments(parser)
+    parser.add_argument("--rate", type=float, default=20.0, help="commands per second (20)")
+    parser.add_argument("--hold", type=float, default=0.6, metavar="S",
+                        help="a key moves its axis this long after its last press [s]")  # fmt: skip
+    parser.add_argument("--deflection", type=float, default=1.0,
+                        help="share of the level's speed per key, 0..1 (1)")  # fmt: skip
+    parser.add_argument("--level", type=int, default=None, help="speed level to set first")
+
+
+def _keys_help() -> str:
+    from manus_stack import teleop
+
+    doc = teleop.__doc__ or ""
+    return doc[doc.index("Keys") :]
+
+
+def run(args: argparse.Namespace) -> int:
+    """The teleop until q, Ctrl-C or SIGTERM."""
+    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+        sys.stderr.write(
+            "manus jog: standard input and output must be a terminal (a TTY) to read keys; "
+            "to drive the arm from a program, publish JogCommand on <prefix>/jog "
+            "(examples/jog.py)\n"
+        )
+        return NOT_A_TTY
+    if not 1.0 <= args.rate <= 100.0 or not 0.0 < args.deflection <= 1.0 or args.hold <= 0:
+        sys.stderr.write(
+            "manus jog: --rate must be in 1..100, --deflection in (0, 1], --hold > 0\n"
+        )
+        return 2
+    teleop = Teleop(hold_s=args.hold, deflection=args.deflection)
+    with Node("teleop", bus_settings(args), liveliness=False) as node:
+        keys = node.keys
+        pub = node.publisher(keys.jog)
+        latest: dict[str, Any] = {}
+        node.subscribe(keys.jog_state, JogState, lambda m, _: latest.__setitem__("jog", m))
+        node.subscribe(keys.status, ArmStatus, lambda m, _: latest.__setitem__("status", m))
+        node.subscribe(keys.bridge_state, BridgeState, lambda m, _: latest.__setitem__("bridge", m))
+        seq = 0
+
+        def send(fields: dict[str, Any]) -> None:
+            nonlocal seq
+            seq += 1
+            pub.put(JogCommand(stamp_ns=time.time_ns(), seq=seq, source="manus jog", **fields))
+
+        def set_level(level: int) -> None:
+            try:
+                ack = node.query(keys.jog_level, JogLevel(level=level), GoalAck, timeout=2.0)
+                teleop.status = f"level {level}" if ack.accepted else f"level refused: {ack.reason}"
+            except QueryError as exc:
+                teleop.status = f"level not set: {exc}"
+
+        with _Terminal() as term:
+            if args.level is not None:
+                set_level(args.level)
+            period = 1.0 / args.rate
+            shown: list[str] = []
+            next_send = time.monotonic()
+            while not teleop.quit:
+                for ch in term.read(max(0.0, next_send - time.monotonic())):
+                    level = teleop.key(ch, time.monotonic())
+                    if level is not None:
+                        set_level(level)
+                now = time.monotonic()
+                if now >= next_send:
+                    send(teleop.command(now))
+                    next_send = now + period
+                lines = screen(teleop, now, latest.get("jog"), latest.get("status"),
+                               latest.get("bridge"))  # fmt: skip
+                if lines != shown:
+                    term.draw(lines)
+                    shown = lines
+            send({"kind": "stop", "units": "unitless"})
+    return 0
+
+
+class _Terminal:
+    """Keys one at a time without echo, a redrawn screen, the old settings back on exit."""
+
+    def __init__(self) -> None:
+        self.fd = sys.stdin.fileno()
+        self.saved: list[Any] | None = None
+        self._old_term: Any = None
+
+    def __enter__(self) -> _Terminal:
+        self.saved = termios.tcgetattr(self.fd)
+        self._old_term = signal.signal(signal.SIGTERM, _terminate)
+        tty.setcbreak(self.fd)  # keys at once, no echo; Ctrl-C still interrupts
+        sys.stdout.write("\x1b[?25l\x1b[2J")  # hide the cursor, clear
+        sys.stdout.flush()
+        return self
+
+    def read(self, timeout_s: float) -> str:
+        """The keys pressed within ``timeout_s`` [s] (all that are waiting)."""
+        ready, _, _ = select.select([self.fd], [], [], timeout_s)
+        if not ready:
+            return ""
+        return os.read(self.fd, 64).decode(errors="replace")
+
+    def draw(self, lines: list[str]) -> None:
+        sys.stdout.write("\x1b[H" + "".join(f"{line}\x1b[K\r\n" for line in lines) + "\x1b[J")
+        sys.stdout.flush()
+
+    def __exit__(self, *exc: object) -> None:
+        if self.saved is not None:
+            termios.tcsetattr(self.fd, termios.TCSADRAIN, self.saved)
+        signal.signal(signal.SIGTERM, self._old_term)
+        sys.stdout.write("\x1b[?25h\r\n")  # the cursor back
+        sys.stdout.flush()
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise SystemExit(128 + signum)
