@@ -9,11 +9,13 @@ both sides are counted; one side running out is a difference too.
 
 - ``planner``: ``state/joints`` and ``trace/planner/plan/request`` in,
   ``trace/planner/plan/reply`` out (``compute_ms`` is wall time and is not compared).
-- ``controller``: the bridge's ``state/joints``, ``state/status`` and ``state/bridge``
-  (each handed over as :func:`manus_stack.controlled.controller_input` does) and the controller's
-  query requests (``trace/controller/{goal,gripper,cancel,speed_scale}/request``) in;
-  ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result`` and the query
-  replies out.
+- ``controller``: the bridge's ``state/joints``, ``state/status`` and ``state/bridge``,
+  the ``heartbeat`` and the ``jog`` stream (each handed over as
+  :func:`manus_stack.controlled.controller_input` does; a ``jog`` payload that does not
+  decode as the live shell does, to ``ControllerCore.on_bad_jog``) and the controller's
+  query requests (``trace/controller/{goal,gripper,cancel,speed_scale,jog_level}/request``)
+  in; ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result``,
+  ``controller/jog_state`` and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
