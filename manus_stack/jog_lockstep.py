@@ -35,6 +35,7 @@ class TruthSample(NamedTuple):
         R: true gripper orientation, shape (3, 3).
         speed: fastest true motor speed [deg/s].
         gripper_speed: true gripper speed [mm/s].
+        q: true DH joint angles [rad], shape (6,).
     """
 
     t_ns: int
@@ -42,6 +43,7 @@ class TruthSample(NamedTuple):
     R: np.ndarray
     speed: float
     gripper_speed: float
+    q: np.ndarray
 
     @property
     def at_rest(self) -> bool:
@@ -125,6 +127,7 @@ class JogArm(ControlledArm):
             ypr_to_matrix(*truth.ypr),
             float(np.max(np.abs(state.speed_deg_s))),
             float(state.gripper_speed_mm_s),
+            np.asarray(truth.q_true, dtype=float),
         )
 
     def rest_from(self, t_ns: int) -> int | None:

@@ -22,6 +22,7 @@ from schemas.commands import ArmCommand, EStop, JointVelocityCommand
 from schemas.control import GoalResult, TrajectoryGoal
 from schemas.jog import USER_TOOK_OVER, JogLevel
 from schemas.planning import Trajectory
+from schemas.state import ArmStatus
 from services.controller.core import ControllerCore
 from services.recorder.writer import RecordingWriter
 from services.sequencer.taskfile import task_from_args
@@ -261,3 +262,58 @@ def test_a_jog_session_replays_byte_for_byte(tmp_path: Path) -> None:
         if s.startswith(("cmd/", "controller/", "trace/controller/")) and not s.endswith("request")
     ]
     assert replayed == recorded
+
+
+def test_a_joint_jog_toward_the_wrist_singularity_stops_before_it_on_the_truth() -> None:
+    arm = _arm(5)
+    start_q5 = math.degrees(arm.ls.sim.truth().q_true[4])
+    assert start_q5 < -40.0  # the unfolded wrist: q5 = -60 deg
+    arm.stream(4.0, kind="joints", units="unitless", joints=[0.0, 0.0, 0.0, 0.0, 1.0, 0.0])
+    q5 = [math.degrees(s.q[4]) for s in arm.samples]
+    stop = arm.core.config.jog.wrist_stop_deg
+    assert max(q5) < 0.0  # never across: no wrist flip
+    assert -stop - 1.0 < q5[-1] < -stop + 0.5, q5[-1]  # stopped near the stop
+    assert arm.samples[-1].at_rest
+    reasons = [s.reason for s in arm.states()]
+    assert any(r.startswith("slowed") and "wrist singularity" in r for r in reasons)
+    assert arm.states()[-1].reason.startswith("stopped: wrist singularity")
+    assert arm.states()[-1].active  # held there, still jogging: backing out is allowed
+    arm.stream(0.6, kind="joints", units="unitless", joints=[0.0, 0.0, 0.0, 0.0, -1.0, 0.0])
+    assert math.degrees(arm.ls.sim.truth().q_true[4]) < q5[-1] - 5.0
+
+
+def test_reaching_out_stops_before_a_joint_limit_and_holds_still() -> None:
+    arm = _arm(5)
+    arm.stream(4.0, units="unitless", linear=X)  # forward, the gripper's pitch kept: q5 falls
+    state = arm.states()[-1]
+    assert state.active and state.scale == 0.0
+    assert state.reason.startswith("stopped: joint 5 limit"), state.reason
+    lower = math.degrees(arm.core.config.arm.lower[4])
+    q5 = [math.degrees(s.q[4]) for s in arm.samples]
+    assert min(q5) > lower + arm.core.config.jog.limit_stop_deg - 0.5  # (the belt's play)
+    assert all(s.at_rest for s in arm.samples[-100:])  # held without a limit cycle
+    complaints = [m for m in arm.ls.published("state/status") if isinstance(m, ArmStatus)]
+    assert not [m for m in complaints if m.msg_class in ("warning", "error")]
+
+
+def test_drink_mode_keeps_the_cup_level_and_pours_about_the_rim_on_the_truth() -> None:
+    arm = _arm(3)
+    first = len(arm.samples)
+    arm.stream(1.5, units="unitless", drink=True, linear=[0.5, -0.5, 0.3], angular=[0.0, 0.0, 1.0])
+    seg = arm.samples[first:]
+    up0 = seg[0].R.T @ np.array([0.0, 0.0, 1.0])
+    tilt = max(math.degrees(math.acos(min(1.0, float(up0 @ (s.R.T @ np.array([0, 0, 1.0]))))))
+               for s in seg)  # fmt: skip
+    turned = math.degrees(math.acos((np.trace(seg[0].R.T @ seg[-1].R) - 1.0) / 2.0))
+    assert tilt <= 0.5, tilt  # the cup stays level ...
+    assert turned > 10.0  # ... while it turns about the vertical
+    _hold(arm, 0.3)
+    rim = np.asarray(arm.core.config.jog.rim_offset)
+    before = arm.samples[-1]
+    arm.stream(1.0, units="unitless", drink=True, pour=1.0)
+    _hold(arm, 0.3)
+    after = arm.samples[-1]
+    tilted = math.degrees(math.acos((np.trace(before.R.T @ after.R) - 1.0) / 2.0))
+    moved = np.linalg.norm((after.R @ rim + after.xyz) - (before.R @ rim + before.xyz))
+    assert tilted > 8.0, tilted
+    assert moved < 0.002, moved  # the rim point stays (within the belts' play)

@@ -182,6 +182,7 @@ def cartesian_mode(speed_m_s: float, closed_loop: bool, seed: int = 0) -> dict[s
                 ypr_to_matrix(*truth.ypr),
                 float(np.max(np.abs(state.speed_deg_s))),
                 0.0,
+                np.asarray(truth.q_true),
             )
         )
         if truth.xyz[0] - x0 >= LINE_M:

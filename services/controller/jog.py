@@ -251,7 +251,8 @@ class Jog:
         self.scale = step.limit.scale
         if step.limit.reason != self.reason:
             self.reason = step.limit.reason
-        return jog_counts(step.q_target, est, self.config), grip
+        holding = step.limit.scale <= 0.0  # stopped at a zone: hold without a limit cycle
+        return jog_counts(step.q_target, est, self.config, holding), grip
 
     def state(self, js: JointState) -> JogState | None:
         """The JogState to publish with this joint state (None: nothing to show)."""

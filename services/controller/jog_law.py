@@ -42,7 +42,7 @@ from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.jog_config import JogConfig
 from services.controller.jog_limits import FREE, Slowdown, slowdown
-from services.controller.laws import cartesian_rounding
+from services.controller.laws import cartesian_rounding, hold_pulses
 
 
 class JogTarget(NamedTuple):
@@ -246,10 +246,14 @@ def _solve(
     return [float(v) for v in q]
 
 
-def jog_counts(q_target: list[float], est: DriveEstimator, config: ControllerConfig) -> np.ndarray:
+def jog_counts(
+    q_target: list[float], est: DriveEstimator, config: ControllerConfig, holding: bool = False
+) -> np.ndarray:
     """Counts that bring the motors onto ``q_target`` [rad] one cycle after the command
     starts acting: the default mode's delay compensation, dead-beat speed and Cartesian
-    rounding (module docstring), shape (6,) int64.
+    rounding (module docstring), shape (6,) int64; ``holding`` (the reference stands
+    still: stopped at a limit): the default mode's one-cycle pulses between rests
+    (:func:`~services.controller.laws.hold_pulses`), so the arm holds without a limit cycle.
 
     Raises:
         RuntimeError: the estimator has no reading.
@@ -258,6 +262,8 @@ def jog_counts(q_target: list[float], est: DriveEstimator, config: ControllerCon
     tau = config.drive_tau_ms / 1000.0
     x1, v1 = est.predict(config.command_delay_ms / 1000.0)
     target = dh_to_encoder_list(q_target)
+    if holding:
+        return hold_pulses(config, x1, v1, target, q_target)
     u = deadbeat_speed(x1, v1, target, period, tau)
     wanted = saturate_values([v / COUNT_RAD_S for v in u], float(JOINT_COUNT_MAX))
     lag = lag_factor(tau, period)

@@ -4,8 +4,9 @@ Each zone has a distance measure in degrees: the wrist's |q5| from 0 or 180 deg 
 q6 aligned), the elbow's |q3 - 90 deg| (fully stretched, which the arm itself refuses
 within 3 deg) and each joint's distance to its nearer limit. A step that brings a
 measure below its ``slow`` distance is shortened in proportion to the distance left
-(``(m - stop) / (slow - stop)``, from where it starts), and never past ``stop``: the
-arm comes to rest before the singularity or the limit, and a step away from it is never
+(``(m - stop) / (slow - stop)``, from where it starts), and never past ``stop``; within
+:data:`STOP_BAND_DEG` of it the step is not taken: the arm comes to rest before the
+singularity or the limit, and a step away from it is never
 slowed, so the user can always back out. The whole step is scaled by one factor, so a
 Cartesian jog keeps its direction while it slows.
 """
@@ -33,6 +34,9 @@ class Slowdown(NamedTuple):
 
 
 FREE = Slowdown(1.0, "")
+STOP_BAND_DEG = 0.5
+"""Within this of a zone's stop the step is not taken at all [deg]: the approach, slower
+and slower, ends in finite time."""
 
 
 def measures(q: Sequence[float], arm: ArmConfig) -> list[tuple[str, float]]:
@@ -65,6 +69,8 @@ def slowdown(
             continue  # moving away, or still clear
         share = min(1.0, max(0.0, (m0 - stop) / (slow - stop)))
         share = min(share, max(0.0, (m0 - stop) / (m0 - m1)))  # never past the stop
+        if m0 - stop <= STOP_BAND_DEG:
+            share = 0.0
         if share < best.scale:
             verb = "stopped" if share <= 0.0 else f"slowed to {share * 100:.0f} %"
             best = Slowdown(
