@@ -151,3 +151,31 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
     after = stty.read_text()
     assert " icanon" in after and " echo " in after, after  # the terminal is restored
     assert after == (tmp_path / "before.txt").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
+def test_manus_jog_plays_a_recorded_joystick_session(
+    zenoh_settings: ZenohSettings, router_endpoint: str, tmp_path: Path
+) -> None:
+    session = f"manus-jog-test-{uuid.uuid4().hex[:8]}"
+    done = tmp_path / "done"
+    recording = ROOT / "tests" / "data" / "joystick_session.jsonl"
+    script = (
+        f"{MANUS} jog --connect {router_endpoint} --prefix test --joystick-replay {recording}; "
+        f"echo $? > {done}; sleep 30"
+    )
+    with ControllerShell(zenoh_settings) as controller:
+        subprocess.run(
+            ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
+             script],
+            check=True, timeout=10, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        )  # fmt: skip
+        try:
+            eventually(lambda: controller.core.jog.level == 4, 20.0, "level 4 from BTN_TR")
+            # the stick pushed forward: a jog (refused here: no arm, no joint state)
+            eventually(lambda: controller.core.jog.refused >= 1, 10.0, "the stick's jog")
+            _tmux("send-keys", "-t", session, "q")
+            eventually(lambda: done.exists() and done.read_text().strip() == "0", 20.0, "exit 0")
+        finally:
+            subprocess.run(["tmux", "kill-session", "-t", session], timeout=10, check=False)

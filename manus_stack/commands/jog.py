@@ -8,6 +8,11 @@ matters when this program or its link dies), sets the speed level on
 ``state/status`` and ``state/bridge``. The terminal is restored on exit, on Ctrl-C, on
 SIGTERM and on a crash. Standard input and output must be a terminal: otherwise it says
 so and exits 2.
+
+``--joystick /dev/input/eventN`` adds a game controller or joystick (the ``evdev``
+package, ``pip install -e '.[joystick]'``), its axes and buttons mapped by
+``--joystick-map FILE`` (:mod:`manus_stack.joystick`); ``--joystick-replay FILE`` plays a
+recorded input session instead of a device.
 """
 
 from __future__ import annotations
@@ -23,8 +28,10 @@ import tty
 from types import FrameType
 from typing import Any
 
+from manus.errors import ConfigError
 from manus.node import Node, QueryError
 from manus.session import add_bus_arguments, bus_settings
+from manus_stack.joystick import DEFAULT_MAP, Joystick, JoystickMap, RecordedEvents
 from manus_stack.teleop import Teleop, screen
 from schemas.control import GoalAck
 from schemas.jog import JogCommand, JogLevel, JogState
@@ -45,6 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--deflection", type=float, default=1.0,
                         help="share of the level's speed per key, 0..1 (1)")  # fmt: skip
     parser.add_argument("--level", type=int, default=None, help="speed level to set first")
+    parser.add_argument("--joystick", metavar="DEVICE", help="a joystick, /dev/input/eventN")
+    parser.add_argument("--joystick-map", metavar="FILE", help="its axis and button mapping")
+    parser.add_argument("--joystick-replay", metavar="FILE",
+                        help="play a recorded input session instead of a device")  # fmt: skip
 
 
 def _keys_help() -> str:
@@ -68,7 +79,20 @@ def run(args: argparse.Namespace) -> int:
             "manus jog: --rate must be in 1..100, --deflection in (0, 1], --hold > 0\n"
         )
         return 2
-    teleop = Teleop(hold_s=args.hold, deflection=args.deflection)
+    teleop: Teleop = Teleop(hold_s=args.hold, deflection=args.deflection)
+    events: RecordedEvents | _DeviceEvents | None = None
+    if args.joystick or args.joystick_replay:
+        mapping = (
+            JoystickMap.from_file(args.joystick_map)
+            if args.joystick_map
+            else JoystickMap.from_dict(DEFAULT_MAP)
+        )
+        if args.joystick_replay:
+            events = RecordedEvents(args.joystick_replay)
+        else:
+            events = _DeviceEvents(args.joystick, mapping)
+        teleop = Joystick(hold_s=args.hold, deflection=args.deflection, mapping=mapping,
+                          ranges=events.ranges)  # fmt: skip
     with Node("teleop", bus_settings(args), liveliness=False) as node:
         keys = node.keys
         pub = node.publisher(keys.jog)
@@ -84,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
             pub.put(JogCommand(stamp_ns=time.time_ns(), seq=seq, source="manus jog", **fields))
 
         def set_level(level: int) -> None:
+            if isinstance(teleop, Joystick):
+                teleop.level = level
             try:
                 ack = node.query(keys.jog_level, JogLevel(level=level), GoalAck, timeout=2.0)
                 teleop.status = f"level {level}" if ack.accepted else f"level refused: {ack.reason}"
@@ -101,6 +127,11 @@ def run(args: argparse.Namespace) -> int:
                     level = teleop.key(ch, time.monotonic())
                     if level is not None:
                         set_level(level)
+                if events is not None and isinstance(teleop, Joystick):
+                    for kind, code, value in events.due(time.monotonic()):
+                        level = teleop.event(kind, code, value, time.monotonic())
+                        if level is not None:
+                            set_level(level)
                 now = time.monotonic()
                 if now >= next_send:
                     send(teleop.command(now))
@@ -112,6 +143,44 @@ def run(args: argparse.Namespace) -> int:
                     shown = lines
             send({"kind": "stop", "units": "unitless"})
     return 0
+
+
+class _DeviceEvents:
+    """Events of a Linux input device, read without blocking (``evdev``)."""
+
+    def __init__(self, path: str, mapping: JoystickMap) -> None:
+        try:
+            import evdev  # optional: pip install -e '.[joystick]'
+        except ImportError as exc:
+            raise ConfigError(
+                "--joystick needs the evdev package: pip install -e '.[joystick]'"
+            ) from exc
+        try:
+            self.device = evdev.InputDevice(path)
+        except OSError as exc:
+            raise ConfigError(f"--joystick {path}: {exc}") from exc
+        self.ecodes = evdev.ecodes
+        self.known = {*mapping.axes, *mapping.buttons, mapping.enable}
+        caps: Any = self.device.capabilities(absinfo=True)  # {EV_ABS: [(code, AbsInfo)]}
+        self.ranges = {
+            self._name(evdev.ecodes.EV_ABS, code): (info.min, info.max)
+            for code, info in caps.get(evdev.ecodes.EV_ABS, [])
+        }
+
+    def _name(self, kind: int, code: int) -> str:
+        table: Any = self.ecodes.EV if kind < 0 else self.ecodes.bytype.get(kind, {})
+        names = table.get(code, str(code))
+        if isinstance(names, str):
+            return names
+        return str(next((n for n in names if n in self.known), names[0]))  # aliases
+
+    def due(self, now_s: float) -> list[tuple[str, str, int]]:
+        """The events waiting now."""
+        try:
+            read = list(self.device.read())
+        except BlockingIOError:
+            return []
+        return [(self._name(-1, e.type), self._name(e.type, e.code), e.value) for e in read]
 
 
 class _Terminal:
