@@ -48,6 +48,7 @@ class TaskLockStep:
         ls.subscribe("state/bridge", lambda m, t: self.do(self.seq.on_bridge_state(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/feedback", lambda m, t: self.do(self.seq.on_feedback(m, t), t))  # type: ignore[arg-type]
         ls.subscribe("controller/result", lambda m, t: self.do(self.seq.on_result(m, t), t))  # type: ignore[arg-type]
+        ls.subscribe("controller/jog_state", lambda m, t: self.do(self.seq.on_jog_state(m, t), t))  # type: ignore[arg-type]
         for name in self.seq.config.required_services:
             self.seq.on_liveliness(name, True, 0)
 

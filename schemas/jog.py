@@ -26,6 +26,8 @@ JOG_UNITS = ("si", "unitless")
 USER_TOOK_OVER = "user took over"
 """Start of the reason of a goal the controller ends because a jog command arrived (the
 sequencer pauses its task on it instead of failing)."""
+JOGGING = "the user is jogging"
+"""Start of the controller's refusal of a goal submitted while a jog moves the arm."""
 
 
 @dataclass(frozen=True)

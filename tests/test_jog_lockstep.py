@@ -22,6 +22,7 @@ from schemas.commands import ArmCommand, EStop, JointVelocityCommand
 from schemas.control import GoalResult, TrajectoryGoal
 from schemas.jog import USER_TOOK_OVER, JogLevel
 from schemas.planning import Trajectory
+from schemas.sequencing import Task, TaskStep
 from schemas.state import ArmStatus
 from services.controller.core import ControllerCore
 from services.recorder.writer import RecordingWriter
@@ -317,3 +318,48 @@ def test_drink_mode_keeps_the_cup_level_and_pours_about_the_rim_on_the_truth() -
     moved = np.linalg.norm((after.R @ rim + after.xyz) - (before.R @ rim + before.xyz))
     assert tilted > 8.0, tilted
     assert moved < 0.002, moved  # the rim point stays (within the belts' play)
+
+
+def _push(rig: TaskLockStep, seconds: float, seq: int) -> int:
+    """The user pushes the stick (+z, unitless) for ``seconds`` at 20 Hz."""
+    for _ in range(round(seconds / 0.05)):
+        seq += 1
+        cmd = JogArm.make_command(seq, rig.ls.t_ns, units="unitless", linear=[0.0, 0.0, 0.5])
+        rig.ls.publish("jog", cmd)
+        rig.ls.run_for(0.05)
+    return seq
+
+
+def test_a_jog_during_a_wait_pauses_the_task_and_keeps_the_wait() -> None:
+    rig = TaskLockStep(SimConfig(start_pose="unfolded"))
+    rig.start_arm()
+    task = Task(steps=[TaskStep(kind="wait", duration=3.0), TaskStep(kind="gripper", opening=0.03)])
+    assert rig.submit(task).accepted
+    rig.ls.run_for(1.0)
+    seq = _push(rig, 0.3, 0)
+    paused = [e for e in rig.events if e.event == "paused"]
+    assert len(paused) == 1 and paused[0].reason == USER_TOOK_OVER and paused[0].step == 0
+    rig.ls.publish("jog", JogArm.make_command(seq + 1, rig.ls.t_ns))  # released
+    rig.ls.run_for(5.0)
+    assert rig.seq.state == "paused"
+    t_resume = rig.ls.t_ns
+    assert rig.control("resume").ok
+    rig.run_while_busy(30.0)
+    assert rig.seq.state == "succeeded", rig.seq.reason
+    finished = next(e for e in rig.events if e.event == "step_finished" and e.step == 0)
+    assert 1.5 < (finished.stamp_ns - t_resume) / 1e9 < 2.2  # the rest of the wait
+
+
+def test_a_goal_refused_because_the_user_jogs_pauses_the_task() -> None:
+    rig = TaskLockStep(SimConfig(start_pose="unfolded"))
+    rig.start_arm()
+    seq = _push(rig, 0.2, 0)  # the user already jogs when the task starts
+    assert rig.submit(Task(steps=[TaskStep(kind="gripper", opening=0.03)])).accepted
+    rig.ls.run_for(0.2)
+    paused = [e for e in rig.events if e.event == "paused"]
+    assert len(paused) == 1 and paused[0].reason == USER_TOOK_OVER
+    rig.ls.publish("jog", JogArm.make_command(seq + 1, rig.ls.t_ns))
+    rig.ls.run_for(0.3)
+    assert rig.control("resume").ok
+    rig.run_while_busy(30.0)
+    assert rig.seq.state == "succeeded", rig.seq.reason

@@ -47,7 +47,7 @@ from schemas.control import (
     SpeedScale,
     TrajectoryGoal,
 )
-from schemas.jog import USER_TOOK_OVER, JogCommand, JogLevel
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import MS, ControllerConfig
@@ -164,7 +164,7 @@ class ControllerCore:
     def _check_ready(self) -> None:
         if self.jog.engaged:
             raise GoalRefusedError(
-                "the user is jogging (controller/jog_state): goals wait until the jog stops"
+                f"{JOGGING} (controller/jog_state): goals wait until the jog stops"
             )
         reason = self._not_ready()
         if reason is not None:

@@ -36,7 +36,9 @@ not confirm a cancel or pause within ``cancel_timeout_s`` gets the bridge's ``st
 **The user takes over**: when the controller ends the running goal because a jog command
 arrived (result ``preempted``, reason starting :data:`~schemas.jog.USER_TOOK_OVER`), the
 task pauses (event ``paused`` with reason "user took over") instead of failing; it
-resumes only when asked, from wherever the user left the arm.
+resumes only when asked, from wherever the user left the arm. So it does when its goal
+is refused because the user is jogging, and when ``controller/jog_state`` shows a jog
+while it waits, plans or sends a goal (a fold cannot be jogged: the bridge holds it).
 """
 
 from __future__ import annotations
@@ -55,7 +57,7 @@ from schemas.control import (
     Heartbeat,
     TrajectoryGoal,
 )
-from schemas.jog import USER_TOOK_OVER
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogState
 from schemas.planning import Path, PlanReply, Trajectory
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus, TaskStep
 from schemas.state import BridgeState, JointState
@@ -134,6 +136,7 @@ class SequencerCore:
         self._seen_fold = False
         self._grip0: float | None = None
         self._pause_requested = False
+        self._pause_reason = ""  # why the next pause happens (the user took over)
         self._cancel_requested = False
 
     # -- queries about the task ------------------------------------------------------------
@@ -326,6 +329,20 @@ class SequencerCore:
             return self._paused()
         return self._fail(f"controller: goal {res.status}: {res.reason}")
 
+    def on_jog_state(self, msg: JogState, now_ns: int) -> list[Action]:
+        """The controller's jog: a jog while the task waits pauses it at once; while it
+        plans or sends a goal, at the end of that (the goal itself is preempted or
+        refused by the controller, see :meth:`on_result`)."""
+        self._now = now_ns
+        if not (msg.active and self.state == "running"):
+            return []
+        self._pause_reason = USER_TOOK_OVER
+        if self._phase == "waiting" and self._deadline is not None:
+            return self._pause()
+        if self._phase in ("planning", "acking"):
+            self._pause_requested = True
+        return []
+
     def on_estop(self, msg: EStop, now_ns: int) -> list[Action]:
         """An e-stop on the bus (the bridge latches it itself): the task fails at once."""
         self._now = now_ns
@@ -494,6 +511,8 @@ class SequencerCore:
             return self._fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self._goal_id = ""
+            if reply.reason.startswith(JOGGING):
+                return self._paused(USER_TOOK_OVER)
             return self._fail(f"controller refused the goal: {reply.reason}")
         self._phase = "active"
         if self._cancel_requested:
@@ -543,6 +562,7 @@ class SequencerCore:
         return []
 
     def _paused(self, reason: str = "") -> list[Action]:
+        reason, self._pause_reason = reason or self._pause_reason, ""
         self._pause_requested = False
         self.state = "paused"
         self._phase = "paused"
@@ -607,6 +627,8 @@ class SequencerCore:
     def _check_deadline(self) -> list[Action]:
         if not self.busy or self._deadline is None or self._now < self._deadline:
             return []
+        if self._phase == "waiting":
+            return []  # a wait's end: on_tick's (clearing it here left the wait hanging)
         self._deadline = None
         phase = self._phase
         if phase in ("pausing", "cancelling"):

@@ -26,6 +26,7 @@ from manus.node import Node, Publisher, QueryError, now_ns
 from manus.session import ZenohSettings
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult
+from schemas.jog import JogState
 from schemas.planning import PlanReply
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskStatus
 from schemas.state import BridgeState, JointState
@@ -81,6 +82,7 @@ class SequencerShell:
         self.node.subscribe(keys.feedback, ControllerFeedback, self._on_feedback)
         self.node.subscribe(keys.result, GoalResult, self._on_result)
         self.node.subscribe(keys.estop, EStop, self._on_estop)
+        self.node.subscribe(keys.jog_state, JogState, self._on_jog_state)
         self.node.watch_liveliness(self._on_alive)
         self.node.queryable(keys("sequencer/submit"), Task, self._on_submit, locked=False)
         self.node.queryable(keys("sequencer/control"), TaskControl, self._on_control)
@@ -107,6 +109,9 @@ class SequencerShell:
 
     def _on_estop(self, msg: EStop, rx_ns: int) -> None:
         self._do(self.core.on_estop(msg, rx_ns))
+
+    def _on_jog_state(self, msg: JogState, rx_ns: int) -> None:
+        self._do(self.core.on_jog_state(msg, rx_ns))
 
     def _on_alive(self, service: str, alive: bool) -> None:
         self._do(self.core.on_liveliness(service, alive, now_ns()))
