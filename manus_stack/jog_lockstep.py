@@ -18,6 +18,7 @@ import numpy as np
 
 from manus.orientation import ypr_to_matrix
 from manus_stack.controlled import ControlledArm
+from schemas import endpoints as ep
 from schemas.jog import JogCommand, JogState
 from services.controller.config import ControllerConfig
 from services.simulator.config import SimConfig
@@ -88,7 +89,7 @@ class JogArm(ControlledArm):
     def send(self, **fields: Any) -> JogCommand:
         """Publish one command now."""
         cmd = self.command(**fields)
-        self.ls.publish("jog", cmd)
+        self.ls.publish(ep.JOG, cmd)
         self.sent.append((self.ls.t_ns, cmd))
         return cmd
 
@@ -149,7 +150,7 @@ class JogArm(ControlledArm):
 
     def states(self) -> list[JogState]:
         """Every JogState the controller published."""
-        return [m for m in self.ls.published("controller/jog_state") if isinstance(m, JogState)]
+        return [m for m in self.ls.published(ep.JOG_STATE) if isinstance(m, JogState)]
 
 
 def line_drift(samples: list[TruthSample], direction: np.ndarray) -> tuple[float, float, float]:

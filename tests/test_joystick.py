@@ -13,6 +13,7 @@ import pytest
 from manus.errors import ConfigError
 from manus_stack.jog_lockstep import JogArm, line_drift
 from manus_stack.joystick import DEFAULT_MAP, Joystick, JoystickMap, RecordedEvents
+from schemas import endpoints as ep
 from schemas.jog import JogCommand, JogLevel
 
 SESSION = Path(__file__).resolve().parent / "data" / "joystick_session.jsonl"
@@ -85,7 +86,7 @@ def test_a_recorded_session_drives_the_arm_straight_along_x() -> None:
         for kind, code, value in events.due(now):
             level = js.event(kind, code, value, now)
             if level is not None:
-                assert arm.query("controller/jog_level", JogLevel(level=level)).accepted
+                assert arm.query(ep.JOG_LEVEL, JogLevel(level=level)).accepted
         arm.send(**js.command(now))
         arm.run(0.05)
     assert arm.core.jog.level == 4

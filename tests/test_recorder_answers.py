@@ -9,12 +9,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from schemas import endpoints as ep
 from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
-from services.recorder.replay import SERVICE_OUTPUTS, SERVICE_QUERYABLES, schedule
+from services.recorder.replay import schedule, service_outputs_table, service_queryables_table
 
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
@@ -141,6 +142,7 @@ def test_exchanges_of_the_thesis_recording() -> None:
 
 def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None:
     recording = Recording(SQUARE)
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     assert SERVICE_OUTPUTS["planner"] == ()
     assert schedule(recording, as_service="planner") == []
     assert set(SERVICE_QUERYABLES) <= set(SERVICE_OUTPUTS)
@@ -152,9 +154,12 @@ def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None
 
 def test_the_stand_in_tables_cover_every_key_of_the_schemas() -> None:
     """Every published key has one publishing service (estop: anyone; liveliness: the
-    recorder's channel), every queryable one serving service."""
+    recorder's channel; jog: the supervisor, no service), every queryable one serving
+    service."""
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     names = set(channel_types())
-    published = {n for n in names if "#" not in n} - {"estop", "liveliness"}
+    supervisors = {e.suffix for e in ep.TABLE if e.owner == ep.SUPERVISOR}
+    published = {n for n in names if "#" not in n} - {"estop", "liveliness"} - supervisors
     outputs = [s for out in SERVICE_OUTPUTS.values() for s in out]
     assert sorted(outputs) == sorted(published)
     queryables = {n.split("#")[0] for n in names if "#" in n}

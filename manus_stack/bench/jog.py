@@ -34,6 +34,7 @@ import numpy as np
 from manus.orientation import ypr_to_matrix
 from manus.protocol import XYZ_UNIT_MM, FrameId, MoveCommand, move_frame
 from manus_stack.jog_lockstep import JogArm, TruthSample, line_drift
+from schemas import endpoints as ep
 from schemas.jog import JogLevel
 from services.simulator.config import SimConfig
 from services.simulator.core import MS, SimCore
@@ -62,7 +63,7 @@ def _stats(values_ms: list[float]) -> dict[str, float]:
 def _arm(level: int = 5) -> JogArm:
     arm = JogArm()
     arm.start()
-    arm.query("controller/jog_level", JogLevel(level=level))
+    arm.query(ep.JOG_LEVEL, JogLevel(level=level))
     arm.run(0.3)
     return arm
 

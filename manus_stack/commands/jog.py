@@ -33,6 +33,7 @@ from manus.node import Node, QueryError
 from manus.session import add_bus_arguments, bus_settings
 from manus_stack.joystick import DEFAULT_MAP, Joystick, JoystickMap, RecordedEvents
 from manus_stack.teleop import Teleop, screen
+from schemas import endpoints as ep
 from schemas.control import GoalAck
 from schemas.jog import JogCommand, JogLevel, JogState
 from schemas.state import ArmStatus, BridgeState
@@ -95,11 +96,15 @@ def run(args: argparse.Namespace) -> int:
                           ranges=events.ranges)  # fmt: skip
     with Node("teleop", bus_settings(args), liveliness=False) as node:
         keys = node.keys
-        pub = node.publisher(keys.jog)
+        pub = node.publisher(keys(ep.JOG))
         latest: dict[str, Any] = {}
-        node.subscribe(keys.jog_state, JogState, lambda m, _: latest.__setitem__("jog", m))
-        node.subscribe(keys.status, ArmStatus, lambda m, _: latest.__setitem__("status", m))
-        node.subscribe(keys.bridge_state, BridgeState, lambda m, _: latest.__setitem__("bridge", m))
+        node.subscribe(
+            keys(ep.JOG_STATE), JogState, lambda m, _: latest.__setitem__("jog_state", m)
+        )
+        node.subscribe(keys(ep.STATUS), ArmStatus, lambda m, _: latest.__setitem__("status", m))
+        node.subscribe(
+            keys(ep.BRIDGE_STATE), BridgeState, lambda m, _: latest.__setitem__("bridge", m)
+        )
         seq = 0
 
         def send(fields: dict[str, Any]) -> None:
@@ -111,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
             if isinstance(teleop, Joystick):
                 teleop.level = level
             try:
-                ack = node.query(keys.jog_level, JogLevel(level=level), GoalAck, timeout=2.0)
+                ack = node.query(keys(ep.JOG_LEVEL), JogLevel(level=level), GoalAck, timeout=2.0)
                 teleop.status = f"level {level}" if ack.accepted else f"level refused: {ack.reason}"
             except QueryError as exc:
                 teleop.status = f"level not set: {exc}"
@@ -136,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
                 if now >= next_send:
                     send(teleop.command(now))
                     next_send = now + period
-                lines = screen(teleop, now, latest.get("jog"), latest.get("status"),
+                lines = screen(teleop, now, latest.get("jog_state"), latest.get("status"),
                                latest.get("bridge"))  # fmt: skip
                 if lines != shown:
                     term.draw(lines)

@@ -38,6 +38,7 @@ from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.trajectory import TrajectoryError
+from schemas import endpoints as ep
 from schemas.control import (
     CancelGoal,
     GoalAck,
@@ -302,7 +303,7 @@ class ControllerCore:
             return out
         zero = np.zeros(6, dtype=np.int64)
         self.last_counts = zero  # the stop replaces this cycle's command at the next sync
-        return [("cmd/joint_velocity", self.outbox.command(js, zero, 0)), *out]
+        return [(ep.JOINT_VELOCITY, self.outbox.command(js, zero, 0)), *out]
 
     def on_joint_state(self, js: JointState) -> Output:
         """One cycle: the command for this joint state, feedback and any results."""
@@ -499,13 +500,13 @@ class ControllerCore:
         counts = np.asarray(counts, dtype=np.int64)
         self.last_counts = counts
         cmd = self.outbox.command(js, counts, grip)
-        out: Output = [("cmd/joint_velocity", cmd)]
+        out: Output = [(ep.JOINT_VELOCITY, cmd)]
         if xyz is not None:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
-            out.append(("controller/feedback", fb))
+            out.append((ep.FEEDBACK, fb))
         jog = self.jog.state(js)
         if jog is not None:
-            out.append(("controller/jog_state", jog))
+            out.append((ep.JOG_STATE, jog))
         return out + self._flush(js.stamp_ns)
 
 

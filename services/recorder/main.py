@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         "messages": stats.messages,
         "bytes": stats.bytes,
         "received": shell.received,
-        "liveliness": shell.liveliness_changes,
+        "liveliness_changes": shell.liveliness_changes,
         "reserved_dropped": shell.reserved_dropped,
         "not_msgpack": stats.not_msgpack,
         "write_errors": shell.write_errors,
