@@ -15,14 +15,39 @@ joystick's) with ``units = "unitless"``, scaled by the speed level's share of th
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
 
-JOG_KINDS = ("twist", "joints", "stop")
-"""``twist``: gripper linear + angular velocity; ``joints``: joint velocities; ``stop``."""
-JOG_FRAMES = ("base", "gripper")
-"""Axes a twist is expressed in: the base frame's, or the gripper frame's (moving with it)."""
-JOG_UNITS = ("si", "unitless")
+
+class JogKind(StrEnum):
+    """What a jog command's values mean."""
+
+    TWIST = "twist"
+    """gripper linear + angular velocity"""
+    JOINTS = "joints"
+    """DH joint velocities"""
+    STOP = "stop"
+    """stop at once"""
+
+
+class JogFrame(StrEnum):
+    """The axes a twist is expressed in."""
+
+    BASE = "base"
+    GRIPPER = "gripper"
+    """the gripper frame's axes, moving with it"""
+
+
+class JogUnits(StrEnum):
+    """How a jog command's speeds are given."""
+
+    SI = "si"
+    """m/s, rad/s"""
+    UNITLESS = "unitless"
+    """-1..1, a joystick's deflection, scaled by the speed level"""
+
+
 USER_TOOK_OVER = "user took over"
 """Start of the reason of a goal the controller ends because a jog command arrived (the
 sequencer pauses its task on it instead of failing)."""
@@ -48,9 +73,9 @@ class JogCommand(Message):
     stamp_ns: int = field("sender's clock when sent (informative only)", unit="ns")
     seq: int = field("sequence number of the sender", minimum=0)
     source: str = field("who sends it (e.g. 'teleop', 'joystick')")
-    kind: str = field("what the values mean", choices=JOG_KINDS)
-    units: str = field("SI speeds or unitless deflections in -1..1", choices=JOG_UNITS)
-    frame: str = field("axes of a twist", default="base", choices=JOG_FRAMES)
+    kind: str = field("what the values mean", choices=JogKind)
+    units: str = field("SI speeds or unitless deflections in -1..1", choices=JogUnits)
+    frame: str = field("axes of a twist", default=JogFrame.BASE, choices=JogFrame)
     linear: list[float] = field(
         "twist: gripper origin velocity x, y, z",
         unit="m/s or -1..1",

@@ -45,6 +45,7 @@ from schemas.control import (
     GoalResult,
     GripperGoal,
     Heartbeat,
+    ResultStatus,
     SpeedScale,
     TrajectoryGoal,
 )
@@ -278,7 +279,8 @@ class ControllerCore:
         moving = self.jog.engaged
         self.jog.receive(cmd, stamp, self._not_ready())
         if self.jog.engaged and self._active_goals():
-            self._abort_all(f"{USER_TOOK_OVER}: jog command from {cmd.source!r}", "preempted")
+            reason = f"{USER_TOOK_OVER}: jog command from {cmd.source!r}"
+            self._abort_all(reason, ResultStatus.PREEMPTED)
         return self._jog_stopped(moving)
 
     def on_bad_jog(self, error: str) -> Output:
@@ -430,7 +432,7 @@ class ControllerCore:
             return 0
         return counts
 
-    def _abort_all(self, reason: str, status: str = "aborted") -> None:
+    def _abort_all(self, reason: str, status: str = ResultStatus.ABORTED) -> None:
         if self.pending is not None:
             self._queue(self.pending.goal_id, status, reason)
             self.pending = None
@@ -439,7 +441,7 @@ class ControllerCore:
         if self.gripper is not None:
             self._queue(self.gripper.goal.goal_id, status, reason, kind="gripper")
             self.gripper = None
-        if status == "aborted" and self.jog.engaged:
+        if status == ResultStatus.ABORTED and self.jog.engaged:
             self.jog.stop(reason)
 
     def _end_run(self, run: TrajectoryRun, status: str, reason: str) -> None:

@@ -31,7 +31,7 @@ from manus.errors import ManusError
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
 from manus.quantize import gripper_counts
-from schemas.jog import JOG_FRAMES, JOG_KINDS, JOG_UNITS, JogCommand, JogState
+from schemas.jog import JogCommand, JogFrame, JogKind, JogState, JogUnits
 from schemas.state import JointState
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
@@ -57,10 +57,11 @@ def _norm(values: list[float]) -> float:
 
 
 def _check_values(cmd: JogCommand) -> None:
-    for name, allowed in (("kind", JOG_KINDS), ("units", JOG_UNITS), ("frame", JOG_FRAMES)):
+    for name, enum in (("kind", JogKind), ("units", JogUnits), ("frame", JogFrame)):
         value = getattr(cmd, name)
+        allowed = [m.value for m in enum]
         if value not in allowed:
-            raise JogError(f"`{name}` {value!r} is not one of {list(allowed)}")
+            raise JogError(f"`{name}` {value!r} is not one of {allowed}")
     for name, size in (("linear", 3), ("angular", 3), ("joints", 6)):
         values = getattr(cmd, name)
         if len(values) != size:
@@ -74,11 +75,13 @@ def _check_values(cmd: JogCommand) -> None:
     for name, value in named + scalars:
         if not (isinstance(value, int | float) and math.isfinite(value)):
             raise JogError(f"`{name}` = {value!r} is not a finite number")
-        if cmd.units == "unitless" and abs(value) > 1.0 + _TOLERANCE:
+        if cmd.units == JogUnits.UNITLESS and abs(value) > 1.0 + _TOLERANCE:
             raise JogError(f"`{name}` = {value!r} is outside -1..1 (unitless deflection)")
-    if cmd.kind == "joints" and (any(cmd.linear) or any(cmd.angular) or cmd.drink or cmd.pour):
+    if cmd.kind == JogKind.JOINTS and (
+        any(cmd.linear) or any(cmd.angular) or cmd.drink or cmd.pour
+    ):
         raise JogError("a `joints` command carries joint speeds (and the gripper's) only")
-    if cmd.kind == "twist" and any(cmd.joints):
+    if cmd.kind == JogKind.TWIST and any(cmd.joints):
         raise JogError("a `twist` command carries no joint speeds (use kind `joints`)")
     if cmd.drink and (cmd.angular[0] or cmd.angular[1]):
         raise JogError(
@@ -96,12 +99,12 @@ def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
         JogError: the command is malformed or out of range (module docstring).
     """
     _check_values(cmd)
-    if cmd.kind == "stop":
+    if cmd.kind == JogKind.STOP:
         return None
     share = cfg.share(level)
     lin, ang, pour = list(cmd.linear), list(cmd.angular), cmd.pour
     joints, grip = list(cmd.joints), cmd.gripper
-    if cmd.units == "unitless":  # a deflection of the level's share of the caps
+    if cmd.units == JogUnits.UNITLESS:  # a deflection of the level's share of the caps
         lin = [v * cfg.max_linear * share for v in lin]
         ang = [v * cfg.max_angular * share for v in ang]
         pour *= cfg.max_angular * share

@@ -38,6 +38,7 @@ from manus.joint_map import dh_to_encoder_list, encoder_to_dh
 from manus.kinematics import fk, jacobian_columns
 from manus.orientation import rotation_error
 from manus.quantize import COUNT_RAD_S, JOINT_COUNT_MAX, saturate_values
+from schemas.jog import JogKind
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.jog_config import JogConfig
@@ -76,7 +77,7 @@ class JogTarget(NamedTuple):
     def vector(self) -> np.ndarray:
         """The speeds the ramp acts on: (v, w) of a twist, or the joint rates, shape (6,)
         (a twist's pour is folded into ``w`` by :meth:`JogRun.step`)."""
-        if self.kind == "joints":
+        if self.kind == JogKind.JOINTS:
             return np.array(self.joints, dtype=float)
         return np.array((*self.linear, *self.angular), dtype=float)
 
@@ -153,7 +154,7 @@ class JogRun:
             self.pose = fk(q_pred, config.arm)
         self._ramp(target.vector(), cfg, dt)
         q0 = self.q_ref
-        if self.kind == "joints":
+        if self.kind == JogKind.JOINTS:
             q1 = [a + v * dt for a, v in zip(q0, self.speed.tolist(), strict=True)]
             pose1 = self.pose
         else:
@@ -170,7 +171,7 @@ class JogRun:
         if zone.scale < 1.0:
             share, limit = share * zone.scale, zone
         if share < 1.0:
-            if self.kind == "joints":
+            if self.kind == JogKind.JOINTS:
                 q1 = [a + share * d for a, d in zip(q0, step, strict=True)]
             else:  # the same share of the Cartesian step: still on the line
                 pose1 = _between(self.pose, pose1, share)
@@ -185,7 +186,7 @@ class JogRun:
 
     def _ramp(self, wanted: np.ndarray, cfg: JogConfig, dt: float) -> None:
         change = wanted - self.speed
-        if self.kind == "joints":
+        if self.kind == JogKind.JOINTS:
             norms = [(float(np.abs(change).max()), cfg.joint_accel * dt)]
         else:
             norms = [
