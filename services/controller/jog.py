@@ -38,7 +38,6 @@ from services.controller.estimator import DriveEstimator
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogRun, JogTarget, jog_counts, predicted_dh
 
-_ZERO = np.zeros(6, dtype=np.int64)
 _TOLERANCE = 1e-9
 """Relative slack of the range checks (a value at the cap is allowed)."""
 
@@ -242,18 +241,16 @@ class Jog:
         target = self.target
         self.scale = 1.0
         if target is None:
-            return _ZERO, 0
+            return np.zeros(6, dtype=np.int64), 0
         grip = gripper_counts(target.gripper)
         if not target.arm_moves or est.x is None:  # after a gap: zeros, start afresh
             self.run = None
-            return _ZERO, grip
+            return np.zeros(6, dtype=np.int64), grip
         q_pred = predicted_dh(est, self.config)
         if self.run is None or not self.run.follows(target):
             self.run = JogRun.start(target, q_pred, self.config)
         step = self.run.step(target, q_pred, self.cfg, self.config)
-        self.scale = step.limit.scale
-        if step.limit.reason != self.reason:
-            self.reason = step.limit.reason
+        self.scale, self.reason = step.limit.scale, step.limit.reason
         holding = step.limit.scale <= 0.0  # stopped at a zone: hold without a limit cycle
         return jog_counts(step.q_target, est, self.config, holding), grip
 

@@ -91,10 +91,10 @@ class JogConfig:
         _check("joint_accel", self.joint_accel, 0.01, 1000.0)
         _check("damping_m", self.damping_m, 0.0, 0.1)
         _check("rotation_weight_m", self.rotation_weight_m, 0.001, 10.0)
-        for slow, stop in (("wrist", "wrist"), ("elbow", "elbow"), ("limit", "limit")):
-            lo, hi = getattr(self, f"{stop}_stop_deg"), getattr(self, f"{slow}_slow_deg")
-            _check(f"{stop}_stop_deg", lo, 0.0, 80.0)
-            _check(f"{slow}_slow_deg", hi, lo + 0.1, 89.0)
+        for zone in ("wrist", "elbow", "limit"):
+            stop, slow = getattr(self, f"{zone}_stop_deg"), getattr(self, f"{zone}_slow_deg")
+            _check(f"{zone}_stop_deg", stop, 0.0, 80.0)
+            _check(f"{zone}_slow_deg", slow, stop + 0.1, 89.0)
         if len(self.rim_offset) != 3:
             raise ConfigError(f"jog: `rim_offset` must hold 3 values [m], got {self.rim_offset!r}")
         for v in self.rim_offset:
