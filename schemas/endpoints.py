@@ -290,6 +290,12 @@ JOG_LEVEL = _query(
     "set the jog speed level (1..5)",
     _SUP,
 )
+JOG_TAKEN = _pub(
+    "controller/jog_taken",
+    _CTRL,
+    jog.JogTaken,
+    "each jog command as the controller took it: after which joint state (exact replays)",
+)
 JOG_STATE = _pub(
     "controller/jog_state",
     _CTRL,
@@ -455,6 +461,7 @@ TABLE = Table(
         RESULT,
         JOG,
         JOG_LEVEL,
+        JOG_TAKEN,
         JOG_STATE,
         HEARTBEAT,
         SUBMIT,

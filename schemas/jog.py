@@ -115,6 +115,22 @@ class JogLevel(Message):
 
 
 @dataclass(frozen=True)
+class JogTaken(Message):
+    """A jog command as the controller took it (key ``controller/jog_taken``), published
+    at once: after which joint state it came. The command stream and the joint states come
+    from two publishers, so a recorder may log a command and a joint state that arrived
+    together in the other order than the controller saw them; this record says where the
+    controller saw it, and the regression check (``manus replay --check controller``)
+    feeds the command there."""
+
+    TYPE_NAME = "manus/JogTaken/1"
+
+    after_seq: int = field("seq of the newest joint state when it came (-1: none yet)")
+    command: JogCommand | None = field("the command (None: a payload that did not decode)")
+    error: str = field("why the payload did not decode ('' when it did)", default="")
+
+
+@dataclass(frozen=True)
 class JogState(Message):
     """The jog as the controller runs it (key ``controller/jog_state``): every cycle while
     a jog runs, once when it stops, and at the cycle after a level change or a refusal."""

@@ -20,7 +20,7 @@ from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
 from schemas.commands import ArmCommand, EStop, JointVelocityCommand
 from schemas.control import GoalResult, TrajectoryGoal
-from schemas.jog import USER_TOOK_OVER, JogLevel
+from schemas.jog import USER_TOOK_OVER, JogLevel, JogTaken
 from schemas.keys import Keys
 from schemas.planning import Trajectory
 from schemas.sequencing import Task, TaskStep
@@ -152,9 +152,12 @@ def test_a_garbage_payload_stops_the_jog() -> None:
     arm = _arm(5)
     arm.stream(0.5, units="unitless", linear=X)
     out = arm.core.on_bad_jog("the payload does not decode")
-    assert [s for s, _ in out] == [ep.JOINT_VELOCITY]
+    assert [s for s, _ in out] == [ep.JOG_TAKEN, ep.JOINT_VELOCITY]  # taken, and stopped
+    taken = out[0][1]
+    assert isinstance(taken, JogTaken) and taken.command is None
+    assert taken.error == "the payload does not decode"
     assert not arm.core.jog.engaged and arm.core.jog.refused == 1
-    assert core.on_bad_jog("junk") == []  # idle: counted, nothing to stop
+    assert [s for s, _ in core.on_bad_jog("junk")] == [ep.JOG_TAKEN]  # idle: only counted
     assert core.jog.refused == 1
 
 
@@ -362,3 +365,34 @@ def test_a_goal_refused_because_the_user_jogs_pauses_the_task() -> None:
     assert rig.control("resume").ok
     rig.run_while_busy(30.0)
     assert rig.seq.state == "succeeded", rig.seq.reason
+
+
+def test_a_recording_whose_jog_and_joint_states_crossed_still_replays_exactly(
+    tmp_path: Path,
+) -> None:
+    """Live, the recorder may log a jog command after a joint state that reached the
+    controller after it (two publishers): the controller's JogTaken says where it was taken."""
+    arm = _arm(4)
+    arm.stream(0.6, units="unitless", linear=X)
+    arm.send(linear=[0.5, 0.0, 0.0])  # refused
+    _hold(arm, 0.2)
+    arm.stream(0.4, units="unitless", linear=[0.0, 0.5, 0.0])
+    arm.run(0.4)
+    states = sorted(t for t, s, _ in arm.ls.messages if s == ep.JOINTS)
+
+    def late(t_ns: int) -> int:  # just after the next joint state: the crossing
+        nxt = next((s for s in states if s > t_ns), t_ns)
+        return nxt + 1_000_000
+
+    path = tmp_path / "crossed.mcap"
+    crossed = 0
+    with RecordingWriter(path) as writer:
+        for t_ns, suffix, msg in sorted(
+            ((late(t) if s in (ep.JOG, ep.JOG_TAKEN) else t, s, m) for t, s, m in arm.ls.messages),
+            key=lambda item: item[0],
+        ):
+            crossed += suffix == ep.JOG
+            writer.write(suffix, msg, t_ns)
+    assert crossed > 10
+    result = check_controller(path)
+    assert result.ok, result.difference

@@ -49,7 +49,7 @@ from schemas.control import (
     SpeedScale,
     TrajectoryGoal,
 )
-from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import MS, ControllerConfig
@@ -281,19 +281,23 @@ class ControllerCore:
         if self.jog.engaged and self._active_goals():
             reason = f"{USER_TOOK_OVER}: jog command from {cmd.source!r}"
             self._abort_all(reason, ResultStatus.PREEMPTED)
-        return self._jog_stopped(moving)
+        return [self._taken(cmd), *self._jog_stopped(moving)]
 
     def on_bad_jog(self, error: str) -> Output:
         """A jog payload that does not decode (the shell's node refused it): counted,
         and the arm stops."""
         moving = self.jog.engaged
         self.jog.refuse(f"bad jog payload: {error}")
-        return self._jog_stopped(moving)
+        return [self._taken(None, error), *self._jog_stopped(moving)]
 
     def set_jog_level(self, req: JogLevel) -> GoalAck:
         """Set the jog speed level (shown in the next JogState)."""
         reason = self.jog.set_level(req.level)
         return GoalAck(accepted=reason is None, goal_id="", reason=reason or "")
+
+    def _taken(self, cmd: JogCommand | None, error: str = "") -> tuple[str, JogTaken]:
+        after = self.last_js.seq if self.last_js is not None else -1
+        return ep.JOG_TAKEN, JogTaken(after_seq=after, command=cmd, error=error)
 
     def _active_goals(self) -> bool:
         return self.pending is not None or self.run is not None or self.gripper is not None
