@@ -157,8 +157,8 @@ def test_estop_mid_path_fails_the_task_and_the_next_is_refused() -> None:
 
 
 def test_a_wait_step_ends_on_time() -> None:
-    """A joint state that arrives as a wait ends must not swallow its end (it did: the
-    deadline check of the joint states cleared the wait's deadline before the tick)."""
+    """A joint state that arrives as a wait ends must not swallow its end (lock-step
+    delivers each joint state before the tick of the same instant)."""
     rig = Rig()
     rig.start(Task(steps=[TaskStep(kind="wait", duration=1.5)]))
     start = rig.ls.t_ns
