@@ -33,7 +33,7 @@ import msgpack
 import zenoh
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--connect", default="tcp/127.0.0.1:7447", help="router endpoint")
     parser.add_argument("--prefix", default="manus", help="key prefix of the arm")
@@ -46,35 +46,75 @@ def main() -> int:
     parser.add_argument("--gripper", type=float, default=0.0, help="open (+) / close (-)")
     parser.add_argument("--rate", type=float, default=20.0, help="commands per second")
     parser.add_argument("--seconds", type=float, default=2.0, help="how long to push")
-    args = parser.parse_args()
-    p = args.prefix
+    return parser.parse_args()
 
+
+def open_session(endpoint: str) -> zenoh.Session:
+    """A client of the router at ``endpoint``, loopback only: no scouting."""
     config = zenoh.Config()
     config.insert_json5("mode", '"client"')
-    config.insert_json5("connect/endpoints", json.dumps([args.connect]))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
     config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
-    try:
-        states: queue.Queue[dict[str, Any]] = queue.Queue()
-        session.declare_subscriber(
-            f"{p}/controller/jog_state",
-            lambda s: states.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
-        )
-        if args.level is not None:
-            payload = msgpack.packb({"level": args.level}, use_bin_type=True)
-            for reply in session.get(f"{p}/controller/jog_level", payload=payload, timeout=5.0):
-                if reply.ok is None:
-                    print("jog_level: error reply", flush=True)
-                    return 1
-                ack = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
-                print(f"level {args.level}: {'ok' if ack['accepted'] else ack['reason']}",
-                      flush=True)  # fmt: skip
-                break
-            else:
-                print("jog_level: no reply (is the controller running?)", flush=True)
-                return 1
+    return zenoh.open(config)
 
-        pub = session.declare_publisher(f"{p}/jog")
+
+def set_level(session: zenoh.Session, prefix: str, level: int) -> bool:
+    """``controller/jog_level``: True when the controller accepted the level."""
+    payload = msgpack.packb({"level": level}, use_bin_type=True)
+    for reply in session.get(f"{prefix}/controller/jog_level", payload=payload, timeout=5.0):
+        if reply.ok is None:
+            print("jog_level: error reply", flush=True)
+            return False
+        ack = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
+        print(f"level {level}: {'ok' if ack['accepted'] else ack['reason']}", flush=True)
+        return bool(ack["accepted"])
+    print("jog_level: no reply (is the controller running?)", flush=True)
+    return False
+
+
+def the_push(args: argparse.Namespace) -> dict[str, Any]:
+    """The JogCommand fields the stream repeats (deflections, unitless)."""
+    if args.joints is not None:
+        return {"kind": "joints", "joints": args.joints, "gripper": args.gripper}
+    twist = {"linear": [args.x, args.y, args.z], "angular": [args.roll, args.pitch, args.yaw]}
+    return {"kind": "twist", "gripper": args.gripper, **twist}
+
+
+class Watch:
+    """The controller's JogState as it changes: printed, and what the exit status needs."""
+
+    def __init__(self) -> None:
+        self.states: queue.Queue[dict[str, Any]] = queue.Queue()
+        self.ran, self.refused = False, ""
+        self._shown: tuple[Any, ...] | None = None
+
+    def on_sample(self, sample: zenoh.Sample) -> None:
+        self.states.put(msgpack.unpackb(sample.payload.to_bytes(), raw=False))
+
+    def drain(self) -> None:
+        while not self.states.empty():
+            state = self.states.get()
+            self.ran = self.ran or state["active"]
+            if "refused" in state["reason"]:
+                self.refused = state["reason"]
+            key = (state["level"], state["active"], state["reason"])
+            if key != self._shown:  # print changes only
+                self._shown = key
+                xyz = [round(v * 1000.0, 1) for v in state["actual_xyz"]]
+                running = "jogging" if state["active"] else "stopped"
+                print(f"level {state['level']}/{state['levels']} {running} xyz_mm {xyz} "
+                      f"{state['reason']}", flush=True)  # fmt: skip
+
+
+def main() -> int:
+    args = parse_args()
+    session = open_session(args.connect)
+    try:
+        watch = Watch()
+        session.declare_subscriber(f"{args.prefix}/controller/jog_state", watch.on_sample)
+        if args.level is not None and not set_level(session, args.prefix, args.level):
+            return 1
+        pub = session.declare_publisher(f"{args.prefix}/jog")
         seq = 0
 
         def send(**values: Any) -> None:
@@ -84,37 +124,19 @@ def main() -> int:
                    "units": "unitless", "frame": args.frame, **values}  # fmt: skip
             pub.put(msgpack.packb(cmd, use_bin_type=True))
 
-        if args.joints is not None:
-            push = {"kind": "joints", "joints": args.joints, "gripper": args.gripper}
-        else:
-            twist = {
-                "linear": [args.x, args.y, args.z],
-                "angular": [args.roll, args.pitch, args.yaw],
-            }
-            push = {"kind": "twist", "gripper": args.gripper, **twist}
-        ran, refused, shown = False, "", None
+        push = the_push(args)
         end = time.monotonic() + args.seconds
         while time.monotonic() < end:
             send(**push)
             time.sleep(1.0 / args.rate)
-            while not states.empty():
-                state = states.get()
-                ran = ran or state["active"]
-                if "refused" in state["reason"]:
-                    refused = state["reason"]
-                key = (state["level"], state["active"], state["reason"])
-                if key != shown:  # print changes only
-                    shown = key
-                    xyz = [round(v * 1000.0, 1) for v in state["actual_xyz"]]
-                    running = "jogging" if state["active"] else "stopped"
-                    print(f"level {state['level']}/{state['levels']} {running} xyz_mm {xyz} "
-                          f"{state['reason']}", flush=True)  # fmt: skip
+            watch.drain()
         send(kind="stop")
         time.sleep(0.3)
-        if refused:
-            print(f"refused: {refused}", flush=True)
+        watch.drain()
+        if watch.refused:
+            print(f"refused: {watch.refused}", flush=True)
             return 1
-        if not ran:
+        if not watch.ran:
             print("the controller never reported the jog (is it running?)", flush=True)
             return 1
         print("released", flush=True)

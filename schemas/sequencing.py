@@ -164,3 +164,38 @@ class TaskEvent(Message):
     kind: str = field("kind of the step ('' for task events)", default="")
     progress: float = field("fraction of the step (step events) or task done", default=0.0)
     reason: str = field("why (failures, cancel), from the service that failed", default="")
+
+
+@dataclass(frozen=True)
+class TaskRecord(Message):
+    """One task as the sequencer remembers it: how it ended (or that it still runs)."""
+
+    TYPE_NAME = "manus/TaskRecord/1"
+
+    task_id: str = field("the task")
+    name: str = field("its name")
+    state: str = field("its state now (running, paused, or how it ended)", choices=TaskState)
+    steps: int = field("number of steps", minimum=0)
+    step: int = field("0-based step it is at or ended at (-1: none)")
+    reason: str = field("why it failed or was cancelled ('' otherwise)")
+    started_ns: int = field("sequencer clock when it started", unit="ns")
+    ended_ns: int = field("sequencer clock when it ended (0: not yet)", unit="ns")
+
+
+@dataclass(frozen=True)
+class HistoryRequest(Message):
+    """Ask for the most recent tasks (``sequencer/history``)."""
+
+    TYPE_NAME = "manus/HistoryRequest/1"
+
+    limit: int = field("at most this many, newest first", default=10, minimum=1, maximum=100)
+
+
+@dataclass(frozen=True)
+class TaskHistory(Message):
+    """The most recent tasks, newest first: the current one (if any), then those that
+    ended, as far back as the sequencer keeps (``SequencerConfig.history``)."""
+
+    TYPE_NAME = "manus/TaskHistory/1"
+
+    tasks: list[TaskRecord] = field("newest first", default_factory=list)

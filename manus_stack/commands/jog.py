@@ -80,74 +80,104 @@ def run(args: argparse.Namespace) -> int:
             "manus jog: --rate must be in 1..100, --deflection in (0, 1], --hold > 0\n"
         )
         return 2
-    teleop: Teleop = Teleop(hold_s=args.hold, deflection=args.deflection)
-    events: RecordedEvents | _DeviceEvents | None = None
-    if args.joystick or args.joystick_replay:
-        mapping = (
-            JoystickMap.from_file(args.joystick_map)
-            if args.joystick_map
-            else JoystickMap.from_dict(DEFAULT_MAP)
-        )
-        if args.joystick_replay:
-            events = RecordedEvents(args.joystick_replay)
-        else:
-            events = _DeviceEvents(args.joystick, mapping)
-        teleop = Joystick(hold_s=args.hold, deflection=args.deflection, mapping=mapping,
-                          ranges=events.ranges)  # fmt: skip
-    with Node("teleop", bus_settings(args), liveliness=False) as node:
-        keys = node.keys
-        pub = node.publisher(keys(ep.JOG))
-        latest: dict[str, Any] = {}
-        node.subscribe(
-            keys(ep.JOG_STATE), JogState, lambda m, _: latest.__setitem__("jog_state", m)
-        )
-        node.subscribe(keys(ep.STATUS), ArmStatus, lambda m, _: latest.__setitem__("status", m))
-        node.subscribe(
-            keys(ep.BRIDGE_STATE), BridgeState, lambda m, _: latest.__setitem__("bridge", m)
-        )
-        seq = 0
-
-        def send(fields: dict[str, Any]) -> None:
-            nonlocal seq
-            seq += 1
-            pub.put(JogCommand(stamp_ns=time.time_ns(), seq=seq, source="manus jog", **fields))
-
-        def set_level(level: int) -> None:
-            if isinstance(teleop, Joystick):
-                teleop.level = level
-            try:
-                ack = node.query(keys(ep.JOG_LEVEL), JogLevel(level=level), GoalAck, timeout=2.0)
-                teleop.status = f"level {level}" if ack.accepted else f"level refused: {ack.reason}"
-            except QueryError as exc:
-                teleop.status = f"level not set: {exc}"
-
-        with _Terminal() as term:
-            if args.level is not None:
-                set_level(args.level)
-            period = 1.0 / args.rate
-            shown: list[str] = []
-            next_send = time.monotonic()
-            while not teleop.quit:
-                for ch in term.read(max(0.0, next_send - time.monotonic())):
-                    level = teleop.key(ch, time.monotonic())
-                    if level is not None:
-                        set_level(level)
-                if events is not None and isinstance(teleop, Joystick):
-                    for kind, code, value in events.due(time.monotonic()):
-                        level = teleop.event(kind, code, value, time.monotonic())
-                        if level is not None:
-                            set_level(level)
-                now = time.monotonic()
-                if now >= next_send:
-                    send(teleop.command(now))
-                    next_send = now + period
-                lines = screen(teleop, now, latest.get("jog_state"), latest.get("status"),
-                               latest.get("bridge"))  # fmt: skip
-                if lines != shown:
-                    term.draw(lines)
-                    shown = lines
-            send({"kind": "stop", "units": "unitless"})
+    teleop, events = _inputs(args)
+    with Node("teleop", bus_settings(args), liveliness=False) as node, _Terminal() as term:
+        bus = _Bus(node, teleop)
+        if args.level is not None:
+            bus.set_level(args.level)
+        _loop(args, term, bus, teleop, events)
+        bus.send({"kind": "stop", "units": "unitless"})
     return 0
+
+
+def _inputs(args: argparse.Namespace) -> tuple[Teleop, RecordedEvents | _DeviceEvents | None]:
+    """The keyboard's teleop, or a joystick's (with its events) beside the keyboard."""
+    if not (args.joystick or args.joystick_replay):
+        return Teleop(hold_s=args.hold, deflection=args.deflection), None
+    if args.joystick_map:
+        mapping = JoystickMap.from_file(args.joystick_map)
+    else:
+        mapping = JoystickMap.from_dict(DEFAULT_MAP)
+    events: RecordedEvents | _DeviceEvents
+    if args.joystick_replay:
+        events = RecordedEvents(args.joystick_replay)
+    else:
+        events = _DeviceEvents(args.joystick, mapping)
+    teleop = Joystick(hold_s=args.hold, deflection=args.deflection, mapping=mapping,
+                      ranges=events.ranges)  # fmt: skip
+    return teleop, events
+
+
+def _loop(
+    args: argparse.Namespace,
+    term: _Terminal,
+    bus: _Bus,
+    teleop: Teleop,
+    events: RecordedEvents | _DeviceEvents | None,
+) -> None:
+    """Keys and events in, a command every 1 / ``--rate`` s, the screen when it changes."""
+    period = 1.0 / args.rate
+    shown: list[str] = []
+    next_send = time.monotonic()
+    while not teleop.quit:
+        levels = [teleop.key(ch, time.monotonic()) for ch in term.read(
+            max(0.0, next_send - time.monotonic()))]  # fmt: skip
+        if events is not None and isinstance(teleop, Joystick):
+            levels += [teleop.event(kind, code, value, time.monotonic())
+                       for kind, code, value in events.due(time.monotonic())]  # fmt: skip
+        for level in levels:
+            if level is not None:
+                bus.set_level(level)
+        now = time.monotonic()
+        if now >= next_send:
+            bus.send(teleop.command(now))
+            next_send = now + period
+        latest = bus.latest
+        lines = screen(teleop, now, latest.get("jog_state"), latest.get("status"),
+                       latest.get("bridge"))  # fmt: skip
+        if lines != shown:
+            term.draw(lines)
+            shown = lines
+
+
+class _Bus:
+    """The teleop's side of the bus: the jog stream out, the level set, the states in."""
+
+    def __init__(self, node: Node, teleop: Teleop) -> None:
+        self.node, self.teleop = node, teleop
+        keys = node.keys
+        self.pub = node.publisher(keys(ep.JOG))
+        self.latest: dict[str, Any] = {}
+        self.seq = 0
+        for name, endpoint, msg_type in (
+            ("jog_state", ep.JOG_STATE, JogState),
+            ("status", ep.STATUS, ArmStatus),
+            ("bridge", ep.BRIDGE_STATE, BridgeState),
+        ):
+            node.subscribe(keys(endpoint), msg_type, self._keep(name))
+
+    def _keep(self, name: str) -> Any:
+        return lambda msg, rx_ns: self.latest.__setitem__(name, msg)
+
+    def send(self, fields: dict[str, Any]) -> None:
+        """Publish one JogCommand."""
+        self.seq += 1
+        self.pub.put(
+            JogCommand(stamp_ns=time.time_ns(), seq=self.seq, source="manus jog", **fields)
+        )
+
+    def set_level(self, level: int) -> None:
+        """Ask the controller for speed level ``level``; the outcome goes on the screen."""
+        teleop = self.teleop
+        if isinstance(teleop, Joystick):
+            teleop.level = level
+        try:
+            ack = self.node.query(
+                self.node.keys(ep.JOG_LEVEL), JogLevel(level=level), GoalAck, timeout=2.0
+            )
+            teleop.status = f"level {level}" if ack.accepted else f"level refused: {ack.reason}"
+        except QueryError as exc:
+            teleop.status = f"level not set: {exc}"
 
 
 class _DeviceEvents:

@@ -1,6 +1,6 @@
 """The controller's deterministic core: joint states and goals in, velocity commands out.
 
-Contract (docs/architecture.md, Time; the team brief's contract 4):
+Contract (docs/architecture.md, Time; Freshness and safety rules):
 
 - Every valid joint state is answered with exactly one ``cmd/joint_velocity`` command
   (``ref_seq`` = the state's ``seq``, ``counts`` already quantized): the active goal's
@@ -348,12 +348,9 @@ class ControllerCore:
         if self.arm_error is not None:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         snap = js.stamp_ns - cfg.snapshot_age_ns
-        self.jog.deadman(js)
-        if self.jog.engaged and self.run is None and self.pending is None:
-            counts, grip = self.jog.cycle(self.joints)
-            if gap:
-                counts, grip, self.jog.run = np.zeros(6, dtype=np.int64), 0, None
-            return self._answer(js, counts, grip, None, None, None)
+        jogged = self._jog_cycle(js, gap)
+        if jogged is not None:
+            return jogged
         q = np.array(position)
         before = self.run
         self._start_pending(snap, q)
@@ -379,6 +376,16 @@ class ControllerCore:
         if gap:  # stop for this cycle: nothing is known of the cycle(s) missed
             counts, grip = np.zeros(6, dtype=np.int64), 0
         return self._answer(js, counts, grip, step, run, xyz)
+
+    def _jog_cycle(self, js: JointState, gap: bool) -> Output | None:
+        """This cycle's answer while a jog drives the arm (None: no jog does)."""
+        self.jog.deadman(js)
+        if not self.jog.engaged or self.run is not None or self.pending is not None:
+            return None
+        counts, grip = self.jog.cycle(self.joints)
+        if gap:  # nothing is known of the cycle(s) missed: stop, start the reference afresh
+            counts, grip, self.jog.run = np.zeros(6, dtype=np.int64), 0, None
+        return self._answer(js, counts, grip, None, None, None)
 
     def _outage(self, js: JointState, last: JointState) -> int:
         """How long the joint states were missing [ns] (0: none)."""

@@ -16,11 +16,13 @@ from manus.node import Node
 from schemas import endpoints as ep
 from schemas.sequencing import (
     FINAL_EVENTS,
+    HistoryRequest,
     SubmitReply,
     Task,
     TaskAction,
     TaskControl,
     TaskEvent,
+    TaskHistory,
     TaskStatus,
 )
 from schemas.state import BridgeState, JointState
@@ -90,6 +92,11 @@ class TaskClient:
         request = TaskControl(action=action, task_id=task_id)
         key = ep.TASK_STATUS if action == TaskAction.STATUS else ep.TASK_CONTROL
         return self.node.query(self.node.keys(key), request, TaskStatus, timeout=timeout)
+
+    def history(self, limit: int = 10, timeout: float = 5.0) -> TaskHistory:
+        """The most recent tasks, newest first (``sequencer/history``)."""
+        request = HistoryRequest(limit=limit)
+        return self.node.query(self.node.keys(ep.HISTORY), request, TaskHistory, timeout=timeout)
 
     def follow(
         self,

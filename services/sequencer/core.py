@@ -17,7 +17,7 @@ leave the arm) before anything moves. The :class:`Reply` ends it: every problem 
 accepted, and then the task starts at once (after checking again what may have changed
 meanwhile).
 
-Steps (SPEC 7, thesis 4.2.2), one class per kind in :mod:`services.sequencer.steps`:
+Steps (docs/protocol.md, Thesis task form), one class per kind in :mod:`services.sequencer.steps`:
 
 - **move / pose**: plan from the newest joint state (``planner/plan`` with an explicit
   ``start``), send the trajectory (``controller/goal``), wait for its ``GoalResult``.
@@ -69,6 +69,8 @@ from schemas.sequencing import (
     TaskControl,
     TaskEvent,
     TaskEventKind,
+    TaskHistory,
+    TaskRecord,
     TaskState,
     TaskStatus,
 )
@@ -142,6 +144,8 @@ class SequencerCore:
         self._goals = 0
         self._heartbeats = 0
         self._js_rx: int | None = None  # receive time of the newest joint state [ns]
+        self._started_ns = 0
+        self._history: list[TaskRecord] = []  # ended tasks, oldest first
         self._reset_step()
 
     def _reset_step(self) -> None:
@@ -283,10 +287,36 @@ class SequencerCore:
         accepted = SubmitReply(accepted=True, task_id=sub.task_id)
         return [*self.start(sub.task_id, sub.task, self.now), answer(sub.task_id, accepted)]
 
+    def history(self, limit: int) -> TaskHistory:
+        """The ``limit`` most recent tasks, newest first (``sequencer/history``)."""
+        records = list(reversed(self._history))
+        if self.busy:
+            records.insert(0, self._record(0))
+        return TaskHistory(tasks=records[:limit])
+
+    def _record(self, ended_ns: int) -> TaskRecord:
+        assert self.task is not None
+        return TaskRecord(
+            task_id=self.task_id,
+            name=self.task.name,
+            state=self.state,
+            steps=len(self.task.steps),
+            step=self.step,
+            reason=self.reason,
+            started_ns=self._started_ns,
+            ended_ns=ended_ns,
+        )
+
+    def _end(self) -> None:
+        """The task has just ended: remember it (at most ``config.history``)."""
+        self._history.append(self._record(self.now))
+        del self._history[: -self.config.history]
+
     def start(self, task_id: str, task: Task, now_ns: int) -> list[Action]:
         """Start a validated task (:meth:`submit` does it; a caller of its own checked
         :meth:`refuse` and validated the task)."""
         self.now = now_ns
+        self._started_ns = now_ns
         self.task, self.task_id, self.state, self.reason = task, task_id, TaskState.RUNNING, ""
         self.step = 0
         self._goals = 0
@@ -478,6 +508,7 @@ class SequencerCore:
             self.state = TaskState.SUCCEEDED
             self.step = len(self.task.steps) - 1
             self.step_progress = 1.0
+            self._end()
             return [self._event(TaskEventKind.SUCCEEDED, step=-1, progress=1.0)]
         if self.pause_requested:
             return self.paused()
@@ -556,6 +587,7 @@ class SequencerCore:
         self.reason = reason
         self._await = None
         self._deadline = None
+        self._end()
         progress = self._task_progress()
         return [self._event(TaskEventKind.CANCELLED, step=self.step, progress=progress,
                             reason=reason)]  # fmt: skip
@@ -572,6 +604,7 @@ class SequencerCore:
         self.reason = full
         self._await = None
         self._deadline = None
+        self._end()
         progress = self._task_progress()
         out.append(self._event(TaskEventKind.FAILED, step=self.step, progress=progress,
                                reason=full))  # fmt: skip

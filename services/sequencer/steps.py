@@ -227,9 +227,7 @@ class GoalStep(Step):
             return self.ctx.fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self.goal_id = ""
-            if reply.reason.startswith(JOGGING):  # the user jogs: pause, not fail
-                return self.ctx.paused(USER_TOOK_OVER)
-            return self.ctx.fail(f"controller refused the goal: {reply.reason}")
+            return self._refused(reply.reason)
         self.phase = Phase.ACTIVE
         if self.ctx.cancel_requested:
             return self.cancel()
@@ -237,6 +235,11 @@ class GoalStep(Step):
             self.ctx.pause_requested = False
             return self._stop_goal(Phase.PAUSING)
         return []
+
+    def _refused(self, reason: str) -> list[Action]:
+        if reason.startswith(JOGGING):  # the user jogs: pause, not fail
+            return self.ctx.paused(USER_TOOK_OVER)
+        return self.ctx.fail(f"controller refused the goal: {reason}")
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase

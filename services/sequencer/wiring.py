@@ -44,6 +44,7 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
     answers=(
         Answer(ep.TASK_CONTROL, lambda core, req, t: core.control(req, t)),
         Answer(ep.TASK_STATUS, lambda core, req, t: (core.status(), [])),
+        Answer(ep.HISTORY, lambda core, req, t: (core.history(req.limit), [])),
     ),
 )
 """The sequencer's wiring map. ``sequencer/submit`` is not among its answers: the core
