@@ -1,0 +1,484 @@
+"""The viewer's deterministic core: bus messages in, Foxglove messages out.
+
+:class:`ViewerCore` takes each sample as it travelled (key, MessagePack payload, time)
+and returns the messages to show, each a :class:`FoxMessage` (topic, schema, encoding,
+bytes, log time), so the live WebSocket server, ``manus replay --view`` and
+``manus export --json`` write the very same channels. Time comes only from its inputs; no
+clock, no threads.
+
+Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
+
+- ``P/viz/robot_description`` [``std_msgs/String``, JSON, ``data`` = the URDF]:
+  :meth:`ViewerCore.robot_description`;
+- ``P/viz/tf`` [``foxglove.FrameTransforms``]: every link from each valid
+  ``state/joints`` (forward kinematics; the fingers from the gripper opening);
+- ``P/viz/planned`` [``foxglove.SceneUpdate``]: the trajectory preview and via points of
+  each controller goal (entity ``goal``) and planner reply (entity ``plan``);
+- ``P/viz/via_poses`` [``foxglove.PosesInFrame``]: the gripper pose at each knot of a goal;
+- ``P/viz/executed`` [``foxglove.SceneUpdate``]: the measured gripper path since the last
+  goal (forward kinematics of the joint states);
+- ``P/viz/true`` [``foxglove.SceneUpdate``]: the simulator's true path (``sim/truth``);
+- ``P/viz/log`` [``foxglove.Log``]: arm warnings and errors, bridge phases, goals and
+  results, task events, e-stops, services appearing and vanishing;
+- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/1`` ...]: each message of
+  :data:`JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
+
+A payload that does not decode is counted (:attr:`ViewerStats.bad_payloads`), never
+raised; keys the viewer does not draw are counted as ignored.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
+
+from manus.config import DEFAULT_ARM, ArmConfig
+from manus.errors import ManusError
+from manus.kinematics import fk
+from manus.trajectory import JointTrajectory
+from schemas.base import Message
+from schemas.commands import EStop
+from schemas.control import GoalResult, TrajectoryGoal
+from schemas.keys import Keys, channel_type
+from schemas.liveliness import LIVELINESS, LivelinessChange
+from schemas.planning import PlanReply, Trajectory
+from schemas.sequencing import TaskEvent
+from schemas.state import ArmStatus, BridgeState, JointState, SimTruth
+from services.viewer import scene
+from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
+from services.viewer.scene import SchemaInfo
+
+JSON_SUFFIXES = (
+    "state/joints",
+    "state/status",
+    "state/bridge",
+    "cmd/joint_velocity",
+    "controller/feedback",
+    "controller/result",
+    "sequencer/events",
+    "estop",
+    "sim/truth",
+    LIVELINESS,
+)
+"""Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
+
+GOAL_REQUEST = "trace/controller/goal/request"
+PLAN_REPLY = "trace/planner/plan/reply"
+
+ROBOT_DESCRIPTION_SCHEMA = scene.json_schema_info(
+    "std_msgs/String",
+    {
+        "title": "std_msgs/String",
+        "type": "object",
+        "properties": {"data": {"type": "string", "description": "the URDF (XML)"}},
+        "required": ["data"],
+    },
+)
+
+PLANNED_RGBA = (0.20, 0.60, 1.00, 0.9)
+PLAN_RGBA = (0.55, 0.55, 1.00, 0.5)
+EXECUTED_RGBA = (1.00, 0.45, 0.10, 1.0)
+TRUE_RGBA = (0.20, 0.85, 0.30, 0.8)
+BAD_PHASES = ("resync", "stopped", "estopped", "arm_error", "shutdown")
+
+
+class FoxMessage(NamedTuple):
+    """One message for Foxglove.
+
+    Attributes:
+        topic: channel topic.
+        schema: its schema.
+        encoding: message encoding (``protobuf`` or ``json``).
+        data: the encoded message.
+        log_ns: log time [ns] (the input's time).
+    """
+
+    topic: str
+    schema: SchemaInfo
+    encoding: str
+    data: bytes
+    log_ns: int
+
+
+@dataclass(frozen=True)
+class ViewerConfig:
+    """What the viewer draws and how much it keeps.
+
+    Attributes:
+        prefix: key prefix of the arm.
+        arm: geometry (forward kinematics, URDF).
+        path_points: most points kept of the executed and true paths.
+        path_step_m: a new path point only after the gripper moved this far [m].
+        path_every: publish a path after this many new points.
+        preview_dt_s: sampling step [s] of a goal's path when it has no preview.
+    """
+
+    prefix: str = "manus"
+    arm: ArmConfig = DEFAULT_ARM
+    path_points: int = 3000
+    path_step_m: float = 0.0005
+    path_every: int = 3
+    preview_dt_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.path_points < 2 or self.path_every < 1:
+            raise ValueError(
+                f"path_points {self.path_points} must be >= 2 and path_every {self.path_every} >= 1"
+            )
+        if not (self.path_step_m >= 0 and self.preview_dt_s > 0):
+            raise ValueError(
+                f"path_step_m {self.path_step_m} must be >= 0 and preview_dt_s "
+                f"{self.preview_dt_s} > 0 [m, s]"
+            )
+
+
+@dataclass
+class ViewerStats:
+    """Counters of the core.
+
+    Attributes:
+        inputs: samples received.
+        outputs: Foxglove messages produced.
+        bad_payloads: samples that did not decode, by key suffix.
+        ignored: samples on keys the viewer does not draw.
+    """
+
+    inputs: int = 0
+    outputs: int = 0
+    bad_payloads: dict[str, int] = field(default_factory=dict)
+    ignored: int = 0
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, bytes | bytearray):
+        return base64.b64encode(bytes(value)).decode("ascii")
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
+    """Unit quaternion (x, y, z, w) of a rotation matrix, shape (3, 3)."""
+    m = R
+    tr = float(m[0, 0] + m[1, 1] + m[2, 2])
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        return ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4)
+    i = int(np.argmax([m[0, 0], m[1, 1], m[2, 2]]))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k]) * 2
+    q = [0.0, 0.0, 0.0, 0.0]
+    q[i] = s / 4
+    q[j] = (m[j, i] + m[i, j]) / s
+    q[k] = (m[k, i] + m[i, k]) / s
+    q[3] = (m[k, j] - m[j, k]) / s
+    return (q[0], q[1], q[2], q[3])
+
+
+class _Path:
+    """A bounded gripper path: a point only after a move of ``step`` [m]."""
+
+    def __init__(self, cfg: ViewerConfig) -> None:
+        self.points: deque[tuple[float, float, float]] = deque(maxlen=cfg.path_points)
+        self.step2 = cfg.path_step_m**2
+        self.every = cfg.path_every
+        self.pending = 0
+
+    def add(self, xyz: tuple[float, float, float]) -> bool:
+        """Append ``xyz`` if far enough from the last point; True when the path is due."""
+        if self.points:
+            last = self.points[-1]
+            d2 = (xyz[0] - last[0]) ** 2 + (xyz[1] - last[1]) ** 2 + (xyz[2] - last[2]) ** 2
+            if d2 < self.step2:
+                return False
+        self.points.append(xyz)
+        self.pending += 1
+        if self.pending >= self.every or len(self.points) == 2:
+            self.pending = 0
+            return True
+        return False
+
+    def clear(self) -> None:
+        self.points.clear()
+        self.pending = 0
+
+
+class ViewerCore:
+    """Bus samples -> Foxglove messages (see the module docstring for the channels).
+
+    Args:
+        config: prefix, geometry and path bounds.
+    """
+
+    def __init__(self, config: ViewerConfig | None = None) -> None:
+        self.config = config or ViewerConfig()
+        self.keys = Keys(self.config.prefix)
+        self.stats = ViewerStats()
+        self.topics = _Topics(self.keys)
+        self._executed = _Path(self.config)
+        self._true = _Path(self.config)
+        self._status: tuple[str, int] = ("none", 0)
+        self._phase = ""
+        self._urdf = build_visual_urdf(self.config.arm)
+        self._handlers = {
+            "state/joints": self._joints,
+            "state/status": self._arm_status,
+            "state/bridge": self._bridge,
+            "controller/result": self._result,
+            "sequencer/events": self._task_event,
+            "estop": self._estop,
+            "sim/truth": self._truth,
+            LIVELINESS: self._liveliness,
+            GOAL_REQUEST: self._goal,
+            PLAN_REPLY: self._plan_reply,
+        }
+
+    @property
+    def urdf(self) -> str:
+        """The URDF the viewer draws (:func:`services.viewer.model.build_visual_urdf`)."""
+        return self._urdf
+
+    def channels(self) -> list[tuple[str, SchemaInfo, str]]:
+        """(topic, schema, encoding) of every channel the core can produce, to advertise
+        before the first message."""
+        protobuf: list[tuple[str, Any]] = [
+            (self.topics.tf, FrameTransforms),
+            (self.topics.planned, SceneUpdate),
+            (self.topics.via_poses, PosesInFrame),
+            (self.topics.executed, SceneUpdate),
+            (self.topics.true, SceneUpdate),
+            (self.topics.log, Log),
+        ]
+        out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
+        out += [(topic, scene.schema_of(t), "protobuf") for topic, t in protobuf]
+        for suffix in JSON_SUFFIXES:
+            msg_type = channel_type(suffix)
+            if msg_type is not None:
+                out.append((self.keys(suffix), self.topics.json_schema(msg_type), "json"))
+        return out
+
+    def robot_description(self, t_ns: int) -> FoxMessage:
+        """The URDF on ``P/viz/robot_description`` (send it to each new subscriber)."""
+        data = json.dumps({"data": self._urdf}).encode()
+        return FoxMessage(
+            self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json", data, t_ns
+        )
+
+    def on_sample(self, key: str, payload: bytes, t_ns: int) -> list[FoxMessage]:
+        """Messages to show for one bus sample.
+
+        Args:
+            key: full key expression it travelled on.
+            payload: the MessagePack bytes.
+            t_ns: receive (or recorded log) time [ns]: the log time of every output.
+        """
+        self.stats.inputs += 1
+        suffix = self.keys.suffix(key)
+        handler = self._handlers.get(suffix)
+        forward = suffix in JSON_SUFFIXES
+        if handler is None and not forward:
+            self.stats.ignored += 1
+            return []
+        msg_type = channel_type(suffix)
+        if msg_type is None:  # a key the table lost: nothing to decode it with
+            self.stats.ignored += 1
+            return []
+        try:
+            msg = msg_type.decode(payload)
+        except ManusError:
+            self.stats.bad_payloads[suffix] = self.stats.bad_payloads.get(suffix, 0) + 1
+            return []
+        out: list[FoxMessage] = []
+        if forward:
+            out.append(self._json(key, msg, t_ns))
+        if handler is not None:
+            try:
+                out += handler(msg, t_ns)
+            except (ManusError, ValueError, IndexError):  # e.g. a trajectory that won't sample
+                self.stats.bad_payloads[suffix] = self.stats.bad_payloads.get(suffix, 0) + 1
+        self.stats.outputs += len(out)
+        return out
+
+    # -- outputs -------------------------------------------------------------------------
+
+    def _json(self, key: str, msg: Message, t_ns: int) -> FoxMessage:
+        schema = self.topics.json_schema(type(msg))
+        data = json.dumps(_jsonable(msg.to_dict()), separators=(",", ":")).encode()
+        return FoxMessage(key, schema, "json", data, t_ns)
+
+    @staticmethod
+    def _proto(topic: str, msg: Any, t_ns: int) -> FoxMessage:
+        schema, data = scene.encoded(msg)
+        return FoxMessage(topic, schema, "protobuf", data, t_ns)
+
+    def _log(self, level: str, name: str, text: str, t_ns: int) -> FoxMessage:
+        return self._proto(self.topics.log, scene.log(level, name, text, t_ns), t_ns)
+
+    def _path(
+        self, topic: str, entity: str, path: _Path, rgba: tuple[float, ...], t_ns: int, stamp: int
+    ) -> FoxMessage:
+        ent = scene.path_entity(entity, ROOT_FRAME, stamp, list(path.points), rgba)
+        return self._proto(topic, scene.scene_update([ent], stamp), t_ns)
+
+    def _executed_path(self, t_ns: int, stamp: int) -> FoxMessage:
+        return self._path(self.topics.executed, "executed", self._executed, EXECUTED_RGBA, t_ns,
+                          stamp)  # fmt: skip
+
+    # -- handlers ------------------------------------------------------------------------
+
+    def _joints(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, JointState)
+        if not msg.valid:  # garbage positions before joint mode: nothing to draw
+            return []
+        cfg = self.config.arm
+        tfs = link_transforms(msg.position, msg.gripper, cfg)
+        out = [self._proto(self.topics.tf, scene.frame_transforms(tfs, msg.stamp_ns), t_ns)]
+        p = fk(msg.position, cfg)[:3, 3]
+        if self._executed.add((float(p[0]), float(p[1]), float(p[2]))):
+            out.append(self._executed_path(t_ns, msg.stamp_ns))
+        return out
+
+    def _truth(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, SimTruth)
+        if self._true.add((msg.xyz[0], msg.xyz[1], msg.xyz[2])):
+            return [self._path(self.topics.true, "true", self._true, TRUE_RGBA, t_ns, msg.stamp_ns)]
+        return []
+
+    def _trajectory_scene(
+        self, entity: str, traj: Trajectory, rgba: tuple[float, ...], t_ns: int
+    ) -> tuple[Any, list[tuple[list[float], tuple[float, float, float, float]]]]:
+        """Scene entity of a trajectory's path and via points, and the knots' poses."""
+        cfg = self.config.arm
+        poses = []
+        for q in traj.positions:
+            T = fk(q, cfg)
+            poses.append(([float(v) for v in T[:3, 3]], quaternion(T[:3, :3])))
+        if traj.preview_xyz:
+            points = [list(p) for p in traj.preview_xyz]
+        else:
+            jt = JointTrajectory(traj)
+            n = max(2, math.ceil(jt.duration / self.config.preview_dt_s) + 1)
+            points = [
+                [float(v) for v in fk(jt.sample(jt.duration * i / (n - 1)).q, cfg)[:3, 3]]
+                for i in range(n)
+            ]
+        via = [list(v) for v in traj.via_xyz] if traj.via_xyz else [p for p, _ in poses]
+        labels = [str(i) for i in range(len(via))] if len(via) <= 40 else []
+        ent = scene.path_entity(
+            entity, ROOT_FRAME, t_ns, points, rgba, markers=via, labels=labels, thickness=0.003
+        )
+        return ent, poses
+
+    def _goal(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, TrajectoryGoal)
+        ent, poses = self._trajectory_scene("goal", msg.trajectory, PLANNED_RGBA, t_ns)
+        self._executed.clear()
+        traj = msg.trajectory
+        text = (
+            f"goal {msg.goal_id}: {len(traj.times)} knots, {traj.times[-1]:.2f} s, mode {msg.mode}"
+        )
+        return [
+            self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns),
+            self._proto(self.topics.via_poses, scene.poses_in_frame(ROOT_FRAME, t_ns, poses), t_ns),
+            self._executed_path(t_ns, t_ns),
+            self._log("info", "controller", text, t_ns),
+        ]
+
+    def _plan_reply(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, PlanReply)
+        if not msg.ok or msg.trajectory is None:
+            reason = msg.error.message if msg.error is not None else "no trajectory"
+            return [self._log("warning", "planner", f"plan refused: {reason}", t_ns)]
+        ent, _ = self._trajectory_scene("plan", msg.trajectory, PLAN_RGBA, t_ns)
+        return [self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns)]
+
+    def _arm_status(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, ArmStatus)
+        now = (msg.msg_class, msg.msg_code)
+        if now == self._status or msg.msg_class == "general":
+            return []
+        self._status = now
+        if msg.msg_class == "none":
+            return [self._log("info", "arm", "message cleared", t_ns)]
+        level = "error" if msg.msg_class == "error" else "warning"
+        return [self._log(level, "arm", f"{msg.msg_class} {msg.msg_code}: {msg.text}", t_ns)]
+
+    def _bridge(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, BridgeState)
+        if msg.phase == self._phase:
+            return []
+        self._phase = msg.phase
+        level = "warning" if msg.phase in BAD_PHASES else "info"
+        detail = f" ({msg.detail})" if msg.detail else ""
+        return [self._log(level, "can_bridge", f"phase {msg.phase}{detail}", t_ns)]
+
+    def _result(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, GoalResult)
+        level = {"succeeded": "info", "aborted": "error"}.get(msg.status, "warning")
+        errs = msg.path_via_errors
+        err = (
+            f", via error mean {1000 * sum(errs) / len(errs):.2f} max {1000 * max(errs):.2f} mm"
+            if errs
+            else ""
+        )
+        text = f"{msg.kind} goal {msg.goal_id} {msg.status}: {msg.reason}{err}"
+        return [self._log(level, "controller", text, t_ns)]
+
+    def _task_event(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, TaskEvent)
+        if msg.event == "step_progress":
+            return []
+        level = {"failed": "error", "step_failed": "error", "cancelled": "warning"}.get(
+            msg.event, "info"
+        )
+        step = f" step {msg.step + 1}/{msg.total} {msg.kind}" if msg.step >= 0 else ""
+        reason = f": {msg.reason}" if msg.reason else ""
+        return [self._log(level, "sequencer", f"task {msg.task_id}{step} {msg.event}{reason}",
+                          t_ns)]  # fmt: skip
+
+    def _estop(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, EStop)
+        what = "engaged" if msg.engaged else "released"
+        reason = f": {msg.reason}" if msg.reason else ""
+        return [self._log("error" if msg.engaged else "info", msg.source or "estop",
+                          f"e-stop {what}{reason}", t_ns)]  # fmt: skip
+
+    def _liveliness(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, LivelinessChange)
+        if msg.kind != "alive":
+            return []
+        what = "up" if msg.alive else "gone"
+        return [self._log("info" if msg.alive else "warning", msg.service or "liveliness",
+                          f"{msg.service} {what}", t_ns)]  # fmt: skip
+
+
+class _Topics:
+    """Topic names of one prefix and the JSON schemas of the forwarded types."""
+
+    def __init__(self, keys: Keys) -> None:
+        viz = keys("viz")
+        self.robot_description = f"{viz}/robot_description"
+        self.tf = f"{viz}/tf"
+        self.planned = f"{viz}/planned"
+        self.via_poses = f"{viz}/via_poses"
+        self.executed = f"{viz}/executed"
+        self.true = f"{viz}/true"
+        self.log = f"{viz}/log"
+        self._json: dict[type[Message], SchemaInfo] = {}
+
+    def json_schema(self, msg_type: type[Message]) -> SchemaInfo:
+        info = self._json.get(msg_type)
+        if info is None:
+            info = self._json[msg_type] = scene.json_schema_info(
+                msg_type.TYPE_NAME, msg_type.json_schema()
+            )
+        return info
