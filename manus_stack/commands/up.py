@@ -3,6 +3,7 @@
     manus up                                   # simulator on a pty, everything else, recorder
     manus up --can-interface socketcan --can-channel can0    # a real arm instead
     manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
+    manus up --view                            # and the arm live in Foxglove (port 8765)
 
 Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
 planner, controller, sequencer and recorder (``manus_stack.up``), waits until each one's
@@ -42,6 +43,17 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-record", dest="record", action="store_false", help="do not start the recorder"
     )
     parser.add_argument(
+        "--ring",
+        type=float,
+        default=30.0,
+        metavar="S",
+        help="seconds the flight recorder keeps (files under <run dir>/flight; 0: none)",
+    )
+    parser.add_argument(
+        "--view", action="store_true", help="also serve the arm to Foxglove (manus view)"
+    )
+    parser.add_argument("--view-port", type=int, default=8765, help="manus view's port")
+    parser.add_argument(
         "--start-timeout",
         type=float,
         default=60.0,
@@ -61,6 +73,9 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         can_interface=args.can_interface,
         can_channel=args.can_channel,
         record=args.record,
+        flight_ring_s=max(0.0, args.ring),
+        view=args.view,
+        view_port=args.view_port,
     )
 
 
