@@ -4,6 +4,7 @@ Foxglove WebSocket client (tests/foxglove_client.py)."""
 from __future__ import annotations
 
 import asyncio
+import base64
 import json
 import math
 import xml.etree.ElementTree as ET
@@ -18,6 +19,8 @@ from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 from google.protobuf.timestamp_pb2 import Timestamp
 from hypothesis import given
 from hypothesis import strategies as st
+from mcap.reader import make_reader
+from mcap.stream_reader import StreamReader
 
 from manus.config import DEFAULT_ARM
 from manus.kinematics import fk, joint_frames
@@ -148,8 +151,6 @@ def _run_core(path: Path) -> tuple[ViewerCore, list[tuple[Any, list[FoxMessage]]
 
 
 def _advert(msg: FoxMessage) -> dict[str, Any]:
-    import base64
-
     return {"schemaName": msg.schema.name, "schema": base64.b64encode(msg.schema.data).decode()}
 
 
@@ -219,6 +220,41 @@ def test_core_is_deterministic_and_counts_garbage() -> None:
     assert core.stats.ignored == 1
     desc = core.robot_description(9)
     assert json.loads(desc.data)["data"] == build_visual_urdf()
+
+
+def test_json_export_holds_the_viewer_channels_so_the_arm_moves(tmp_path: Path) -> None:
+    from manus_stack.cli import main
+
+    out = tmp_path / "square.json.mcap"
+    assert main(["export", str(SQUARE), "--json", "-o", str(out)]) == 0
+    with out.open("rb") as f:  # every CRC checks out
+        assert list(StreamReader(f, validate_crcs=True).records)
+    info = Recording(out).info
+    tf = info.channels["manus/viz/tf"]
+    assert (tf.schema_name, tf.message_encoding) == ("foxglove.FrameTransforms", "protobuf")
+    assert info.channels["manus/viz/robot_description"].messages == 1
+    assert info.channels["manus/viz/planned"].schema_name == "foxglove.SceneUpdate"
+    assert info.channels["manus/state/joints"].message_encoding == "json"  # recorded, once
+    valid = [
+        js
+        for _, js in Recording(SQUARE).decoded(["state/joints"])
+        if isinstance(js, JointState) and js.valid
+    ]
+    assert tf.messages == len(valid)
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        schema, _, first = next(iter(reader.iter_messages(topics=["manus/viz/tf"])))
+    assert schema is not None
+    advert = {"schemaName": schema.name, "schema": base64.b64encode(schema.data).decode()}
+    ts = protobuf_decoder(advert)(first.data)["transforms"]
+    world = _world(
+        [(t["parent_frame_id"], t["child_frame_id"], _matrix(
+            [t["translation"][k] for k in "xyz"], [t["rotation"][k] for k in "xyzw"])) for t in ts]
+    )  # fmt: skip
+    _check_links(world, valid[0].position)
+    plain = tmp_path / "plain.json.mcap"
+    assert main(["export", str(SQUARE), "--json", "--no-view", "-o", str(plain)]) == 0
+    assert not any("/viz/" in k for k in Recording(plain).info.channels)
 
 
 # -- live, over loopback -------------------------------------------------------------------
