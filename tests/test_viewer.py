@@ -86,6 +86,20 @@ def _world(transforms: list[tuple[str, str, np.ndarray]]) -> dict[str, np.ndarra
     return world
 
 
+def _world_of(decoded: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    """:func:`_world` of the transforms of a decoded ``foxglove.FrameTransforms``."""
+    return _world(
+        [
+            (
+                t["parent_frame_id"],
+                t["child_frame_id"],
+                _matrix([t["translation"][k] for k in "xyz"], [t["rotation"][k] for k in "xyzw"]),
+            )
+            for t in decoded
+        ]
+    )
+
+
 def _check_links(world: dict[str, np.ndarray], q: list[float]) -> None:
     frames = joint_frames(np.asarray(q), DEFAULT_ARM)
     for i, link in enumerate(LINK_NAMES):  # link i+1 = T_0^i Rz(q_(i+1))
@@ -173,20 +187,7 @@ def test_core_turns_a_recording_into_links_paths_and_logs() -> None:
             msg = protobuf_decoder(_advert(tf))(tf.data)
             ts = msg["transforms"]
             assert {_ns(t["timestamp"]) for t in ts} == {js.stamp_ns}
-            world = _world(
-                [
-                    (
-                        t["parent_frame_id"],
-                        t["child_frame_id"],
-                        _matrix(
-                            [t["translation"][k] for k in "xyz"],
-                            [t["rotation"][k] for k in "xyzw"],
-                        ),
-                    )
-                    for t in ts
-                ]
-            )
-            _check_links(world, js.position)
+            _check_links(_world_of(ts), js.position)
             tf_checked += 1
         if rec.suffix == GOAL_REQUEST:
             goal = decode(rec)
@@ -247,14 +248,53 @@ def test_json_export_holds_the_viewer_channels_so_the_arm_moves(tmp_path: Path) 
     assert schema is not None
     advert = {"schemaName": schema.name, "schema": base64.b64encode(schema.data).decode()}
     ts = protobuf_decoder(advert)(first.data)["transforms"]
-    world = _world(
-        [(t["parent_frame_id"], t["child_frame_id"], _matrix(
-            [t["translation"][k] for k in "xyz"], [t["rotation"][k] for k in "xyzw"])) for t in ts]
-    )  # fmt: skip
+    world = _world_of(ts)
     _check_links(world, valid[0].position)
     plain = tmp_path / "plain.json.mcap"
     assert main(["export", str(SQUARE), "--json", "--no-view", "-o", str(plain)]) == 0
     assert not any("/viz/" in k for k in Recording(plain).info.channels)
+
+
+def test_replay_view_serves_a_recording_with_the_arm_moving() -> None:
+    import threading
+
+    from manus_stack.view_replay import ViewReplay
+
+    rec = Recording(SQUARE)
+    start_ns = rec.info.start_ns + 5 * 10**9  # --start 5
+    later = [
+        (m, js)
+        for m, js in rec.decoded(["state/joints"])
+        if isinstance(js, JointState) and js.valid and m.log_ns >= start_ns
+    ]
+    tf_topic, desc = "manus/viz/tf", "manus/viz/robot_description"
+    stop = threading.Event()
+    with ViewReplay(str(SQUARE), port=0) as replay:
+
+        def play() -> None:
+            if replay.wait_for_client(stop, timeout=20):
+                replay.play(rate=None, start_s=5.0, stop=stop)
+
+        player = threading.Thread(target=play)
+        player.start()
+        try:
+            got = asyncio.run(
+                collect(
+                    f"ws://127.0.0.1:{replay.port}",
+                    [tf_topic, desc],
+                    until=lambda r: len(r.messages.get(tf_topic, [])) >= len(later),
+                    timeout=20,
+                )
+            )
+        finally:
+            stop.set()
+            player.join()
+    assert got.messages[desc]
+    tfs = got.messages[tf_topic]
+    assert [t for t, _ in tfs] == [m.log_ns for m, _ in later]  # the recorded log times
+    last = tfs[-1][1]["transforms"]
+    world = _world_of(last)
+    _check_links(world, later[-1][1].position)
 
 
 # -- live, over loopback -------------------------------------------------------------------
@@ -345,19 +385,7 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
     tfs = got.messages[tf_topic]
     assert len(tfs) == len(rec_joints)
     for (_, msg), (_, js) in zip(tfs, rec_joints, strict=True):
-        world = _world(
-            [
-                (
-                    t["parent_frame_id"],
-                    t["child_frame_id"],
-                    _matrix(
-                        [t["translation"][k] for k in "xyz"], [t["rotation"][k] for k in "xyzw"]
-                    ),
-                )
-                for t in msg["transforms"]
-            ]
-        )
-        _check_links(world, js.position)  # type: ignore[attr-defined]
+        _check_links(_world_of(msg["transforms"]), js.position)  # type: ignore[attr-defined]
     # the preview path arrived
     ent = got.messages[planned_topic][-1][1]["entities"][0]
     assert ent["id"] == "goal" and len(ent["lines"][0]["points"]) > 100
