@@ -12,5 +12,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
+    "view": ("manus_stack.bench.view", False),
+    "flight": ("manus_stack.bench.flight", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
