@@ -36,6 +36,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
+import msgpack
 import numpy as np
 from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 
@@ -156,14 +157,11 @@ class ViewerStats:
     ignored: int = 0
 
 
-def _jsonable(value: Any) -> Any:
+def _json_default(value: Any) -> Any:
+    """``bytes`` as base64, as the schemas say (``contentEncoding: base64``)."""
     if isinstance(value, bytes | bytearray):
         return base64.b64encode(bytes(value)).decode("ascii")
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    return value
+    raise TypeError(f"{type(value).__name__} is not JSON serializable")
 
 
 def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
@@ -285,35 +283,33 @@ class ViewerCore:
         suffix = self.keys.suffix(key)
         handler = self._handlers.get(suffix)
         forward = suffix in JSON_SUFFIXES
-        if handler is None and not forward:
+        msg_type = channel_type(suffix) if handler is not None or forward else None
+        if msg_type is None:  # not drawn (or a key the table lost: nothing to decode it with)
             self.stats.ignored += 1
-            return []
-        msg_type = channel_type(suffix)
-        if msg_type is None:  # a key the table lost: nothing to decode it with
-            self.stats.ignored += 1
-            return []
-        try:
-            msg = msg_type.decode(payload)
-        except ManusError:
-            self.stats.bad_payloads[suffix] = self.stats.bad_payloads.get(suffix, 0) + 1
             return []
         out: list[FoxMessage] = []
-        if forward:
-            out.append(self._json(key, msg, t_ns))
+        if forward:  # as it travelled, like manus export --json: no decoding into the type
+            try:
+                value = msgpack.unpackb(payload, raw=False, strict_map_key=False)
+            except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
+                value = None
+            if not isinstance(value, dict):
+                self._bad(suffix)
+                return []
+            data = json.dumps(value, separators=(",", ":"), default=_json_default).encode()
+            out.append(FoxMessage(key, self.topics.json_schema(msg_type), "json", data, t_ns))
         if handler is not None:
             try:
-                out += handler(msg, t_ns)
+                out += handler(msg_type.decode(payload), t_ns)
             except (ManusError, ValueError, IndexError):  # e.g. a trajectory that won't sample
-                self.stats.bad_payloads[suffix] = self.stats.bad_payloads.get(suffix, 0) + 1
+                self._bad(suffix)
         self.stats.outputs += len(out)
         return out
 
-    # -- outputs -------------------------------------------------------------------------
+    def _bad(self, suffix: str) -> None:
+        self.stats.bad_payloads[suffix] = self.stats.bad_payloads.get(suffix, 0) + 1
 
-    def _json(self, key: str, msg: Message, t_ns: int) -> FoxMessage:
-        schema = self.topics.json_schema(type(msg))
-        data = json.dumps(_jsonable(msg.to_dict()), separators=(",", ":")).encode()
-        return FoxMessage(key, schema, "json", data, t_ns)
+    # -- outputs -------------------------------------------------------------------------
 
     @staticmethod
     def _proto(topic: str, msg: Any, t_ns: int) -> FoxMessage:
