@@ -226,6 +226,10 @@ class ViewerCore:
         self._true = _Path(self.config)
         self._status: tuple[str, int] = ("none", 0)
         self._phase = ""
+        self.joints: JointState | None = None
+        """The newest valid joint state (what the arm in the 3D view shows)."""
+        self.planned: tuple[list[list[float]], list[list[float]]] = ([], [])
+        """The newest goal's path and via points [m] (what ``viz/planned`` shows)."""
         self._urdf = build_visual_urdf(self.config.arm)
         self._handlers = {
             "state/joints": self._joints,
@@ -239,6 +243,11 @@ class ViewerCore:
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
+
+    @property
+    def executed(self) -> list[tuple[float, float, float]]:
+        """The executed path now [m] (what ``viz/executed`` shows)."""
+        return list(self._executed.points)
 
     @property
     def urdf(self) -> str:
@@ -335,6 +344,7 @@ class ViewerCore:
         assert isinstance(msg, JointState)
         if not msg.valid:  # garbage positions before joint mode: nothing to draw
             return []
+        self.joints = msg
         cfg = self.config.arm
         tfs = link_transforms(msg.position, msg.gripper, cfg)
         out = [self._proto(self.topics.tf, scene.frame_transforms(tfs, msg.stamp_ns), t_ns)]
@@ -372,6 +382,8 @@ class ViewerCore:
         ent = scene.path_entity(
             entity, ROOT_FRAME, t_ns, points, rgba, markers=via, labels=labels, thickness=0.003
         )
+        if entity == "goal":
+            self.planned = (points, via)
         return ent, poses
 
     def _goal(self, msg: Message, t_ns: int) -> list[FoxMessage]:
