@@ -75,7 +75,16 @@ class _Client:
         import websockets
 
         protocols = [websockets.Subprotocol("foxglove.sdk.v1")]
-        async with websockets.connect(self.url, subprotocols=protocols, max_size=None) as ws:
+        deadline = time.monotonic() + 20.0  # manus view has no token: it may still be starting
+        while True:
+            try:
+                ws = await websockets.connect(self.url, subprotocols=protocols, max_size=None)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                await asyncio.sleep(0.2)
+        async with ws:
             next_id = 1
             while not self._stop.is_set():
                 try:
@@ -130,7 +139,12 @@ def _run_stack(seconds: float, view: bool) -> dict[str, Any]:
 
                 node.subscribe(node.keys.bridge_state, BridgeState, on_bridge)
                 client = _Client(f"ws://127.0.0.1:{port}") if view else None
-                time.sleep(1.0)  # let the client subscribe and the streams settle
+                deadline = time.monotonic() + 30.0
+                while client is not None and not client.subscribed:
+                    if time.monotonic() > deadline:
+                        raise RuntimeError("the Foxglove client could not subscribe in 30 s")
+                    time.sleep(0.1)
+                time.sleep(1.0)  # let the streams settle
                 procs = {c.name: psutil.Process(c.proc.pid) for c in stack.children}
                 cpu0 = {n: p.cpu_times() for n, p in procs.items()}
                 delivery.clear()

@@ -21,6 +21,7 @@ from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.recorder.recover import recover
 from services.recorder.shell import RecorderShell
+from services.recorder.split import KeyFilter
 from services.recorder.writer import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_NS
 
 
@@ -42,6 +43,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=DEFAULT_FLUSH_INTERVAL_NS / 1e6,
         help="close and flush a chunk at least this often [ms]: the most a crash loses",
+    )
+    parser.add_argument(
+        "--split-mib", type=float, default=0.0, help="write in parts of this size [MiB] "
+        "(FILE_000.mcap, FILE_001.mcap, ...; 0: one file)"
+    )  # fmt: skip
+    parser.add_argument(
+        "--split-s", type=float, default=0.0, help="... or of this duration [s] (0: one file)"
+    )
+    parser.add_argument(
+        "--include", nargs="+", default=[], metavar="KEY", help="record only these key "
+        "suffixes (patterns: 'state/*', 'controller/**')"
+    )  # fmt: skip
+    parser.add_argument(
+        "--exclude", nargs="+", default=[], metavar="KEY", help="never record these (e.g. 'can/*')"
     )
     flight = parser.add_argument_group("flight recorder")
     flight.add_argument(
@@ -125,11 +140,15 @@ def run(args: argparse.Namespace) -> int:
     settings = bus_settings(args)
     output = args.output or time.strftime("manus-%Y%m%d-%H%M%S.mcap")
     stop = wait_for_signal()
+    keys = KeyFilter(args.include, args.exclude) if args.include or args.exclude else None
     shell = RecorderShell(
         settings,
         output,
         chunk_size=max(1, args.chunk_kib) * 1024,
         flush_interval_ns=max(1, round(args.flush_ms * 1e6)),
+        split_bytes=round(args.split_mib * 1024 * 1024),
+        split_s=args.split_s,
+        keys=keys,
     )
     try:
         freeze_startup_heap()
@@ -144,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
         "received": shell.received,
         "liveliness": shell.liveliness_changes,
         "reserved_dropped": shell.reserved_dropped,
+        "filtered": shell.filtered,
+        "parts": [str(p) for p in getattr(shell.writer, "parts", [])],
         "not_msgpack": stats.not_msgpack,
         "write_errors": shell.write_errors,
         "keys": {k: c.messages for k, c in stats.channels.items()},
