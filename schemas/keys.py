@@ -29,6 +29,7 @@ recorder uses to give every MCAP channel its JSON Schema and the docs use to lis
 | trace/<q>/reply        | pub        | reply type of queryable <q>   | its server |
 | liveliness             | recording  | LivelinessChange              | recorder   |
 | recorder/trigger       | pub        | FlightTrigger                 | anyone     |
+| replay/control         | queryable  | PlaybackControl -> PlaybackStatus | replay |
 
 Queries are invisible to subscribers, so :meth:`manus.node.Node.queryable` mirrors each
 decoded request and each reply of queryable ``<q>`` (e.g. ``planner/plan``) on
@@ -187,7 +188,7 @@ def channel_types() -> dict[str, type[Message]]:
     reply type under ``<suffix>#reply`` so that recorders can store both; on the bus they
     travel as ``trace/<suffix>/request|reply`` (:func:`channel_type` maps the keys).
     """
-    from schemas import commands, control, flight, planning, sequencing, state
+    from schemas import commands, control, flight, planning, playback, sequencing, state
 
     table: dict[str, type[Message]] = {
         "state/joints": state.JointState,
@@ -215,6 +216,8 @@ def channel_types() -> dict[str, type[Message]]:
         "controller/result": control.GoalResult,
         LIVELINESS: LivelinessChange,
         flight.TRIGGER: flight.FlightTrigger,
+        f"{playback.CONTROL}#request": playback.PlaybackControl,
+        f"{playback.CONTROL}#reply": playback.PlaybackStatus,
     }
     table.update(sequencing.CHANNELS)
     return table

@@ -27,9 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     view = parser.add_argument_group("--view: in Foxglove, not on the bus")
     view.add_argument("--view", action="store_true", help="serve it to Foxglove (manus view)")
     view.add_argument("--view-port", type=int, default=8765, help="WebSocket port (0: any)")
-    view.add_argument("--start", type=float, default=0.0, metavar="S", help="start offset [s]")
-    view.add_argument("--until", type=float, metavar="S", help="stop at this offset [s]")
-    view.add_argument("--loop", type=int, default=1, metavar="N", help="play N times")
 
 
 def _view(args: argparse.Namespace) -> int:
