@@ -78,7 +78,7 @@ class StackOptions:
         can_channel: its channel.
         record: start the recorder (``manus record``) when it is installed.
         sim_args: extra arguments of ``manus sim``.
-        flight_ring_s: seconds the flight recorder keeps (0: no flight recorder).
+        flight_ring_s: seconds the flight recorder keeps (0, or ``record`` off: none).
         view: start ``manus view`` (the Foxglove WebSocket server).
         view_port: its port.
     """
@@ -238,7 +238,7 @@ class LocalStack:
                 self._spawn(name, args)
             else:
                 self.skipped.append(name)
-        if opts.flight_ring_s > 0:
+        if opts.record and opts.flight_ring_s > 0 and "record" in have:
             ring = ["--ring", f"{opts.flight_ring_s:g}", "--out-dir", str(opts.flight_dir)]
             self._spawn("flight", ring, command="record")
         if opts.view:

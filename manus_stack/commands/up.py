@@ -40,7 +40,10 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--can-channel", default="", help="its channel (e.g. can0)")
     parser.add_argument(
-        "--no-record", dest="record", action="store_false", help="do not start the recorder"
+        "--no-record",
+        dest="record",
+        action="store_false",
+        help="do not start the recorder (nor the flight recorder)",
     )
     parser.add_argument(
         "--ring",
