@@ -108,6 +108,8 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
                 t0 = time.monotonic()
                 offset = 0.0
                 next_probe = t0
+                series: list[float] = []
+                next_series = t0
                 while time.monotonic() - t0 < seconds:
                     for suffix, payload, t in items:
                         delay = t0 + offset + t / 1e9 - time.monotonic()
@@ -122,8 +124,12 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
                             pub.put(payload + bytes([copy]))
                             sent += 1
                         if time.monotonic() >= next_probe:
-                            rss_max = max(rss_max, proc.memory_info().rss)
+                            rss = proc.memory_info().rss
+                            rss_max = max(rss_max, rss)
                             next_probe += 0.25
+                            if time.monotonic() >= next_series:
+                                series.append(round(rss / MIB, 1))
+                                next_series += 5.0
                         if time.monotonic() - t0 >= seconds:
                             break
                     offset += span / 1e9
@@ -151,6 +157,7 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
         "rss_before_mib": round(rss0 / MIB, 1),
         "rss_max_mib": round(rss_max / MIB, 1),
         "rss_after_mib": round(rss1 / MIB, 1),
+        "rss_every_5s_mib": series,
     }
 
 
@@ -159,5 +166,5 @@ def run(quick: bool = False) -> dict[str, Any]:
     cap = 4 * MIB
     return {
         "core": _core(40.0 if quick else 120.0, cap),
-        "live": _live(10.0 if quick else 45.0, cap),
+        "live": _live(10.0 if quick else 90.0, cap),
     }
