@@ -25,13 +25,13 @@ from mcap.stream_reader import StreamReader
 from manus.config import DEFAULT_ARM
 from manus.kinematics import fk, joint_frames
 from manus.node import Node
-from manus.orientation import rot_z
+from manus.orientation import rot_z, ypr_to_matrix
 from manus.session import ZenohSettings
 from manus.urdf import build_urdf
 from schemas.control import TrajectoryGoal
 from schemas.state import JointState
 from services.recorder.reading import Recording, decode
-from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerConfig, ViewerCore
+from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerConfig, ViewerCore, quaternion
 from services.viewer.layout import LAYOUT_FILE, layout_json
 from services.viewer.model import (
     GRIPPER_FRAME,
@@ -121,6 +121,21 @@ def test_link_transforms_compose_to_the_forward_kinematics(q: list[float], gripp
     left, right = world["finger_left"][:3, 3], world["finger_right"][:3, 3]
     gap = float(np.linalg.norm(left - right))
     assert gap == pytest.approx(gripper + 0.012, abs=1e-9)
+
+
+@given(angles, angles, angles)
+def test_quaternion_of_a_rotation_gives_it_back(yaw: float, pitch: float, roll: float) -> None:
+    R = ypr_to_matrix(yaw, pitch, roll)
+    q = quaternion(R)
+    assert sum(c * c for c in q) == pytest.approx(1.0)
+    np.testing.assert_allclose(_matrix((0, 0, 0), q)[:3, :3], R, atol=1e-12)
+
+
+def test_viewer_config_refuses_nonsense() -> None:
+    with pytest.raises(ValueError, match="path_points 1"):
+        ViewerConfig(path_points=1)
+    with pytest.raises(ValueError, match="preview_dt_s 0"):
+        ViewerConfig(preview_dt_s=0)
 
 
 def _joints(urdf: str) -> dict[str, dict[str, Any]]:
