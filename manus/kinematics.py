@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus.config import DEFAULT_ARM, N_JOINTS, ArmConfig
+from manus.config import N_JOINTS, ArmConfig
 from manus.errors import KinematicsError
 
 _ALPHA = (-math.pi / 2, 0.0, math.pi / 2, -math.pi / 2, math.pi / 2, 0.0)
@@ -70,20 +70,18 @@ def joint_frames(q: np.ndarray, cfg: ArmConfig) -> list[np.ndarray]:
     return frames
 
 
-def fk(q: np.ndarray | tuple[float, ...] | list[float], cfg: ArmConfig | None = None) -> np.ndarray:
+def fk(q: np.ndarray | tuple[float, ...] | list[float], cfg: ArmConfig) -> np.ndarray:
     """Gripper pose T_0^6 for DH joint angles ``q`` [rad], shape (6,) -> (4, 4) [m]."""
-    cfg = cfg or DEFAULT_ARM
     return joint_frames(np.asarray(q, dtype=float), cfg)[-1]
 
 
-def fk_position(q: np.ndarray, cfg: ArmConfig | None = None) -> np.ndarray:
+def fk_position(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
     """Gripper position [m], shape (3,)."""
     return fk(q, cfg)[:3, 3]
 
 
-def fk_batch(q: np.ndarray, cfg: ArmConfig | None = None) -> np.ndarray:
+def fk_batch(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
     """Gripper poses for many configurations: (N, 6) [rad] -> (N, 4, 4) [m]."""
-    cfg = cfg or DEFAULT_ARM
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]
     out = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
@@ -99,13 +97,12 @@ def fk_batch(q: np.ndarray, cfg: ArmConfig | None = None) -> np.ndarray:
     return out
 
 
-def jacobian(q: np.ndarray, cfg: ArmConfig | None = None) -> np.ndarray:
+def jacobian(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
     """Geometric Jacobian at the gripper frame origin, base-frame axes.
 
     Rows 0-2 map joint rates [rad/s] to linear velocity [m/s], rows 3-5 to angular
     velocity [rad/s]. Shape (6, 6).
     """
-    cfg = cfg or DEFAULT_ARM
     frames = joint_frames(np.asarray(q, dtype=float), cfg)
     p_e = frames[-1][:3, 3]
     J = np.zeros((6, N_JOINTS))
@@ -154,14 +151,13 @@ class Chain(NamedTuple):
         return np.array(self.columns()).T
 
 
-def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Vec3:
+def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> Vec3:
     """Gripper position [m] for DH angles ``q`` [rad], shape (6,), in closed form.
 
     What :func:`fk_position` gives (a test keeps the two equal), with :mod:`math` for the
     controller's cycle: the wrist centre of the module docstring plus ``l4`` along the
     approach axis z_6 = R_03 (c4 s5, s4 s5, c5).
     """
-    cfg = cfg or DEFAULT_ARM
     q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
@@ -182,7 +178,7 @@ def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = No
 
 
 def jacobian_columns(
-    q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None
+    q: Sequence[float] | np.ndarray, cfg: ArmConfig
 ) -> list[tuple[float, float, float, float, float, float]]:
     """The geometric Jacobian's columns (what :func:`jacobian` gives) in closed form.
 
@@ -194,7 +190,6 @@ def jacobian_columns(
     [m/rad] over z_i [-]; column 5's linear part is z_5 x L4 z_5 = 0. A test keeps it
     equal to :func:`jacobian`.
     """
-    cfg = cfg or DEFAULT_ARM
     q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
@@ -235,7 +230,7 @@ def _dh_terms(cfg: ArmConfig) -> tuple[tuple[float, float, float, float], ...]:
     return tuple((a, math.cos(alpha), math.sin(alpha), d) for a, alpha, d in dh_table(cfg))
 
 
-def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Chain:
+def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> Chain:
     """Joint axes and origins for DH angles ``q`` [rad], shape (6,), with :mod:`math`.
 
     The scalar twin of :func:`joint_frames` for the controller's cycle, where NumPy's
@@ -251,7 +246,7 @@ def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig | None = None) -> Chai
     p0, p1, p2 = 0.0, 0.0, 0.0
     axes: list[Vec3] = []
     origins: list[Vec3] = [(p0, p1, p2)]
-    for (a, ca, sa, d), theta in zip(_dh_terms(cfg or DEFAULT_ARM), angles, strict=True):
+    for (a, ca, sa, d), theta in zip(_dh_terms(cfg), angles, strict=True):
         axes.append((z0, z1, z2))
         ct, st = math.cos(theta), math.sin(theta)
         x0, x1, x2, w0, w1, w2 = (
@@ -315,14 +310,13 @@ class IkBatch(NamedTuple):
     valid: np.ndarray
 
 
-def ik_batch(T: np.ndarray, cfg: ArmConfig | None = None) -> IkBatch:
+def ik_batch(T: np.ndarray, cfg: ArmConfig) -> IkBatch:
     """Every closed-form IK branch of each pose in ``T``, shape (N, 4, 4) [m].
 
     Vectorised over poses; joint limits are not applied. At an exact wrist singularity
     (sin q5 = 0) the two wrist branches coincide: the first keeps q4 = 0 and the whole
     turn goes to q6, the second is marked invalid.
     """
-    cfg = cfg or DEFAULT_ARM
     T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
     n = T.shape[0]
     R = T[:, :3, :3]
@@ -377,7 +371,7 @@ def ik_batch(T: np.ndarray, cfg: ArmConfig | None = None) -> IkBatch:
     return IkBatch(q, valid)
 
 
-def ik_all(T: np.ndarray, cfg: ArmConfig | None = None) -> IkSolutions:
+def ik_all(T: np.ndarray, cfg: ArmConfig) -> IkSolutions:
     """Every closed-form IK branch of the gripper pose ``T`` (4x4, m).
 
     The scalar twin of :func:`ik_batch` (same formulas and branch order, written with
@@ -389,7 +383,6 @@ def ik_all(T: np.ndarray, cfg: ArmConfig | None = None) -> IkSolutions:
     Raises:
         KinematicsError: ``reason="unreachable"`` when no branch exists, saying why.
     """
-    cfg = cfg or DEFAULT_ARM
     T = np.asarray(T, dtype=float)
     (r00, _, r02, x), (r10, _, r12, y), (r20, _, r22, z) = T[:3].tolist()
     px, py, pz = x - cfg.l4 * r02, y - cfg.l4 * r12, z - cfg.l4 * r22
@@ -481,7 +474,7 @@ def _fit_limits(q: np.ndarray, ref: np.ndarray, cfg: ArmConfig) -> np.ndarray | 
 def ik_nearest(
     T: np.ndarray,
     near: np.ndarray,
-    cfg: ArmConfig | None = None,
+    cfg: ArmConfig,
     *,
     allow_singular: bool = False,
 ) -> np.ndarray:
@@ -496,7 +489,6 @@ def ik_nearest(
             or every branch beyond a joint limit (the error names the joint, its value and
             the limit of the nearest such branch).
     """
-    cfg = cfg or DEFAULT_ARM
     ref = np.asarray(near, dtype=float)
     sols = ik_all(T, cfg)
     best: np.ndarray | None = None
@@ -555,9 +547,8 @@ def check_limits(q: np.ndarray, cfg: ArmConfig, *, where: str = "configuration")
             )
 
 
-def branch_of(q: np.ndarray, cfg: ArmConfig | None = None) -> tuple[int, int, int]:
+def branch_of(q: np.ndarray, cfg: ArmConfig) -> tuple[int, int, int]:
     """The (shoulder, elbow, wrist) branch signs of a configuration [rad]."""
-    cfg = cfg or DEFAULT_ARM
     u = cfg.l2 * math.cos(q[1]) + cfg.l3 * math.sin(q[1] + q[2])
     shoulder = 1 if u >= 0 else -1
     elbow = 1 if math.sin(q[2] - math.pi / 2) >= 0 else -1
@@ -565,7 +556,6 @@ def branch_of(q: np.ndarray, cfg: ArmConfig | None = None) -> tuple[int, int, in
     return shoulder, elbow, wrist
 
 
-def is_wrist_singular(q: np.ndarray, cfg: ArmConfig | None = None) -> bool:
+def is_wrist_singular(q: np.ndarray, cfg: ArmConfig) -> bool:
     """True when joint 5 is within ``cfg.singular_tol`` of 0 or pi (q4 and q6 aligned)."""
-    cfg = cfg or DEFAULT_ARM
     return abs(math.sin(float(q[4]))) < cfg.singular_tol

@@ -36,6 +36,7 @@ import zenoh
 from manus.errors import ManusError, SchemaError
 from manus.session import ZenohSettings, open_session
 from schemas.base import Message
+from schemas.endpoints import ALIVE
 from schemas.keys import Keys
 
 M = TypeVar("M", bound=Message)
@@ -265,7 +266,7 @@ class Node:
         names = set()
         for reply in self.session.liveliness().get(self.keys.alive_all, timeout=timeout):
             if reply.ok is not None:
-                names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix("alive/"))
+                names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix(f"{ALIVE}/"))
         return names
 
     def service_hosts(self, timeout: float = 1.0) -> dict[str, list[tuple[str, int]]]:
@@ -283,7 +284,7 @@ class Node:
         """Call ``callback(service, alive)`` when a service's token appears or vanishes."""
 
         def handler(sample: zenoh.Sample) -> None:
-            name = self.keys.suffix(str(sample.key_expr)).removeprefix("alive/")
+            name = self.keys.suffix(str(sample.key_expr)).removeprefix(f"{ALIVE}/")
             with self.lock:
                 callback(name, sample.kind == zenoh.SampleKind.PUT)
 

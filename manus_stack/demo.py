@@ -18,6 +18,7 @@ from pathlib import Path
 
 from manus.node import Node
 from manus.viapoints import load_path
+from schemas import endpoints as ep
 from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
 from schemas.sequencing import Task, TaskStep
 
@@ -67,10 +68,10 @@ class Collected:
     def listen(self, node: Node) -> None:
         """Subscribe ``node`` to feedback, results and trajectory goal requests."""
         keys = node.keys
-        node.subscribe(keys.feedback, ControllerFeedback, self._on_feedback, locked=False)
-        node.subscribe(keys.result, GoalResult, self._on_result, locked=False)
+        node.subscribe(keys(ep.FEEDBACK), ControllerFeedback, self._on_feedback, locked=False)
+        node.subscribe(keys(ep.RESULT), GoalResult, self._on_result, locked=False)
         node.subscribe(
-            keys.trace("controller/goal", "request"), TrajectoryGoal, self._on_goal, locked=False
+            keys(ep.GOAL.trace("request")), TrajectoryGoal, self._on_goal, locked=False
         )
 
     def _on_feedback(self, fb: ControllerFeedback, rx_ns: int) -> None:

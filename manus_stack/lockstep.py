@@ -8,8 +8,11 @@ path takes a fraction of a second and gives the same result on every run:
 - the bridge's frames reach the simulator ``reply_latency_ns`` later;
 - every message published (by the bridge, by a subscriber, or with :meth:`LockStep.publish`)
   is recorded in :attr:`LockStep.messages` and delivered ``bus_latency_ns`` later to the
-  subscribers of its key suffix; ``cmd/joint_velocity`` and ``estop`` also reach the
-  bridge (``on_command`` / ``on_estop``);
+  subscribers of its key suffix, and to the bridge's inputs (its wiring map,
+  :data:`services.can_bridge.wiring.WIRING`: velocity commands, e-stops);
+- a core attached with :meth:`LockStep.attach` gets what its service's wiring map
+  subscribes, its queryables' requests as their ``trace/<q>/request`` mirrors (its
+  answers go out on ``trace/<q>/reply``), as the live shells wire them;
 - the bridge's ``on_tick`` runs every 20 ms.
 
 Events at the same instant run in this order: the simulator, then message deliveries (in
@@ -22,11 +25,15 @@ import heapq
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 from manus.protocol import Frame
+from manus.wiring import Wiring
+from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
+from schemas.commands import ArmCommand, ArmCommandReply
 from services.can_bridge.core import BridgeConfig, BridgeCore, Outputs
+from services.can_bridge.wiring import WIRING as BRIDGE
 from services.simulator.config import SimConfig
 from services.simulator.core import SimCore
 
@@ -35,6 +42,8 @@ Handler = Callable[[Message, int], list[tuple[str, Message]]]
 
 TICK_NS = 20_000_000
 """Period of the bridge's ``on_tick`` [ns]."""
+
+C = TypeVar("C")
 
 
 @dataclass(frozen=True)
@@ -91,13 +100,21 @@ class LockStep:
         """Call ``handler`` with every message published on ``suffix`` from now on."""
         self._subs.setdefault(suffix, []).append(handler)
 
+    def attach(self, wiring: Wiring[C, Any], core: C) -> None:
+        """Feed ``core`` as its live shell would: every input of ``wiring`` and the
+        ``trace/<q>/request`` mirror of each of its queryables (the answer is published on
+        ``trace/<q>/reply``), through :meth:`manus.wiring.Wiring.feed`."""
+        for suffix in wiring.input_suffixes:
+            self.subscribe(suffix, _fed(wiring, core, suffix))
+
     def publish(self, suffix: str, msg: Message) -> None:
         """Publish ``msg`` now; it is delivered ``bus_latency_ns`` later."""
         self._publish(suffix, msg, self._t)
 
     def arm_command(self, cmd: ArmCommand) -> ArmCommandReply:
         """Ask the bridge (the ``bridge/command`` queryable), now."""
-        reply, out = self.bridge.on_arm_command(cmd, self._t)
+        reply: ArmCommandReply
+        reply, out = BRIDGE.answer(ep.BRIDGE_COMMAND).handle(self.bridge, cmd, self._t)
         self._apply(out, self._t)
         return reply
 
@@ -157,20 +174,26 @@ class LockStep:
         for frame in out.frames:
             self.bridge_frames.append(frame.at(now_ns))
             self.sim.receive(frame.at(now_ns + self.reply_latency_ns))
-        for suffix, msg in out.messages:
+        for suffix, msg in BRIDGE.published(out):
             self._publish(suffix, msg, now_ns)
 
     def _publish(self, suffix: str, msg: Message, now_ns: int) -> None:
         self.messages.append((now_ns, suffix, msg))
-        if suffix in self._subs or suffix in ("cmd/joint_velocity", "estop"):
+        if suffix in self._subs or BRIDGE.input(suffix) is not None:
             due = now_ns + self.bus_latency_ns
             heapq.heappush(self._queue, (due, next(self._order), _Delivery(suffix, msg)))
 
     def _deliver(self, d: _Delivery, t: int) -> None:
-        if d.suffix == "cmd/joint_velocity" and isinstance(d.msg, JointVelocityCommand):
-            self._apply(self.bridge.on_command(d.msg, t), t)
-        elif d.suffix == "estop" and isinstance(d.msg, EStop):
-            self._apply(self.bridge.on_estop(d.msg, t), t)
+        bridge_input = BRIDGE.input(d.suffix)
+        if bridge_input is not None:
+            self._apply(bridge_input.handle(self.bridge, d.msg, t), t)
         for handler in self._subs.get(d.suffix, ()):
             for suffix, msg in handler(d.msg, t):
                 self._publish(suffix, msg, t)
+
+
+def _fed(wiring: Wiring[C, Any], core: C, suffix: str) -> Handler:
+    def handle(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
+        return wiring.feed(core, suffix, msg, t_ns)
+
+    return handle

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from manus.viapoints import load_path
 from manus_stack.controlled import ControlledArm
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import TrajectoryGoal
 from schemas.planning import PlanReply, PlanRequest
@@ -100,16 +101,16 @@ def record_thesis_runs(
 
     def cycle() -> None:
         arm.ls.run_for(CYCLE_S)
-        arm.ls.publish("sim/truth", arm.ls.sim.truth())
+        arm.ls.publish(ep.SIM_TRUTH, arm.ls.sim.truth())
 
-    arm.ls.subscribe("state/joints", follow)
+    arm.ls.subscribe(ep.JOINTS, follow)
     arm.start()
     result = None
     for i, shape in enumerate(shapes):
         request = PlanRequest(path=load_path(PATHS / f"thesis_{shape}.txt"))
-        arm.ls.publish("trace/planner/plan/request", request)
+        arm.ls.publish(ep.PLAN.trace("request"), request)
         reply: PlanReply = planner.plan(request)
-        arm.ls.publish("trace/planner/plan/reply", reply)
+        arm.ls.publish(ep.PLAN.trace("reply"), reply)
         if reply.trajectory is None:
             raise RuntimeError(f"thesis_{shape}: the planner refused: {reply.error}")
         goal_id = f"thesis_{shape}" if len(shapes) == 1 else f"thesis_{shape}_{i}"

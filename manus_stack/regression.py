@@ -7,13 +7,14 @@ of the same channel and rank, as encoded bytes. It reports the first difference 
 one caused by the earliest input): channel, rank, field path, both values. Outputs on
 both sides are counted; one side running out is a difference too.
 
-- ``planner``: ``state/joints`` and ``trace/planner/plan/request`` in,
-  ``trace/planner/plan/reply`` out (``compute_ms`` is wall time and is not compared).
-- ``controller``: the bridge's ``state/joints``, ``state/status`` and ``state/bridge``
-  (each handed over as :func:`manus_stack.controlled.controller_input` does) and the controller's
-  query requests (``trace/controller/{goal,gripper,cancel,speed_scale}/request``) in;
-  ``cmd/joint_velocity``, ``controller/feedback``, ``controller/result`` and the query
-  replies out.
+Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), fed
+through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
+its queryables' mirrored requests in; its publications and mirrored replies out.
+
+- ``planner``: joint states and plan requests in, plan replies out (``compute_ms`` is
+  wall time and is not compared).
+- ``controller``: the bridge's joint states, status and phase, the heartbeat and the
+  controller's query requests in; commands, feedback, results and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
@@ -38,15 +39,16 @@ from typing import Any
 
 import msgpack
 
-from manus_stack.controlled import controller_input
 from schemas.base import Message
-from schemas.liveliness import LIVELINESS, LivelinessChange
-from schemas.planning import PlanRequest
-from schemas.state import JointState
+from schemas.endpoints import LIVELINESS
+from schemas.liveliness import LivelinessChange, TokenKind
+from schemas.planning import PlanReply
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
+from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
+from services.planner.wiring import WIRING as PLANNER
 from services.recorder.reading import Recorded, Recording, decode
 
 
@@ -149,7 +151,7 @@ def service_window(recording: Recording, service: str) -> Window:
     key: str | None = None
     for rec in recording.messages([LIVELINESS]):
         change = decode(rec)
-        if not isinstance(change, LivelinessChange) or change.kind != "where":
+        if not isinstance(change, LivelinessChange) or change.kind != TokenKind.WHERE:
             continue
         if key is None and change.alive and change.service == service:
             key, start = change.key, rec.log_ns
@@ -234,65 +236,47 @@ def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
     return [s for s in suffixes if s in have]  # none: no input at all
 
 
-PLANNER_OUTPUTS = ("trace/planner/plan/reply",)
-
-
 def check_planner(path: str | Path, config: PlannerConfig | None = None) -> CheckResult:
     """Replay the planner's inputs through :class:`PlannerCore` (see the module docstring)."""
     recording = Recording(path)
     core = PlannerCore(config)
-    window = service_window(recording, "planner")
-    cmp = _Comparer(recording, PLANNER_OUTPUTS, window)
+    window = service_window(recording, PLANNER.service)
+    outputs = PLANNER.output_suffixes
+    cmp = _Comparer(recording, outputs, window)
     window = (window[0], cmp.last_ns)
-    recorded_ms = [_plain(r.payload) for r in cmp.recorded[PLANNER_OUTPUTS[0]]]
+    recorded_ms = {s: [_plain(r.payload) for r in cmp.recorded[s]] for s in outputs}
     inputs = 0
-    for rec, msg in _inputs(recording, ("state/joints", "trace/planner/plan/request"), window):
+    for rec, msg in _inputs(recording, PLANNER.input_suffixes, window):
         inputs += 1
-        if isinstance(msg, JointState):
-            core.on_joint_state(msg)
-        elif isinstance(msg, PlanRequest):
-            reply = core.plan(msg)
-            rank = len(cmp.replayed[PLANNER_OUTPUTS[0]])
-            if rank < len(recorded_ms) and isinstance(recorded_ms[rank], dict):
-                ms = recorded_ms[rank].get("compute_ms", 0.0)  # wall time: not compared
-                reply = dataclasses.replace(reply, compute_ms=ms if isinstance(ms, float) else 0.0)
-            cmp.add(PLANNER_OUTPUTS[0], reply.encode(), rec.log_ns)
-    return cmp.result("planner", inputs)
-
-
-CONTROLLER_QUERIES = ("goal", "gripper", "cancel", "speed_scale")
-CONTROLLER_OUTPUTS = (
-    "cmd/joint_velocity",
-    "controller/feedback",
-    "controller/result",
-    *(f"trace/controller/{q}/reply" for q in CONTROLLER_QUERIES),
-)
-CONTROLLER_INPUTS = (
-    "state/joints",
-    "state/status",
-    "state/bridge",
-    "heartbeat",
-    *(f"trace/controller/{q}/request" for q in CONTROLLER_QUERIES),
-)
+        for suffix, out in PLANNER.feed(core, rec.suffix, msg, rec.log_ns):
+            sent = out
+            if isinstance(out, PlanReply):  # compute_ms is wall time: not compared
+                rank = len(cmp.replayed[suffix])
+                recorded = recorded_ms[suffix]
+                if rank < len(recorded) and isinstance(recorded[rank], dict):
+                    ms = recorded[rank].get("compute_ms", 0.0)
+                    sent = dataclasses.replace(out, compute_ms=ms if isinstance(ms, float) else 0.0)
+            cmp.add(suffix, sent.encode(), rec.log_ns)
+    return cmp.result(PLANNER.service, inputs)
 
 
 def check_controller(path: str | Path, config: ControllerConfig | None = None) -> CheckResult:
     """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
     recording = Recording(path)
     core = ControllerCore(config)
-    window = service_window(recording, "controller")
-    cmp = _Comparer(recording, CONTROLLER_OUTPUTS, window)
+    window = service_window(recording, CONTROLLER.service)
+    cmp = _Comparer(recording, CONTROLLER.output_suffixes, window)
     window = (window[0], cmp.last_ns)
     inputs = 0
-    for rec, msg in _inputs(recording, CONTROLLER_INPUTS, window):
+    for rec, msg in _inputs(recording, CONTROLLER.input_suffixes, window):
         inputs += 1
-        for suffix, out in controller_input(core, rec.suffix, msg):
+        for suffix, out in CONTROLLER.feed(core, rec.suffix, msg, rec.log_ns):
             cmp.add(suffix, out.encode(), rec.log_ns)
-    return cmp.result("controller", inputs)
+    return cmp.result(CONTROLLER.service, inputs)
 
 
 CHECKS: dict[str, Callable[[str | Path], CheckResult]] = {
-    "planner": check_planner,
-    "controller": check_controller,
+    PLANNER.service: check_planner,
+    CONTROLLER.service: check_controller,
 }
 """Service -> its check."""

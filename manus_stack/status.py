@@ -14,6 +14,7 @@ import time
 from typing import Any
 
 from manus.node import Node
+from schemas import endpoints as ep
 from schemas.keys import SERVICES
 from schemas.state import ArmStatus, BridgeState
 
@@ -61,8 +62,8 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
         return handler
 
     keys = node.keys
-    node.subscribe(keys.bridge_state, BridgeState, keep("bridge"), locked=False)
-    node.subscribe(keys.status, ArmStatus, keep("arm"), locked=False)
+    node.subscribe(keys(ep.BRIDGE_STATE), BridgeState, keep("bridge"), locked=False)
+    node.subscribe(keys(ep.STATUS), ArmStatus, keep("arm"), locked=False)
     start = time.monotonic()
     alive = node.alive_services(timeout=min(1.0, wait_s))
     hosts = node.service_hosts(timeout=min(1.0, wait_s))

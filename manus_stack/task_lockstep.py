@@ -1,26 +1,34 @@
 """Tasks in lock-step: the sequencer core driving the real planner, controller, bridge and
 simulator cores on one simulated clock (no Zenoh, no threads; :mod:`manus_stack.lockstep`).
 
-The sequencer's queries are answered in-process, at the simulated instant they are sent,
-by the core that owns each key (``planner/plan``, ``controller/*``, ``bridge/command``);
-its task events are published on ``sequencer/events`` like every other message, so
-:attr:`LockStep.messages` holds the whole run. Used by the sequencer's scenario tests and
-by ``manus bench sequencer``.
+Every core is fed through its service's wiring map, as its live shell is: the controller
+and the planner are attached to the :class:`~manus_stack.lockstep.LockStep`, the
+sequencer gets its inputs (and, with each joint state, its clock tick). The sequencer's
+queries are answered in-process, at the simulated instant they are sent, by the core
+whose wiring answers that key (``planner/plan``, ``controller/*``; ``bridge/command`` by
+the bridge core of the lock-step); its task events are published like every other
+message, so :attr:`LockStep.messages` holds the whole run. Used by the sequencer's
+scenario tests and by ``manus bench sequencer``.
 """
 
 from __future__ import annotations
 
-from manus_stack.lockstep import LockStep
+from typing import Any
+
+from manus.wiring import Input, Wiring
+from manus_stack.lockstep import Handler, LockStep
+from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.commands import ArmCommand
-from schemas.control import CancelGoal, GoalResult, GripperGoal, TrajectoryGoal
-from schemas.planning import PlanRequest
+from schemas.control import GoalResult
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
-from schemas.state import JointState
+from schemas.state import BridgePhase, JointState
 from services.controller.core import ControllerCore
+from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.core import PlannerCore
+from services.planner.wiring import WIRING as PLANNER
 from services.sequencer.core import Action, Publish, SequencerCore
 from services.sequencer.validate import Validator
+from services.sequencer.wiring import WIRING as SEQUENCER
 from services.simulator.config import SimConfig
 
 NS = 1_000_000_000
@@ -41,39 +49,50 @@ class TaskLockStep:
         self.events: list[TaskEvent] = []
         self.requests: list[Message] = []
         ls = self.ls
-        ls.subscribe("state/joints", self._on_joints)
-        ls.subscribe("state/status", lambda m, t: self.controller.on_status(m))  # type: ignore[arg-type]
-        ls.subscribe("heartbeat", lambda m, t: self.controller.on_heartbeat(m))  # type: ignore[arg-type]
-        ls.subscribe("state/bridge", lambda m, t: self.do(self.seq.on_bridge_state(m, t), t))  # type: ignore[arg-type]
-        ls.subscribe("controller/feedback", lambda m, t: self.do(self.seq.on_feedback(m, t), t))  # type: ignore[arg-type]
-        ls.subscribe("controller/result", lambda m, t: self.do(self.seq.on_result(m, t), t))  # type: ignore[arg-type]
+        ls.attach(CONTROLLER, self.controller)
+        ls.attach(PLANNER, self.planner)
+        for inp in SEQUENCER.inputs:
+            ls.subscribe(inp.endpoint, self._sequencer_input(inp))
+        ls.subscribe(ep.JOINTS, lambda m, t: self.do(self.seq.on_tick(t), t))
+        self._answerers: dict[str, tuple[Wiring[Any, Any], Any]] = {
+            a.endpoint: (wiring, core)
+            for wiring, core in ((CONTROLLER, self.controller), (PLANNER, self.planner))
+            for a in wiring.answers
+        }
         for name in self.seq.config.required_services:
             self.seq.on_liveliness(name, True, 0)
 
-    def _on_joints(self, msg: Message, t: int) -> list[tuple[str, Message]]:
-        assert isinstance(msg, JointState)
-        out = self.controller.on_joint_state(msg)
-        return out + self.do(self.seq.on_joint_state(msg, t) + self.seq.on_tick(t), t)
+    def _sequencer_input(self, inp: Input[SequencerCore, Any, list[Action]]) -> Handler:
+        def handle(msg: Message, t: int) -> list[tuple[str, Message]]:
+            return self.do(inp.handle(self.seq, msg, t), t)
+
+        return handle
 
     def start_arm(self, timeout_s: float = 20.0) -> None:
         """Power up: run until the bridge is running and the sequencer has heard it."""
-        self.ls.run_until_phase("running", timeout_s)
+        self.ls.run_until_phase(BridgePhase.RUNNING, timeout_s)
         self.ls.run_for(0.5)
 
-    def answer(self, request: Message) -> Message:
-        """The owning core's answer to one of the sequencer's queries."""
+    def answer(self, request: Message, suffix: str | None = None) -> Message:
+        """The answer of the core that owns queryable ``suffix`` (None: the queryable whose
+        request type is ``request``'s) to one of the sequencer's queries, now; what that
+        core publishes meanwhile is published."""
         self.requests.append(request)
-        if isinstance(request, PlanRequest):
-            return self.planner.plan(request)
-        if isinstance(request, TrajectoryGoal):
-            return self.controller.submit(request)
-        if isinstance(request, GripperGoal):
-            return self.controller.submit_gripper(request)
-        if isinstance(request, CancelGoal):
-            return self.controller.cancel(request)
-        if isinstance(request, ArmCommand):
-            return self.ls.arm_command(request)
-        raise TypeError(f"no core answers {type(request).__name__}")
+        if suffix is None:
+            suffix = next(
+                e for e in ep.TABLE.of_kind(ep.Kind.QUERYABLE) if e.msg_type is type(request)
+            )
+        if suffix == ep.BRIDGE_COMMAND:
+            return self.ls.arm_command(request)  # type: ignore[arg-type]
+        found = self._answerers.get(suffix)
+        if found is None:
+            raise TypeError(f"no core answers {suffix!r} ({type(request).__name__})")
+        wiring, core = found
+        reply: Message
+        reply, out = wiring.answer(suffix).handle(core, request, self.ls.t_ns)
+        for key, msg in wiring.published(out):
+            self.ls.publish(key, msg)
+        return reply
 
     def do(self, actions: list[Action], t: int) -> list[tuple[str, Message]]:
         """Carry out the sequencer's actions; the messages to publish."""
@@ -84,7 +103,7 @@ class TaskLockStep:
                     self.events.append(action.message)
                 out.append((action.suffix, action.message))
                 continue
-            reply = self.answer(action.request)
+            reply = self.answer(action.request, action.suffix)
             out += self.do(self.seq.on_reply(action.token, reply, "", t), t)
         return out
 
@@ -136,9 +155,9 @@ class TaskLockStep:
         return [
             (t, m)
             for t, s, m in self.ls.messages
-            if s == "state/joints" and t >= since_ns and isinstance(m, JointState)
+            if s == ep.JOINTS and t >= since_ns and isinstance(m, JointState)
         ]
 
     def results(self) -> list[GoalResult]:
         """Every GoalResult published."""
-        return [m for m in self.ls.published("controller/result") if isinstance(m, GoalResult)]
+        return [m for m in self.ls.published(ep.RESULT) if isinstance(m, GoalResult)]

@@ -20,15 +20,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from manus.config import ArmConfig, load_arm_config
 from services.recorder.reading import Recording
 from services.viewer.core import ViewerConfig, ViewerCore
 from services.viewer.model import GRIPPER_FRAME, LINK_NAMES, ROOT_FRAME, link_transforms
 
 
-def _frames(q: list[float], gripper: float) -> dict[str, np.ndarray]:
+def _frames(q: list[float], gripper: float, arm: ArmConfig) -> dict[str, np.ndarray]:
     """Every frame's origin in base_link from the link transforms [m]."""
     world = {ROOT_FRAME: np.eye(4)}
-    for tf in link_transforms(q, gripper):
+    for tf in link_transforms(q, gripper, arm):
         x, y, z, w = tf.rotation
         R = np.array(
             [
@@ -46,7 +47,7 @@ def _frames(q: list[float], gripper: float) -> dict[str, np.ndarray]:
 def render(path: str, png: str, at_s: float | None = None) -> ViewerCore:
     """Draw the view of ``path`` at ``at_s`` seconds (None: the end) into ``png``."""
     rec = Recording(path)
-    core = ViewerCore(ViewerConfig(prefix=rec.info.prefix or "manus"))
+    core = ViewerCore(ViewerConfig(prefix=rec.info.prefix or "manus", arm=load_arm_config()))
     until = None if at_s is None else rec.info.start_ns + round(at_s * 1e9)
     for m in rec.messages():
         if until is not None and m.log_ns > until:
@@ -55,7 +56,7 @@ def render(path: str, png: str, at_s: float | None = None) -> ViewerCore:
     js = core.joints
     if js is None:
         raise SystemExit(f"{path}: no valid joint state before {at_s} s")
-    world = _frames(list(js.position), js.gripper)
+    world = _frames(list(js.position), js.gripper, core.config.arm)
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")
     chain = [ROOT_FRAME, *LINK_NAMES, GRIPPER_FRAME]

@@ -15,6 +15,7 @@ import threading
 import time
 from dataclasses import dataclass
 
+from manus.config import load_arm_config
 from services.recorder.reading import Recording
 from services.viewer.core import ViewerConfig, ViewerCore
 from services.viewer.server import DEFAULT_HOST, DEFAULT_PORT, FoxgloveSink
@@ -47,7 +48,8 @@ class ViewReplay:
     def __init__(self, path: str, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
         self.recording = Recording(path)
         self.prefix = self.recording.info.prefix or "manus"
-        probe = ViewerCore(ViewerConfig(prefix=self.prefix))
+        self.config = ViewerConfig(prefix=self.prefix, arm=load_arm_config())
+        probe = ViewerCore(self.config)
         self.sink = FoxgloveSink(
             host=host, port=port, urdf=probe.urdf, describe_topic=probe.topics.robot_description
         )
@@ -94,7 +96,7 @@ class ViewReplay:
         lo = first + round(start_s * 1e9)
         hi = None if until_s is None else first + round(until_s * 1e9)
         for _ in range(max(1, loops)):
-            core = ViewerCore(ViewerConfig(prefix=self.prefix))
+            core = ViewerCore(self.config)
             self.sink.log(core.robot_description(lo))
             t0_wall = time.monotonic()
             for rec in self.recording.messages():

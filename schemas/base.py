@@ -7,11 +7,17 @@ validated on decode) and the language-neutral JSON Schema (:meth:`Message.json_s
 
 Supported field types: ``int``, ``float``, ``bool``, ``str``, ``bytes``, a nested
 ``Message``, ``list[T]`` of any of these, and ``T | None``.
+
+A ``str`` field with ``choices`` (a tuple, or a ``StrEnum`` class whose members are the
+allowed values: the typed states of :mod:`schemas.states`) is checked when a message is
+built, not only when it is decoded: ``GoalResult(status="preemted", ...)`` raises a
+:class:`~manus.errors.SchemaError` naming the field and the allowed values.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 import types
 import typing
@@ -31,7 +37,7 @@ def field(
     default: Any = dataclasses.MISSING,
     default_factory: Any = dataclasses.MISSING,
     length: int | None = None,
-    choices: tuple[str, ...] | None = None,
+    choices: tuple[str, ...] | type[enum.StrEnum] | None = None,
     minimum: float | None = None,
     maximum: float | None = None,
 ) -> Any:
@@ -43,10 +49,13 @@ def field(
         default: default value.
         default_factory: default factory (for lists).
         length: required length of a list field (or of each row of a list of lists).
-        choices: allowed values of a ``str`` field.
+        choices: allowed values of a ``str`` field: a tuple, or a ``StrEnum`` class (its
+            members' values); checked when the message is built and when it is decoded.
         minimum: smallest allowed numeric value.
         maximum: largest allowed numeric value.
     """
+    if isinstance(choices, type):
+        choices = tuple(member.value for member in choices)
     meta = {
         "doc": doc,
         "unit": unit,
@@ -66,9 +75,29 @@ class Message:
     TYPE_NAME: ClassVar[str] = ""
     """Stable, versioned name of the message type, e.g. ``manus/JointState/1``."""
 
+    def __post_init__(self) -> None:
+        """Check the fields with ``choices`` (built or decoded alike).
+
+        Raises:
+            SchemaError: naming the type, the field, the value and the allowed values.
+        """
+        for name, allowed in _choice_fields(type(self)):
+            value = getattr(self, name)
+            if value not in allowed:
+                raise SchemaError(
+                    f"{self.TYPE_NAME or type(self).__name__}.{name}: {value!r} is not one of "
+                    f"{sorted(allowed)}"
+                )
+
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of plain values (lists, dicts, numbers, strings, bytes)."""
-        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+        out: dict[str, Any] = {}
+        for name in _field_names(type(self)):
+            value = getattr(self, name)
+            kind = type(value)
+            # Scalars first: most fields are, and messages are encoded every cycle.
+            out[name] = value if kind in _SCALARS or value is None else _plain(value)
+        return out
 
     def encode(self) -> bytes:
         """MessagePack bytes of :meth:`to_dict`."""
@@ -108,6 +137,17 @@ class Message:
         return schema
 
 
+_SCALARS = frozenset({float, int, str, bool, bytes})
+_NAMES: dict[type, tuple[str, ...]] = {}
+
+
+def _field_names(cls: type) -> tuple[str, ...]:
+    names = _NAMES.get(cls)
+    if names is None:
+        names = _NAMES[cls] = tuple(f.name for f in dataclasses.fields(cls))
+    return names
+
+
 def _plain(value: Any) -> Any:
     if isinstance(value, Message):
         return value.to_dict()
@@ -116,6 +156,22 @@ def _plain(value: Any) -> Any:
             return list(value)  # numeric rows, the bulk of trajectories: no recursion
         return [_plain(v) for v in value]
     return value
+
+
+_CHOICES: dict[type, tuple[tuple[str, frozenset[str]], ...]] = {}
+
+
+def _choice_fields(cls: type) -> tuple[tuple[str, frozenset[str]], ...]:
+    """(field name, allowed values) of every field of ``cls`` with ``choices``, cached:
+    messages are built every cycle, so the check must cost next to nothing."""
+    found = _CHOICES.get(cls)
+    if found is None:
+        found = _CHOICES[cls] = tuple(
+            (f.name, frozenset(f.metadata["choices"]))
+            for f in dataclasses.fields(cls)
+            if f.metadata.get("choices")
+        )
+    return found
 
 
 _HINTS: dict[type, dict[str, Any]] = {}

@@ -3,10 +3,26 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.state import BridgePhase
 
-ARM_ACTIONS = ("stop", "fold_in", "fold_out", "clear")
+
+class ArmAction(StrEnum):
+    """What an :class:`ArmCommand` asks the bridge."""
+
+    STOP = "stop"
+    """0x370 now, then stay stopped"""
+    FOLD_IN = "fold_in"
+    """0x376 held until the arm reports it folded"""
+    FOLD_OUT = "fold_out"
+    """0x375 held until the arm reports it unfolded"""
+    CLEAR = "clear"
+    """leave stopped, e-stop or arm error (the arm back in joint mode)"""
+
+
+ARM_ACTIONS = tuple(ArmAction)
 
 
 @dataclass(frozen=True)
@@ -60,7 +76,7 @@ class ArmCommand(Message):
 
     TYPE_NAME = "manus/ArmCommand/1"
 
-    action: str = field("what to do", choices=ARM_ACTIONS)
+    action: str = field("what to do", choices=ArmAction)
     source: str = field("who asks", default="")
 
 
@@ -71,5 +87,5 @@ class ArmCommandReply(Message):
     TYPE_NAME = "manus/ArmCommandReply/1"
 
     ok: bool = field("accepted")
-    phase: str = field("bridge phase after the request")
+    phase: str = field("bridge phase after the request", choices=BridgePhase)
     message: str = field("why it was refused, or what happens now")

@@ -9,13 +9,50 @@ publishes exactly one result. A new trajectory goal preempts the running one, or
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.planning import Trajectory
 
-CONTROL_MODES = ("default", "thesis")
-RESULT_STATUSES = ("succeeded", "aborted", "cancelled", "preempted")
-GOAL_KINDS = ("trajectory", "gripper")
+
+class ControlMode(StrEnum):
+    """The control law a trajectory goal runs (``services.controller.laws``)."""
+
+    DEFAULT = "default"
+    """delay-compensated dead-beat law with Cartesian-aware rounding"""
+    THESIS = "thesis"
+    """the 2005 thesis's loop, per-segment timing (for comparison)"""
+
+
+class ResultStatus(StrEnum):
+    """How a goal ended (``GoalResult.status``)."""
+
+    SUCCEEDED = "succeeded"
+    ABORTED = "aborted"
+    CANCELLED = "cancelled"
+    PREEMPTED = "preempted"
+
+
+class GoalKind(StrEnum):
+    """What a goal drives."""
+
+    TRAJECTORY = "trajectory"
+    GRIPPER = "gripper"
+
+
+class TrackState(StrEnum):
+    """What the controller does with the active goal (``ControllerFeedback.state``)."""
+
+    IDLE = "idle"
+    TRACKING = "tracking"
+    SETTLING = "settling"
+    DECELERATING = "decelerating"
+    HOLDING = "holding"
+
+
+CONTROL_MODES = tuple(ControlMode)
+RESULT_STATUSES = tuple(ResultStatus)
+GOAL_KINDS = tuple(GoalKind)
 
 
 @dataclass(frozen=True)
@@ -26,7 +63,7 @@ class TrajectoryGoal(Message):
 
     goal_id: str = field("caller-chosen unique id")
     trajectory: Trajectory = field("what to follow")
-    mode: str = field("control law", default="default", choices=CONTROL_MODES)
+    mode: str = field("control law", default="default", choices=ControlMode)
     path_tolerance: list[float] = field(
         "largest allowed |reference - actual| per joint while moving (0: unchecked)",
         unit="rad",
@@ -134,7 +171,7 @@ class ControllerFeedback(Message):
     stamp_ns: int = field("stamp of the joint state this cycle answers", unit="ns")
     seq: int = field("sequence number", minimum=0)
     goal_id: str = field("active trajectory goal ('' when idle)")
-    state: str = field("idle, tracking, settling, decelerating, holding")
+    state: str = field("what the controller does with the goal", choices=TrackState)
     segment: int = field("index of the knot interval being tracked (-1: none)")
     t: float = field("trajectory time", unit="s")
     reference: list[float] = field("reference joint angles", unit="rad", length=6)
@@ -161,8 +198,8 @@ class GoalResult(Message):
     stamp_ns: int = field("stamp of the joint state at which the goal ended", unit="ns")
     seq: int = field("sequence number", minimum=0)
     goal_id: str = field("the goal")
-    kind: str = field("trajectory or gripper", choices=GOAL_KINDS)
-    status: str = field("how it ended", choices=RESULT_STATUSES)
+    kind: str = field("trajectory or gripper", choices=GoalKind)
+    status: str = field("how it ended", choices=ResultStatus)
     reason: str = field("why it ended that way, in words")
     via_errors: list[float] = field(
         "gripper position error at each knot time, measured (FK of the encoders)",

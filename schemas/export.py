@@ -1,7 +1,8 @@
 """JSON Schema export: the language-neutral description of the bus messages.
 
 :func:`channel_documents` gives one JSON Schema (draft 2020-12) per message type of
-:func:`schemas.keys.channel_types`; ``manus schemas --out DIR`` writes them with an
+:func:`schemas.keys.channel_types` (both derived from the endpoint table,
+:mod:`schemas.endpoints`); ``manus schemas --out DIR`` writes them with an
 ``index.json`` (key suffix -> type). :func:`supervisor_document` is the supervisor's API
 in one document (keys, kinds, and the message types under ``$defs``), checked in as
 ``schemas/supervisor.schema.json`` (a test keeps it current). Payloads are MessagePack
@@ -15,33 +16,40 @@ from pathlib import Path
 from typing import Any
 
 from schemas.base import Message
-from schemas.commands import EStop
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
+from schemas.endpoints import TABLE, Audience, Kind
 
 SUPERVISOR_FILE = Path(__file__).with_name("supervisor.schema.json")
 """The checked-in supervisor API document."""
 
-SUPERVISOR_KEYS: dict[str, dict[str, str]] = {
-    "sequencer/submit": {"kind": "queryable", "request": "Task", "reply": "SubmitReply",
-                         "doc": "validate a whole task and start it; reply: id or every error"},
-    "sequencer/control": {"kind": "queryable", "request": "TaskControl", "reply": "TaskStatus",
-                          "doc": "cancel, pause, resume (or status of) the task"},
-    "sequencer/status": {"kind": "queryable", "request": "TaskControl", "reply": "TaskStatus",
-                         "doc": "where the current task stands (action: status)"},
-    "sequencer/events": {"kind": "publication", "type": "TaskEvent",
-                         "doc": "accepted, step_started/progress/finished/failed, paused, "
-                                "resumed, cancelled, succeeded, failed"},
-    "estop": {"kind": "publication (to publish)", "type": "EStop",
-              "doc": "emergency stop: the bridge latches it; the running task fails"},
-    "alive/<service>": {"kind": "liveliness token",
-                        "doc": "one per running service: sequencer, planner, controller, "
-                               "can_bridge, simulator, recorder"},
-}  # fmt: skip
-"""Keys of the supervisor API (after the prefix, default ``manus``)."""
 
-SUPERVISOR_TYPES: tuple[type[Message], ...] = (
-    Task, SubmitReply, TaskControl, TaskStatus, TaskEvent, EStop,
-)  # fmt: skip
+def supervisor_keys() -> dict[str, dict[str, str]]:
+    """Keys of the supervisor API (after the prefix, default ``manus``): the endpoints of
+    the supervisor audience, from the endpoint table."""
+    out: dict[str, dict[str, str]] = {}
+    for e in TABLE:
+        if e.audience is not Audience.SUPERVISOR:
+            continue
+        entry: dict[str, str] = {"kind": e.kind.value}
+        if e.kind is Kind.QUERYABLE:
+            assert e.msg_type is not None and e.reply_type is not None
+            entry |= {"request": e.msg_type.__name__, "reply": e.reply_type.__name__}
+        elif e.msg_type is not None:
+            entry["type"] = e.msg_type.__name__
+        entry["owner"] = e.owner
+        entry["doc"] = e.doc
+        out[e.pattern] = entry
+    return out
+
+
+def supervisor_types() -> list[type[Message]]:
+    """The message types of the supervisor API, each once, in table order."""
+    found: list[type[Message]] = []
+    for e in TABLE:
+        if e.audience is Audience.SUPERVISOR:
+            for cls in (e.msg_type, e.reply_type):
+                if cls is not None and cls not in found:
+                    found.append(cls)
+    return found
 
 
 def file_name(cls: type[Message]) -> str:
@@ -79,8 +87,8 @@ def supervisor_document() -> dict[str, Any]:
             "(a Zenoh get with the payload); the reply is a SubmitReply. Follow "
             "<prefix>/sequencer/events. Control with TaskControl on <prefix>/sequencer/control."
         ),
-        "keys": SUPERVISOR_KEYS,
-        "$defs": {cls.__name__: cls.json_schema() for cls in SUPERVISOR_TYPES},
+        "keys": supervisor_keys(),
+        "$defs": {cls.__name__: cls.json_schema() for cls in supervisor_types()},
     }
 
 

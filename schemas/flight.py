@@ -3,7 +3,8 @@
 The flight recorder keeps the last seconds of every key in memory and writes them, with
 the next few seconds, to a file when something goes wrong (an e-stop, an arm error, an
 aborted goal, a failed task, a service that vanished) or when anyone asks on
-``<prefix>/recorder/trigger`` (:data:`TRIGGER`) with a :class:`FlightTrigger`: an operator
+``<prefix>/recorder/trigger`` (``schemas.endpoints.FLIGHT_TRIGGER``) with a
+:class:`FlightTrigger`: an operator
 who saw something odd, a test, a supervisor.
 """
 
@@ -12,9 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from schemas.base import Message, field
-
-TRIGGER = "recorder/trigger"
-"""Key suffix of explicit requests to the flight recorder."""
 
 
 @dataclass(frozen=True)

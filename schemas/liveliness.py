@@ -24,12 +24,26 @@ recorder drops samples published there (:class:`services.recorder.shell.Recorder
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
 
 LIVELINESS = "liveliness"
 """Key suffix of the recording channel of liveliness changes (never published)."""
-TOKEN_KINDS = ("alive", "where", "other")
+
+
+class TokenKind(StrEnum):
+    """What a liveliness token says."""
+
+    ALIVE = "alive"
+    """``alive/<service>``: the service runs"""
+    WHERE = "where"
+    """``where/<service>/<host>/<pid>``: where one of its processes runs"""
+    OTHER = "other"
+    """any other token under the prefix"""
+
+
+TOKEN_KINDS = tuple(TokenKind)
 
 
 @dataclass(frozen=True)
@@ -43,7 +57,7 @@ class LivelinessChange(Message):
     key: str = field("the token's full key expression, e.g. manus/where/planner/base/4711")
     kind: str = field(
         "alive: alive/<service>; where: where/<service>/<host>/<pid>; other: any other token",
-        choices=TOKEN_KINDS,
+        choices=TokenKind,
     )
     service: str = field("the service the token belongs to ('' for other tokens)")
     alive: bool = field(

@@ -14,20 +14,43 @@ A trajectory is piecewise Hermite in joint space: positions and velocities at ea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
 
-INTERPOLATIONS = ("cubic", "quintic")
-PLAN_ERROR_REASONS = (
-    "parse",  # the via-point text is malformed
-    "unreachable",  # outside the workspace
-    "singular",  # wrist singularity
-    "joint_limit",  # a joint limit is broken
-    "branch",  # the path would need an IK branch flip
-    "speed_limit",  # a joint speed or acceleration limit is broken (no speed scaling asked)
-    "no_state",  # no start configuration given and no joint state known
-    "invalid",  # the request itself is inconsistent
-)
+
+class Interpolation(StrEnum):
+    """How the planner joins the knots."""
+
+    CUBIC = "cubic"
+    """one cubic spline through every knot (the thesis's choice)"""
+    QUINTIC = "quintic"
+    """rest-to-rest quintic segments"""
+
+
+class PlanErrorReason(StrEnum):
+    """Kind of a planning failure (``PlanError.reason``)."""
+
+    PARSE = "parse"
+    """the via-point text is malformed"""
+    UNREACHABLE = "unreachable"
+    """outside the workspace"""
+    SINGULAR = "singular"
+    """wrist singularity"""
+    JOINT_LIMIT = "joint_limit"
+    """a joint limit is broken"""
+    BRANCH = "branch"
+    """the path would need an IK branch flip"""
+    SPEED_LIMIT = "speed_limit"
+    """a joint speed or acceleration limit is broken (no speed scaling asked)"""
+    NO_STATE = "no_state"
+    """no start configuration given and no joint state known"""
+    INVALID = "invalid"
+    """the request itself is inconsistent"""
+
+
+INTERPOLATIONS = tuple(Interpolation)
+PLAN_ERROR_REASONS = tuple(PlanErrorReason)
 
 
 @dataclass(frozen=True)
@@ -75,7 +98,7 @@ class PlanRequest(Message):
     interpolation: str = field(
         "cubic spline through all via points, or quintic segments",
         default="cubic",
-        choices=INTERPOLATIONS,
+        choices=Interpolation,
     )
     speed_scaling: bool = field(
         "stretch time to respect joint speed/acceleration limits instead of refusing", default=False
@@ -130,7 +153,7 @@ class PlanError(Message):
 
     TYPE_NAME = "manus/PlanError/1"
 
-    reason: str = field("kind of failure", choices=PLAN_ERROR_REASONS)
+    reason: str = field("kind of failure", choices=PlanErrorReason)
     message: str = field("one line for a human, naming file, line, via point, joint, value, limit")
     via_point: int = field("0-based via point index (-1: none)", default=-1)
     line: int = field("source line (0: none)", default=0)

@@ -1,6 +1,7 @@
 """Controlling a running replay (``manus replay``) over the bus, as rosbag2's player offers.
 
-A replay answers ``<prefix>/replay/control`` (:data:`CONTROL`): a :class:`PlaybackControl`
+A replay answers ``<prefix>/replay/control`` (``schemas.endpoints.PLAYBACK_CONTROL``): a
+:class:`PlaybackControl`
 request, a :class:`PlaybackStatus` reply. The replay's own prefix is the one it publishes
 under, so a replay onto ``arm2`` is controlled on ``arm2/replay/control``.
 """
@@ -11,8 +12,6 @@ from dataclasses import dataclass
 
 from schemas.base import Message, field
 
-CONTROL = "replay/control"
-"""Key suffix of the replay's control queryable."""
 ACTIONS = ("status", "pause", "resume", "step", "seek", "rate")
 STATES = ("playing", "paused", "finished")
 

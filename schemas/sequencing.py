@@ -1,11 +1,5 @@
-"""The supervisor's interface: tasks, their control and their events.
-
-| key (after the prefix) | kind      | type                           |
-|------------------------|-----------|--------------------------------|
-| sequencer/submit       | queryable | Task -> SubmitReply            |
-| sequencer/control      | queryable | TaskControl -> TaskStatus      |
-| sequencer/status       | queryable | TaskControl -> TaskStatus      |
-| sequencer/events       | pub       | TaskEvent                      |
+"""The supervisor's interface: tasks, their control and their events (their keys:
+``SUBMIT``, ``TASK_CONTROL``, ``TASK_STATUS`` and ``EVENTS`` of :mod:`schemas.endpoints`).
 
 A task is validated whole before anything moves (every file parses, every path plans
 from where the previous step leaves the arm, every opening is in range); a refused task
@@ -129,14 +123,3 @@ class TaskEvent(Message):
     kind: str = field("kind of the step ('' for task events)", default="")
     progress: float = field("fraction of the step (step events) or task done", default=0.0)
     reason: str = field("why (failures, cancel), from the service that failed", default="")
-
-
-CHANNELS: dict[str, type[Message]] = {
-    "sequencer/submit#request": Task,
-    "sequencer/submit#reply": SubmitReply,
-    "sequencer/control#request": TaskControl,
-    "sequencer/control#reply": TaskStatus,
-    "sequencer/status#request": TaskControl,
-    "sequencer/status#reply": TaskStatus,
-    "sequencer/events": TaskEvent,
-}

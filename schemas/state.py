@@ -8,26 +8,86 @@ arm data), and every stream has its own sequence number.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
 
-MODES = ("none", "cartesian", "joint", "fold_out", "fold_in", "unknown")
-MESSAGE_CLASSES = ("none", "warning", "general", "error")
-BRIDGE_PHASES = (
-    "opening",  # bus being opened
-    "waiting_power_up",  # waiting for "gripper ready" / "absolute angles measured"
-    "entering_joint_mode",  # zero 0x374 sent, waiting for joint mode and valid positions
-    "initialising",  # the four small joint 4-6 moves of thesis 4.2.1
-    "running",  # normal cycle: commands from the controller reach the arm
-    "resync",  # frames lost or out of order: zeros until two clean cycles
-    "folding_in",  # 0x376 held until the arm reports it folded
-    "folding_out",  # 0x375 held until the arm reports it unfolded
-    "stopped",  # 0x370 sent, waiting for a command
-    "estopped",  # e-stop latched: zeros then 0x370, until cleared
-    "arm_error",  # the arm reported an error: stopped until cleared
-    "shutdown",  # zeros and 0x370 sent, bus closed
+
+class ArmMode(StrEnum):
+    """The arm's active mode (low nibble of status byte 0, docs/protocol.md)."""
+
+    NONE = "none"
+    CARTESIAN = "cartesian"
+    JOINT = "joint"
+    FOLD_OUT = "fold_out"
+    FOLD_IN = "fold_in"
+    UNKNOWN = "unknown"
+
+
+class MessageClass(StrEnum):
+    """Class of the arm's message (bits 7-6 of status byte 0)."""
+
+    NONE = "none"
+    WARNING = "warning"
+    GENERAL = "general"
+    ERROR = "error"
+
+
+class BridgePhase(StrEnum):
+    """What the bridge is doing (``BridgeState.phase``)."""
+
+    OPENING = "opening"
+    """bus being opened"""
+    WAITING_POWER_UP = "waiting_power_up"
+    """waiting for 'gripper ready' / 'absolute angles measured'"""
+    ENTERING_JOINT_MODE = "entering_joint_mode"
+    """zero 0x374 sent, waiting for joint mode and valid positions"""
+    INITIALISING = "initialising"
+    """the four small joint 4-6 moves of the start-up (docs/protocol.md)"""
+    RUNNING = "running"
+    """normal cycle: commands from the controller reach the arm"""
+    RESYNC = "resync"
+    """frames lost or out of order: zeros until two clean cycles"""
+    FOLDING_IN = "folding_in"
+    """0x376 held until the arm reports it folded"""
+    FOLDING_OUT = "folding_out"
+    """0x375 held until the arm reports it unfolded"""
+    STOPPED = "stopped"
+    """0x370 sent, waiting for a command"""
+    ESTOPPED = "estopped"
+    """e-stop latched: zeros then 0x370, until cleared"""
+    ARM_ERROR = "arm_error"
+    """the arm reported an error: stopped until cleared"""
+    SHUTDOWN = "shutdown"
+    """zeros and 0x370 sent, bus closed"""
+
+
+class AppliedKind(StrEnum):
+    """Kind of the frame the bridge sent at the previous sync."""
+
+    NONE = "none"
+    JOINT = "joint"
+    CARTESIAN = "cartesian"
+    STOP = "stop"
+    FOLD_IN = "fold_in"
+    FOLD_OUT = "fold_out"
+
+
+MODES = tuple(ArmMode)
+MESSAGE_CLASSES = tuple(MessageClass)
+BRIDGE_PHASES = tuple(BridgePhase)
+APPLIED_KINDS = tuple(AppliedKind)
+STOPPING_PHASES = frozenset(
+    {
+        BridgePhase.STOPPED,
+        BridgePhase.ESTOPPED,
+        BridgePhase.ARM_ERROR,
+        BridgePhase.FOLDING_IN,
+        BridgePhase.FOLDING_OUT,
+        BridgePhase.SHUTDOWN,
+    }
 )
-APPLIED_KINDS = ("none", "joint", "cartesian", "stop", "fold_in", "fold_out")
+"""Bridge phases in which no goal can run (the arm is stopped or folding)."""
 
 
 @dataclass(frozen=True)
@@ -41,7 +101,7 @@ class JointState(Message):
     position: list[float] = field("DH joint angles q1..q6", unit="rad", length=6)
     gripper: float = field("gripper opening", unit="m")
     valid: bool = field("positions are meaningful (a move mode is active, the bridge is running)")
-    mode: str = field("active mode of the arm", choices=MODES)
+    mode: str = field("active mode of the arm", choices=ArmMode)
     encoder: list[int] = field(
         "raw position fields: joints 1..6 [0.1 deg, motor angles] and gripper [0.1 mm]",
         length=7,
@@ -51,7 +111,7 @@ class JointState(Message):
         "[0.1 deg per 20 ms], gripper [0.1 mm per 20 ms]",
         length=8,
     )
-    applied_kind: str = field("kind of the frame sent at the previous sync", choices=APPLIED_KINDS)
+    applied_kind: str = field("kind of the frame sent at the previous sync", choices=AppliedKind)
     applied_seq: int = field(
         "seq of the velocity command that was sent at the previous sync (-1: none, zeros)"
     )
@@ -65,9 +125,9 @@ class ArmStatus(Message):
 
     stamp_ns: int = field("CAN receive time of the 0x350 frame", unit="ns")
     seq: int = field("sequence number", minimum=0)
-    mode: str = field("active mode", choices=MODES)
+    mode: str = field("active mode", choices=ArmMode)
     mode_code: int = field("raw low nibble of status byte 0", minimum=0, maximum=15)
-    msg_class: str = field("message class (bits 7-6 of status byte 0)", choices=MESSAGE_CLASSES)
+    msg_class: str = field("message class (bits 7-6 of status byte 0)", choices=MessageClass)
     msg_code: int = field("message code (byte 1)", minimum=0, maximum=255)
     text: str = field("meaning of the message, empty when there is none")
 
@@ -80,7 +140,7 @@ class BridgeState(Message):
 
     stamp_ns: int = field("time of the event that caused this report", unit="ns")
     seq: int = field("sequence number", minimum=0)
-    phase: str = field("what the bridge is doing", choices=BRIDGE_PHASES)
+    phase: str = field("what the bridge is doing", choices=BridgePhase)
     estop: bool = field("e-stop latched")
     cycles: int = field("complete cycles seen since start", minimum=0)
     period_ms: float = field("last sync-to-sync period", unit="ms")

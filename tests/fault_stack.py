@@ -18,6 +18,7 @@ from manus.node import Node
 from manus.protocol import FrameId, decode_move
 from manus.session import client_settings
 from manus_stack.up import Child, LocalStack, StackOptions
+from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, Task, TaskEvent
 from schemas.state import BridgeState, CanFrame, SimTruth
 
@@ -99,10 +100,10 @@ class FaultStack:
 
             return add
 
-        node.subscribe(keys.can_tx, CanFrame, keep(w.tx), locked=False)  # type: ignore[arg-type]
-        node.subscribe(keys.sim_truth, SimTruth, keep(w.truth), locked=False)  # type: ignore[arg-type]
+        node.subscribe(keys(ep.CAN_TX), CanFrame, keep(w.tx), locked=False)  # type: ignore[arg-type]
+        node.subscribe(keys(ep.SIM_TRUTH), SimTruth, keep(w.truth), locked=False)  # type: ignore[arg-type]
         node.subscribe(keys("sequencer/events"), TaskEvent, keep(w.events), locked=False)  # type: ignore[arg-type]
-        node.subscribe(keys.bridge_state, BridgeState, keep(w.bridge), locked=False)  # type: ignore[arg-type]
+        node.subscribe(keys(ep.BRIDGE_STATE), BridgeState, keep(w.bridge), locked=False)  # type: ignore[arg-type]
 
         def on_alive(name: str, up: bool) -> None:
             with w.lock:

@@ -14,6 +14,7 @@ import sys
 from manus.node import Node, wait_for_signal
 from manus.protocol import FrameId, decode_move
 from manus.session import open_session, settings_from_env
+from schemas import endpoints as ep
 from schemas.state import CanFrame
 
 
@@ -40,7 +41,7 @@ def _probe(out: str) -> int:
             stream.write(f"{frame.stamp_ns} {frame.id} {int(zero)}\n")
             stream.flush()
 
-        node.subscribe(node.keys.can_tx, CanFrame, on_tx)
+        node.subscribe(node.keys(ep.CAN_TX), CanFrame, on_tx)
         print("probe: up", file=sys.stderr, flush=True)
         stop.wait()
     return 0

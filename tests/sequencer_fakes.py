@@ -18,6 +18,7 @@ from manus.config import UNFOLDED_Q_DEG
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus.trajectory import JointTrajectory
+from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply
 from schemas.control import (
     CancelGoal,
@@ -46,9 +47,9 @@ class FakeBridge:
         self.commands: list[str] = []
         self._fold_until = 0.0
         self._seq = 0
-        self._joints = self.node.publisher(self.node.keys.joints)
-        self._state = self.node.publisher(self.node.keys.bridge_state)
-        self.node.queryable(self.node.keys.bridge_command, ArmCommand, self._on_command)
+        self._joints = self.node.publisher(self.node.keys(ep.JOINTS))
+        self._state = self.node.publisher(self.node.keys(ep.BRIDGE_STATE))
+        self.node.queryable(self.node.keys(ep.BRIDGE_COMMAND), ArmCommand, self._on_command)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, daemon=True)
         self._thread.start()
@@ -110,12 +111,12 @@ class FakeController:
         self._active: tuple[str, JointTrajectory, float] | None = None
         self._cancelled = False
         self._seq = 0
-        self._feedback = self.node.publisher(self.node.keys.feedback)
-        self._result = self.node.publisher(self.node.keys.result)
+        self._feedback = self.node.publisher(self.node.keys(ep.FEEDBACK))
+        self._result = self.node.publisher(self.node.keys(ep.RESULT))
         keys = self.node.keys
-        self.node.queryable(keys.goal, TrajectoryGoal, self._on_goal)
-        self.node.queryable(keys.gripper_goal, GripperGoal, self._on_gripper)
-        self.node.queryable(keys.cancel, CancelGoal, self._on_cancel)
+        self.node.queryable(keys(ep.GOAL), TrajectoryGoal, self._on_goal)
+        self.node.queryable(keys(ep.GRIPPER_GOAL), GripperGoal, self._on_gripper)
+        self.node.queryable(keys(ep.CANCEL), CancelGoal, self._on_cancel)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, daemon=True)
         self._thread.start()

@@ -25,6 +25,7 @@ import pytest
 from manus.node import Node
 from manus.protocol import FrameId
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
 from schemas.state import BridgeState, CanFrame, JointState
 from services.can_bridge.shell import BridgeShell
@@ -48,9 +49,9 @@ class Listener:
         self.joints: list[JointState] = []
         self.tx: list[CanFrame] = []
         keys = node.keys
-        node.subscribe(keys.bridge_state, BridgeState, self._add(self.states), locked=False)
-        node.subscribe(keys.joints, JointState, self._add(self.joints), locked=False)
-        node.subscribe(keys.can_tx, CanFrame, self._add(self.tx), locked=False)
+        node.subscribe(keys(ep.BRIDGE_STATE), BridgeState, self._add(self.states), locked=False)
+        node.subscribe(keys(ep.JOINTS), JointState, self._add(self.joints), locked=False)
+        node.subscribe(keys(ep.CAN_TX), CanFrame, self._add(self.tx), locked=False)
 
     def _add(self, into: list[M]) -> Callable[[M, int], None]:
         def add(msg: M, _rx: int) -> None:
@@ -108,18 +109,18 @@ def test_bridge_shell_on_virtual_with_live_sim(
             with seen.lock:
                 assert seen.joints and seen.joints[-1].valid
             # E-stop: zeros at the next sync, then 0x370, latched.
-            node.publisher(node.keys.estop).put(
+            node.publisher(node.keys(ep.ESTOP)).put(
                 EStop(stamp_ns=time.time_ns(), seq=0, engaged=True, source="test")
             )
             seen.wait_phase("estopped", timeout=2.0)
             time.sleep(0.3)
             reply = node.query(
-                node.keys.bridge_command, ArmCommand(action="clear"), ArmCommandReply
+                node.keys(ep.BRIDGE_COMMAND), ArmCommand(action="clear"), ArmCommandReply
             )
             assert not reply.ok and reply.phase == "estopped"
             ids = [f.id for f in seen.tx_since(0)]
             assert ids[-1] == FrameId.STOP
-            node.publisher(node.keys.estop).put(
+            node.publisher(node.keys(ep.ESTOP)).put(
                 EStop(stamp_ns=time.time_ns(), seq=1, engaged=False, source="test")
             )
             seen.wait_phase("running", timeout=2.0)
@@ -181,7 +182,8 @@ def test_manus_bridge_process_with_manus_sim_over_slcan(
             assert tx[0].id == FrameId.STOP  # the first sync: stop what an earlier run left
             assert [f.id for f in tx[-3:]] == [FrameId.JOINT] * 3
             assert all(f.data == bytes(8) for f in tx[-3:])  # no controller: zeros
-            reply = node.query(node.keys.bridge_command, ArmCommand(action="stop"), ArmCommandReply)
+            stop = ArmCommand(action="stop")
+            reply = node.query(node.keys(ep.BRIDGE_COMMAND), stop, ArmCommandReply)
             assert reply.ok and reply.phase == "stopped"
             time.sleep(0.3)
             assert seen.tx_since(0)[-1].id == FrameId.STOP

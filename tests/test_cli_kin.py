@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.kinematics import fk
 
 
@@ -25,7 +26,7 @@ def test_fk_prints_pose_json() -> None:
     assert out["xyz_mm"] == pytest.approx([207.846097, 105.0, 200.0])
     assert out["ypr_deg"] == pytest.approx([0.0, -60.0, 0.0])
     T = np.array(out["matrix"])
-    expected = fk(np.radians([0, 30, -30, 0, -60, 0]))
+    expected = fk(np.radians([0, 30, -30, 0, -60, 0]), DEFAULT_ARM)
     assert T[:3, :3] == pytest.approx(expected[:3, :3], abs=1e-8)
 
 
@@ -37,7 +38,9 @@ def test_ik_prints_all_branches_and_the_nearest() -> None:
     assert len(out["solutions_deg"]) == 8
     assert out["nearest_deg"] == pytest.approx([0, 30, -30, 0, -60, 0], abs=1e-4)
     for q in out["solutions_deg"]:
-        assert fk(np.radians(q))[:3, 3] * 1000 == pytest.approx([207.846097, 105, 200], abs=1e-3)
+        assert fk(np.radians(q), DEFAULT_ARM)[:3, 3] * 1000 == pytest.approx(
+            [207.846097, 105, 200], abs=1e-3
+        )
 
 
 def test_ik_near_selects_another_branch() -> None:

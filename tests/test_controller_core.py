@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
 from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
@@ -144,7 +145,7 @@ def test_cancel_unknown_goal_is_refused_and_cancel_all_accepts() -> None:
 
 
 def test_reference_splice_is_continuous_in_position_velocity_acceleration() -> None:
-    old = Reference(line_trajectory(Q0, (30, 10, -10, 5, 5, 5), 3.0))
+    old = Reference(line_trajectory(Q0, (30, 10, -10, 5, 5, 5), 3.0), arm=DEFAULT_ARM)
     tau = 1.3
     at = old.sample(tau).q
     new_msg = line_trajectory(at + np.radians([1, -1, 1, 0, 0, 0]), (-20, 5, 5, 0, 0, 0), 2.0)
@@ -153,7 +154,7 @@ def test_reference_splice_is_continuous_in_position_velocity_acceleration() -> N
     np.testing.assert_allclose(b.q, a.q, atol=1e-12)
     np.testing.assert_allclose(b.qd, a.qd, atol=1e-12)
     np.testing.assert_allclose(b.qdd, a.qdd, atol=1e-9)
-    plain = Reference(new_msg)
+    plain = Reference(new_msg, arm=DEFAULT_ARM)
     for t in (0.8, 1.0, 2.5):
         np.testing.assert_allclose(new.sample(t).q, plain.sample(t).q, atol=1e-12)
     # The cycle's scalar positions are sample().q, inside the blend, after it, before 0.

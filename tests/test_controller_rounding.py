@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from manus.config import DEFAULT_ARM
 from manus.joint_map import M_ENCODER_TO_DH
 from manus.kinematics import jacobian
 from services.controller.config import ControllerConfig
@@ -24,7 +25,7 @@ def _by_definition(
 ) -> tuple[np.ndarray, float, float]:
     """Every floor/ceil choice (clipped to the range) scored as the docstring says:
     (best choice, its cost, the runner-up's cost)."""
-    J = jacobian(np.array(q))
+    J = jacobian(np.array(q), DEFAULT_ARM)
     J[3:] *= CONFIG.rounding_rotation_m
     G = J @ M_ENCODER_TO_DH
     k = (CONFIG.rounding_joint_m * gain) ** 2
@@ -68,7 +69,7 @@ def test_counts_at_the_limit_stay_in_range(edge: float) -> None:
 def test_rounding_gains_are_the_weighted_jacobian_in_motor_space(
     q: list[float], scale: float
 ) -> None:
-    J = jacobian(np.array(q))
+    J = jacobian(np.array(q), DEFAULT_ARM)
     J[3:] *= CONFIG.rounding_rotation_m
     assert rounding_gains(q, CONFIG, scale) == pytest.approx(
         scale * (J @ M_ENCODER_TO_DH), abs=1e-15

@@ -6,6 +6,7 @@ import queue
 
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.commands import JointVelocityCommand
 from schemas.control import CancelGoal, GoalAck, GoalResult, TrajectoryGoal
 from schemas.state import JointState
@@ -25,9 +26,9 @@ def test_controller_shell_runs_a_goal_over_zenoh(zenoh_settings: ZenohSettings) 
         Node("test_arm", zenoh_settings, liveliness=False) as arm,
     ):
         keys = arm.keys
-        arm.subscribe(keys.joint_velocity, JointVelocityCommand, lambda m, t: commands.put(m))
-        arm.subscribe(keys.result, GoalResult, lambda m, t: results.put(m))
-        joints = arm.publisher(keys.joints)
+        arm.subscribe(keys(ep.JOINT_VELOCITY), JointVelocityCommand, lambda m, t: commands.put(m))
+        arm.subscribe(keys(ep.RESULT), GoalResult, lambda m, t: results.put(m))
+        joints = arm.publisher(keys(ep.JOINTS))
 
         def answered() -> bool:
             joints.put(plant.joint_state())
@@ -61,11 +62,11 @@ def test_controller_shell_runs_a_goal_over_zenoh(zenoh_settings: ZenohSettings) 
             goal = TrajectoryGoal(
                 goal_id="z1", trajectory=line_trajectory(Q0, (5, 0, 0, 0, 0, 0), 1.0)
             )
-            return arm.query(keys.goal, goal, GoalAck)
+            return arm.query(keys(ep.GOAL), goal, GoalAck)
 
         ack = ask_goal()
         assert ack.accepted, ack.reason
-        refused = arm.query(keys.cancel, CancelGoal(goal_id="other"), GoalAck)
+        refused = arm.query(keys(ep.CANCEL), CancelGoal(goal_id="other"), GoalAck)
         assert not refused.accepted and "other" in refused.reason
         moved = False
         for _ in range(60):

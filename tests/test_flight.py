@@ -15,7 +15,8 @@ from manus.node import Node, now_ns
 from manus.session import ZenohSettings
 from schemas.commands import EStop
 from schemas.control import GoalResult
-from schemas.flight import TRIGGER, FlightTrigger
+from schemas.endpoints import FLIGHT_TRIGGER
+from schemas.flight import FlightTrigger
 from schemas.state import ArmStatus, JointState
 from services.recorder.errors import RecordingError
 from services.recorder.flight import (
@@ -96,7 +97,7 @@ def test_warning_codes_goal_aborts_and_requests_trigger_only_when_chosen() -> No
                          reason="path tolerance")  # fmt: skip
     [d1] = core.on_sample("manus/controller/result", aborted.encode(), 1 * S)
     request = FlightTrigger(stamp_ns=2, seq=0, source="operator", reason="odd noise")
-    [d2] = core.on_sample(f"manus/{TRIGGER}", request.encode(), 2 * S)
+    [d2] = core.on_sample(f"manus/{FLIGHT_TRIGGER}", request.encode(), 2 * S)
     assert [d1.triggers[0].kind, d2.triggers[0].kind] == ["goal_aborted", "request"]
     assert core.on_sample("manus/estop", b"\xc1garbage", 3 * S) == []
     assert core.stats.bad_payloads == 1
@@ -163,14 +164,14 @@ def test_live_estop_gives_one_file_that_validates_and_replays(
         time.sleep(0.5)
         assert len(shell.files) == 1 and shell.dropped == 0
         path = shell.files[0]
-    assert "estop" in path.name
+    assert "emergency_stop" in path.name
     # validates: every CRC (chunks and data section) and the summary
     with path.open("rb") as f:
         records = list(StreamReader(f, validate_crcs=True).records)
     assert records
     with path.open("rb") as f:
         meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
-    assert "estop" in meta["flight"]["triggers"]
+    assert "emergency_stop" in meta["flight"]["triggers"]
     rec = Recording(path)
     times = [m.log_ns for m in rec.messages(["state/joints"])]
     # the configured seconds before (1.5 s) and after (1.0 s), within a cycle or two

@@ -9,6 +9,7 @@ import zenoh
 
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply
 from schemas.keys import Keys, channel_name, channel_type
 from schemas.planning import PlanReply, PlanRequest
@@ -50,13 +51,13 @@ def _serve_and_ask(settings: ZenohSettings, *, mirror: bool) -> list[zenoh.Sampl
         Node("listener", settings, liveliness=False) as listener,
     ):
         listener.subscribe_raw(listener.keys("trace/**"), on_sample)
-        server.queryable(server.keys.bridge_command, ArmCommand, handler, mirror=mirror)
+        server.queryable(server.keys(ep.BRIDGE_COMMAND), ArmCommand, handler, mirror=mirror)
         reply = None
         deadline = time.monotonic() + 10.0
         while reply is None:
             try:
                 request = ArmCommand("stop", "test")
-                key = client.keys.bridge_command
+                key = client.keys(ep.BRIDGE_COMMAND)
                 reply = client.query(key, request, ArmCommandReply, timeout=1.0)
             except QueryError:  # the queryable takes a moment to reach the router
                 assert time.monotonic() < deadline

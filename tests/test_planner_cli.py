@@ -10,6 +10,7 @@ from pathlib import Path as FilePath
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.kinematics import fk
 
 ROOT = FilePath(__file__).resolve().parent.parent
@@ -30,7 +31,7 @@ def test_plan_prints_one_row_per_knot() -> None:
     q = np.array(out["positions_deg"])
     assert q.shape == (17, 6) and np.array(out["velocities_deg_s"]).shape == (17, 6)
     assert q[0] == pytest.approx([0, 30, -30, 0, -60, 0])
-    assert fk(np.radians(q[1]))[:3, 3] * 1000 == pytest.approx(
+    assert fk(np.radians(q[1]), DEFAULT_ARM)[:3, 3] * 1000 == pytest.approx(
         np.array(out["via_xyz_mm"][1]), abs=1e-3
     )
     assert out["via_xyz_mm"][1] == pytest.approx([207.846097, 155.0, 200.0], abs=1e-5)

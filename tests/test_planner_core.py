@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from manus.config import DEG, UNFOLDED_Q_DEG, ArmConfig
+from manus.config import DEFAULT_ARM, DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.kinematics import fk, jacobian
 from manus.orientation import matrix_to_ypr
 from manus.trajectory import JointTrajectory
@@ -37,7 +37,7 @@ def plan_text(
 
 def pose_line(q_deg: tuple[float, ...], time: float) -> str:
     """An absolute (type 0) via point at the gripper pose of ``q_deg``."""
-    T = fk(np.radians(q_deg))
+    T = fk(np.radians(q_deg), DEFAULT_ARM)
     yaw, pitch, roll = (float(a) for a in np.degrees(matrix_to_ypr(T[:3, :3])))
     x, y, z = (float(c) for c in T[:3, 3] * 1000.0)
     return f"{x!r} {y!r} {z!r} 0 0 0 {yaw!r} {roll!r} {pitch!r} 0 0 0 {time} 0"
@@ -46,7 +46,7 @@ def pose_line(q_deg: tuple[float, ...], time: float) -> str:
 def expected_xyz(path_file: str) -> np.ndarray:
     """Via points of a thesis file resolved by hand: start position + running offsets."""
     path = load_path(ROOT / "paths" / path_file)
-    p = fk(UNFOLDED)[:3, 3]
+    p = fk(UNFOLDED, DEFAULT_ARM)[:3, 3]
     out = [p]
     for vp in path.via_points[1:]:
         assert vp.type == 2
@@ -76,9 +76,9 @@ def test_thesis_paths_plan_from_the_unfolded_pose(name: str, interpolation: str)
     assert q[0] == pytest.approx(UNFOLDED, abs=0)
     # Every knot's FK is its via point, to 1e-6 mm, with the start's orientation kept.
     want = expected_xyz(name)
-    poses = np.array([fk(row) for row in q])
+    poses = np.array([fk(row, DEFAULT_ARM) for row in q])
     assert np.abs(poses[:, :3, 3] - want).max() < 1e-9
-    assert np.abs(poses[:, :3, :3] - fk(UNFOLDED)[:3, :3]).max() < 1e-9
+    assert np.abs(poses[:, :3, :3] - fk(UNFOLDED, DEFAULT_ARM)[:3, :3]).max() < 1e-9
     assert np.abs(np.array(traj.via_xyz) - want).max() < 1e-9
     assert bool(traj.accelerations) == (interpolation == "quintic")
     JointTrajectory(traj)  # a valid message for the controller
@@ -124,11 +124,11 @@ def test_relative_types_resolve_against_first_and_previous() -> None:
          "0 0 30 0 0 0 0 0 0 0 0 0 3 1", "250 100 250 0 0 0 0 0 -60 0 0 0 4 0"]
     )  # fmt: skip
     traj = ok(plan_text(text))
-    p0 = fk(UNFOLDED)[:3, 3]
+    p0 = fk(UNFOLDED, DEFAULT_ARM)[:3, 3]
     offsets = np.array([[0, 0, 0], [0, 0.01, 0], [0, 0.02, 0], [0, 0, 0.03]])
     want = np.vstack([p0 + offsets, [0.25, 0.1, 0.25]])
     assert np.abs(np.array(traj.via_xyz) - want).max() < 1e-9
-    R_last = fk(np.array(traj.positions[-1]))[:3, :3]
+    R_last = fk(np.array(traj.positions[-1]), DEFAULT_ARM)[:3, :3]
     assert np.degrees(matrix_to_ypr(R_last)) == pytest.approx([0.0, -60.0, 0.0], abs=1e-7)
 
 
@@ -136,7 +136,7 @@ def test_angles_add_in_yaw_pitch_roll() -> None:
     # File order yaw ROLL pitch: +10 deg of roll, then +5 deg of yaw.
     text = f"{START}\n0 0 0 0 0 0 0 10 0 0 0 0 1 2\n0 0 0 0 0 0 5 0 0 0 0 0 2 2\n"
     traj = ok(plan_text(text))
-    ypr = [np.degrees(matrix_to_ypr(fk(np.array(q))[:3, :3])) for q in traj.positions]
+    ypr = [np.degrees(matrix_to_ypr(fk(np.array(q), DEFAULT_ARM)[:3, :3])) for q in traj.positions]
     assert ypr[1] == pytest.approx([0.0, -60.0, 10.0], abs=1e-7)
     assert ypr[2] == pytest.approx([5.0, -60.0, 10.0], abs=1e-7)
 
@@ -146,7 +146,7 @@ def test_boundary_velocities_go_through_the_jacobian() -> None:
     text = f"{START}\n0 50 0 0 20 0 0 0 0 3 0 0 4 2\n"
     traj = ok(plan_text(text))
     q_last, v_last = np.array(traj.positions[-1]), np.array(traj.velocities[-1])
-    twist = jacobian(q_last) @ v_last
+    twist = jacobian(q_last, DEFAULT_ARM) @ v_last
     assert twist[:3] == pytest.approx([0.0, 0.02, 0.0], abs=1e-12)
     assert twist[3:] == pytest.approx([0.0, 0.0, math.radians(3.0)], abs=1e-12)  # yaw is about z
 

@@ -11,6 +11,7 @@ from manus.config import UNFOLDED_Q_DEG
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
 from manus.viapoints import load_path
+from schemas import endpoints as ep
 from schemas.planning import Path, PlanReply, PlanRequest
 from schemas.state import JointState
 from services.planner.core import PlannerCore
@@ -28,7 +29,7 @@ def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
         PlannerShell(zenoh_settings) as shell,
         Node("test_client", zenoh_settings, liveliness=False) as client,
     ):
-        key = client.keys.plan
+        key = client.keys(ep.PLAN)
         assert key == "test/planner/plan"
 
         def answers() -> bool:
@@ -52,7 +53,7 @@ def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
 
         # The newest valid joint state becomes the default start.
         other = [0.2, *UNFOLDED[1:]]
-        publisher = client.publisher(client.keys.joints)
+        publisher = client.publisher(client.keys(ep.JOINTS))
         state = JointState(stamp_ns=1, seq=1, position=other, gripper=0.0, valid=True,
                            mode="joint", encoder=[0] * 7, applied=[0] * 8,
                            applied_kind="none", applied_seq=-1)  # fmt: skip

@@ -9,12 +9,13 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from schemas.endpoints import ESTOP, FLIGHT_TRIGGER, LIVELINESS, PLAYBACK_CONTROL
 from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording
-from services.recorder.replay import SERVICE_OUTPUTS, SERVICE_QUERYABLES, schedule
+from services.recorder.replay import schedule, service_outputs_table, service_queryables_table
 
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
@@ -141,6 +142,7 @@ def test_exchanges_of_the_thesis_recording() -> None:
 
 def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None:
     recording = Recording(SQUARE)
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     assert SERVICE_OUTPUTS["planner"] == ()
     assert schedule(recording, as_service="planner") == []
     assert set(SERVICE_QUERYABLES) <= set(SERVICE_OUTPUTS)
@@ -151,13 +153,14 @@ def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None
 
 
 def test_the_stand_in_tables_cover_every_key_of_the_schemas() -> None:
-    """Every published key has one publishing service (estop and recorder/trigger: anyone;
-    liveliness: the recorder's channel), every queryable one serving service (but
-    replay/control, which a replay serves about itself)."""
+    """Every published key has one publishing service (estop and the flight recorder's
+    trigger: anyone; liveliness: the recorder's channel), every queryable one serving
+    service (but the replay's own control, answered by the replay about itself)."""
+    SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     names = set(channel_types())
-    published = {n for n in names if "#" not in n} - {"estop", "liveliness", "recorder/trigger"}
+    published = {n for n in names if "#" not in n} - {ESTOP, LIVELINESS, FLIGHT_TRIGGER}
     outputs = [s for out in SERVICE_OUTPUTS.values() for s in out]
     assert sorted(outputs) == sorted(published)
-    queryables = {n.split("#")[0] for n in names if "#" in n} - {"replay/control"}
+    queryables = {n.split("#")[0] for n in names if "#" in n} - {PLAYBACK_CONTROL}
     served = [q for qs in SERVICE_QUERYABLES.values() for q in qs]
     assert sorted(served) == sorted(queryables)

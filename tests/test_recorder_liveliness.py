@@ -15,6 +15,7 @@ import msgpack
 import pytest
 import zenoh
 
+from manus.config import DEFAULT_ARM
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.cli import main
@@ -195,7 +196,7 @@ def test_every_reader_copes_with_the_liveliness_channel(
     ]
     assert [msgpack.unpackb(r.payload) for r in rec.messages(["liveliness"])] == exported
 
-    plain, lively = load_plot_data(SQUARE), load_plot_data(path)
+    plain, lively = load_plot_data(SQUARE, DEFAULT_ARM), load_plot_data(path, DEFAULT_ARM)
     assert lively.executed.tolist() == plain.executed.tolist()
     assert check_controller(path).ok and check_planner(path).ok
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from manus.node import Node, QueryError
 from manus.session import ZenohSettings
 from manus_stack.cli import main
+from schemas import endpoints as ep
 from schemas.commands import ArmCommand
 from schemas.liveliness import LivelinessChange
 from schemas.planning import PlanReply, PlanRequest
@@ -56,7 +57,7 @@ def two_plans(path: Path) -> Path:
 
 def ask(node: Node, payload: bytes, timeout: float = 5.0) -> bytes | str:
     """The raw reply to a plan query: its bytes, or the error text."""
-    for reply in node.session.get(node.keys.plan, payload=payload, timeout=timeout):
+    for reply in node.session.get(node.keys(ep.PLAN), payload=payload, timeout=timeout):
         if reply.ok is not None:
             return reply.ok.payload.to_bytes()
         assert reply.err is not None
@@ -81,7 +82,7 @@ def test_standing_in_for_the_planner_answers_live_queries_from_the_recording(
             assert (host, os.getpid()) in client.service_hosts()["planner"]
             # a typed query, as the sequencer asks: the circle's recorded reply, exactly,
             # although the square's comes first in the recording
-            got = client.query(client.keys.plan, PlanRequest.decode(CIRCLE[0]), PlanReply)
+            got = client.query(client.keys(ep.PLAN), PlanRequest.decode(CIRCLE[0]), PlanReply)
             assert got.encode() == CIRCLE[1]
             refused = ask(client, b"\xc1")  # not a PlanRequest: refused, nothing used
             assert isinstance(refused, str) and refused.startswith("error: planner (replay): ")
@@ -91,7 +92,7 @@ def test_standing_in_for_the_planner_answers_live_queries_from_the_recording(
             assert isinstance(last, str) and last.startswith(f"error: {path}: no recorded")
             assert "planner/plan (all 2 used" in last
             try:
-                client.query(client.keys.plan, PlanRequest.decode(SQUARE[0]), PlanReply)
+                client.query(client.keys(ep.PLAN), PlanRequest.decode(SQUARE[0]), PlanReply)
             except QueryError as exc:
                 assert str(path) in str(exc) and "planner/plan" in str(exc)
             else:
@@ -161,12 +162,12 @@ def test_standing_in_for_the_bridge_declares_its_queryable_and_token(
     ):
         eventually(lambda: "can_bridge" in client.alive_services(), what="alive/can_bridge")
         errors = []
-        for reply in client.session.get(client.keys.bridge_command, payload=b"\x80"):
+        for reply in client.session.get(client.keys(ep.BRIDGE_COMMAND), payload=b"\x80"):
             assert reply.err is not None
             errors.append(reply.err.payload.to_bytes().decode())
         assert len(errors) == 1 and "ArmCommand" in errors[0]  # refused as the bridge would
         replies = list(
-            client.session.get(client.keys.bridge_command, payload=ArmCommand("stop").encode())
+            client.session.get(client.keys(ep.BRIDGE_COMMAND), payload=ArmCommand("stop").encode())
         )
         assert len(replies) == 1 and replies[0].err is not None
         text = replies[0].err.payload.to_bytes().decode()

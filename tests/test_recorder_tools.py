@@ -19,7 +19,6 @@ from manus_stack.cli import main
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_run
 from manus_stack.regression import (
-    CONTROLLER_INPUTS,
     EVERYTHING,
     check_controller,
     check_planner,
@@ -32,6 +31,7 @@ from schemas.liveliness import LIVELINESS, LivelinessChange
 from schemas.state import CanFrame
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
+from services.controller.wiring import WIRING as CONTROLLER
 from services.recorder.errors import RecordingError
 from services.recorder.export import export_candump
 from services.recorder.reading import Recording, decode
@@ -251,8 +251,8 @@ def test_a_live_check_feeds_only_what_came_while_the_first_process_listened(
     start, end = service_window(rec, "controller")
     assert (start - first, end - first) == (500_000_000, 15_000_000_000)
     last_out = max(r.log_ns for r in rec.messages(["cmd/joint_velocity"]))
-    fed = [r for r in rec.messages(CONTROLLER_INPUTS) if start <= r.log_ns <= last_out]
-    assert 0 < len(fed) < sum(1 for _ in rec.messages(CONTROLLER_INPUTS))
+    fed = [r for r in rec.messages(CONTROLLER.input_suffixes) if start <= r.log_ns <= last_out]
+    assert 0 < len(fed) < sum(1 for _ in rec.messages(CONTROLLER.input_suffixes))
     assert check_controller(late).inputs == len(fed)
     # Lock-step recordings have no liveliness channel: everything is fed.
     assert service_window(Recording(SQUARE), "controller") == EVERYTHING

@@ -22,6 +22,7 @@ from manus.session import ZenohSettings
 from manus.viapoints import load_path
 from manus_stack.cli import main
 from manus_stack.regression import check_planner
+from schemas import endpoints as ep
 from schemas.commands import EStop
 from schemas.control import GoalAck, TrajectoryGoal
 from schemas.liveliness import LivelinessChange
@@ -77,15 +78,14 @@ def test_live_planner_queries_are_recorded_and_replay_through_the_core(
 
         def answered() -> bool:
             try:
-                client.query(
-                    client.keys.plan, PlanRequest(path=square, start=start), PlanReply, timeout=1.0
-                )
+                request = PlanRequest(path=square, start=start)
+                client.query(client.keys(ep.PLAN), request, PlanReply, timeout=1.0)
             except QueryError:
                 return False
             return True
 
         eventually(answered, what="planner answers")
-        client.query(client.keys.plan, PlanRequest(path=square), PlanReply)  # refused: no state
+        client.query(client.keys(ep.PLAN), PlanRequest(path=square), PlanReply)  # refused: no state
         eventually(lambda: recorder.samples_recorded >= 4, what="mirrors recorded")
         assert recorder.samples_recorded == 4
     rec = Recording(out)
@@ -125,12 +125,12 @@ def test_replay_as_bridge_drives_a_live_controller_to_the_recorded_commands(
         Node("listener", zenoh_settings, liveliness=False) as listener,
         Replayer(zenoh_settings) as replayer,
     ):
-        listener.subscribe_raw(listener.keys.joint_velocity, on_command)
+        listener.subscribe_raw(listener.keys(ep.JOINT_VELOCITY), on_command)
         assert replayer.wait_for_subscribers(["state/joints", "state/status"])
         time.sleep(0.2)  # the listener's subscription reaches the router too
         replayer.play(before, rate=None)
         eventually(lambda: len(got) >= n_before, what="commands before the goal")
-        ack = listener.query(listener.keys.goal, goal, GoalAck)
+        ack = listener.query(listener.keys(ep.GOAL), goal, GoalAck)
         assert ack.accepted, ack.reason
         replayer.play(after, rate=None)
         eventually(lambda: len(got) >= len(recorded), timeout=20.0, what="every command")
@@ -162,7 +162,7 @@ def _start_recorder(endpoint: str, out: Path) -> subprocess.Popen[str]:
 def _publish(settings: ZenohSettings, count: int) -> None:
     with Node("pub", settings, liveliness=False) as node:
         pub = node.session.declare_publisher(
-            node.keys.estop, congestion_control=zenoh.CongestionControl.BLOCK
+            node.keys(ep.ESTOP), congestion_control=zenoh.CongestionControl.BLOCK
         )
         eventually(lambda: matching(pub), what="the recorder subscribed")
         for i in range(count):
@@ -223,7 +223,7 @@ def test_manus_replay_command_publishes_the_selection(
     total = len(schedule(Recording(SQUARE), ["state/**"], "can_bridge"))
     with RecorderShell(zenoh_settings, out) as recorder:
         with Node("probe", zenoh_settings, liveliness=False) as probe:
-            pub = probe.session.declare_publisher(probe.keys.joints)
+            pub = probe.session.declare_publisher(probe.keys(ep.JOINTS))
             eventually(lambda: matching(pub), what="the recorder subscribed")
             pub.undeclare()
         args = ["replay", str(SQUARE), "--max", "--only", "state/**", "--as", "can_bridge"]

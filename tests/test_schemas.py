@@ -11,6 +11,7 @@ import msgpack
 import pytest
 
 from manus.errors import SchemaError
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.keys import Keys, channel_types
 from schemas.planning import Path, PlanRequest, ViaPoint
@@ -133,6 +134,6 @@ def test_nested_errors_name_the_path() -> None:
 
 def test_keys_are_rooted_at_the_prefix() -> None:
     k = Keys("lab/arm2")
-    assert k.joints == "lab/arm2/state/joints"
+    assert k(ep.JOINTS) == "lab/arm2/state/joints"
     assert k.alive("controller") == "lab/arm2/alive/controller"
-    assert k.suffix(k.joints) == "state/joints"
+    assert k.suffix(k(ep.JOINTS)) == "state/joints"

@@ -134,9 +134,9 @@ def test_only_the_controller_may_publish_velocity_commands(lab: Lab) -> None:
     assert inbox.wait_for(b"controller-2")
     time.sleep(QUIET_S)
     assert not [p for p in inbox.items if p.startswith(b"rogue")], inbox.items
-    # The rogue's other publications do go through: the rule is about commands only.
-    state = Inbox(bridge, "manus/state/probe")
-    assert _put_until_received(rogue, state, "manus/state/probe", b"state ok")
+    # The simulator's own publication goes through: the rules follow the owners.
+    truth = Inbox(bridge, "manus/sim/truth")
+    assert _put_until_received(rogue, truth, "manus/sim/truth", b"truth ok")
 
 
 def test_without_or_with_a_wrong_password_no_session(lab: Lab, tmp_path: Path) -> None:
@@ -289,3 +289,58 @@ def test_manus_certs_writes_the_lab_with_extra_arm_names(tmp_path: Path) -> None
     users = (out / "users-arm.txt").read_text().splitlines()
     assert (out / "controller.usrpwd").read_text().strip() in users
     assert (out / "ca.key").stat().st_mode & 0o077 == 0, "private key readable by others"
+
+
+def test_no_impostors_through_the_tls_link_as_deployed(lab: Lab) -> None:
+    """A rogue client on the base computer (a real identity: the supervisor's, then the
+    recorder's) cannot publish another service's keys, answer another service's
+    queryable, or hold another service's liveliness token; the owners still can. The
+    policy is the one generated from the endpoint table (manus_stack/policy.py)."""
+    arm = lab.router_arm()
+    lab.router_base()
+    assert _until(lambda: len(list(arm.info.routers_zid())) == 1), "no TLS link"
+    bridge = lab.client("can_bridge", lab.arm_tcp)
+    controller = lab.client("controller", lab.arm_tcp)
+    sequencer = lab.client("sequencer", lab.base_tcp)
+    for name in ("supervisor", "recorder"):
+        rogue = lab.client(name, lab.base_tcp)
+        # Publish: fake joint states (the bridge's) and heartbeats (the sequencer's).
+        joints = Inbox(controller, "manus/state/joints")
+        beats = Inbox(controller, "manus/heartbeat")
+        for _ in range(5):
+            rogue.put("manus/state/joints", b"fake joints")
+            rogue.put("manus/heartbeat", b"fake beat")
+            time.sleep(0.05)
+        assert _put_until_received(bridge, joints, "manus/state/joints", b"real joints")
+        assert _put_until_received(sequencer, beats, "manus/heartbeat", b"real beat")
+        time.sleep(QUIET_S)
+        assert b"fake joints" not in joints.items and b"fake beat" not in beats.items, name
+        # Declare: answer the planner's queryable; hold the controller's token.
+        fake_plan = _answering(rogue, "manus/planner/plan")
+        token = rogue.liveliness().declare_token("manus/alive/controller")
+        time.sleep(QUIET_S)
+        assert _replies(sequencer, "manus/planner/plan", 0.5) == [], name
+        tokens = sequencer.liveliness().get("manus/alive/**", timeout=0.5)
+        assert [str(r.ok.key_expr) for r in tokens if r.ok is not None] == [], name
+        token.undeclare()
+        fake_plan.undeclare()
+    # The owners can: the planner answers its queryable, the controller holds its token.
+    planner = lab.client("planner", lab.base_tcp)
+    real_plan = _answering(planner, "manus/planner/plan")
+    assert _until(lambda: bool(_replies(sequencer, "manus/planner/plan", 0.3)))
+    assert _replies(sequencer, "manus/planner/plan") == [b"accepted manus/planner/plan"]
+    token = controller.liveliness().declare_token("manus/alive/controller")
+
+    def alive() -> list[str]:
+        replies = sequencer.liveliness().get("manus/alive/**", timeout=0.5)
+        return [str(r.ok.key_expr) for r in replies if r.ok is not None]
+
+    assert _until(lambda: alive() == ["manus/alive/controller"])
+    token.undeclare()
+    real_plan.undeclare()
+
+
+def test_the_deployed_policy_is_generated_from_the_endpoint_table() -> None:
+    from manus_stack.policy import main
+
+    assert main(["--check"]) == 0, "run: python -m manus_stack.policy"

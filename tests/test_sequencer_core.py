@@ -11,7 +11,7 @@ from pathlib import Path as FilePath
 
 import pytest
 
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import fk
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
@@ -244,8 +244,8 @@ def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
     reply = PlannerCore().plan(PlanRequest(path=pose_path("home", 4.0), start=start,
                                            speed_scaling=True))  # fmt: skip
     assert reply.ok and reply.trajectory is not None
-    end = fk(reply.trajectory.positions[-1])[:3, 3]
-    assert end == pytest.approx(fk(UNFOLDED)[:3, 3], abs=1e-6)
+    end = fk(reply.trajectory.positions[-1], DEFAULT_ARM)[:3, 3]
+    assert end == pytest.approx(fk(UNFOLDED, DEFAULT_ARM)[:3, 3], abs=1e-6)
 
 
 def test_remainder_path_keeps_the_unreached_knots_and_their_pace() -> None:

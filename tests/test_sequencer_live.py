@@ -17,9 +17,11 @@ import can
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.kinematics import fk
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.control import GoalResult
 from schemas.sequencing import TaskEvent
 from schemas.state import JointState
@@ -65,9 +67,9 @@ class LiveStack:
         self.client = TaskClient(self.node)
         self.joints: list[tuple[float, JointState]] = []
         self.results: list[GoalResult] = []
-        self.node.subscribe(self.node.keys.joints, JointState,
+        self.node.subscribe(self.node.keys(ep.JOINTS), JointState,
                             lambda m, rx: self.joints.append((time.monotonic(), m)))  # fmt: skip
-        self.node.subscribe(self.node.keys.result, GoalResult,
+        self.node.subscribe(self.node.keys(ep.RESULT), GoalResult,
                             lambda m, rx: self.results.append(m))  # fmt: skip
         self.bridge.start()
         self.sim.start()
@@ -143,7 +145,7 @@ def test_pause_resume_with_the_real_controller(live: LiveStack) -> None:
     assert [r.status for r in paths] == ["cancelled", "succeeded"]
     # the arm ends where the uninterrupted path would have: start + (0, 100, 50) mm
     last = live.joints[-1][1].position
-    moved = (fk(last)[:3, 3] - fk(first)[:3, 3]) * 1e3
+    moved = (fk(last, DEFAULT_ARM)[:3, 3] - fk(first, DEFAULT_ARM)[:3, 3]) * 1e3
     assert np.allclose(moved, [0.0, 100.0, 50.0], atol=3.0)
 
 

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.kinematics import fk
 from manus_stack.task_lockstep import TaskLockStep
 from schemas.commands import ArmCommand, EStop
@@ -137,7 +138,7 @@ def test_pause_and_resume_finish_the_path_where_it_would_have_ended() -> None:
     first, second = goals
     assert second.trajectory.via_xyz[-1] == pytest.approx(first.trajectory.via_xyz[-1], abs=1e-6)
     final = [s for (t, s) in rig.joint_states()][-1]
-    reached = fk(final.position)[:3, 3]
+    reached = fk(final.position, DEFAULT_ARM)[:3, 3]
     assert np.linalg.norm(reached - np.asarray(first.trajectory.via_xyz[-1])) < 0.005
 
 

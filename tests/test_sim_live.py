@@ -31,6 +31,7 @@ from manus.protocol import (
     sync_frame,
 )
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.state import SimTruth
 from services.simulator.config import SimConfig
 from services.simulator.core import SimCore
@@ -179,7 +180,7 @@ def test_truth_is_published_once_per_cycle(
         Node("test-listener", zenoh_settings) as listener,
         Node("simulator", zenoh_settings) as node,
     ):
-        listener.subscribe(node.keys.sim_truth, SimTruth, lambda m, _rx: got.append(m))
+        listener.subscribe(node.keys(ep.SIM_TRUTH), SimTruth, lambda m, _rx: got.append(m))
         live = LiveSim(SimCore(FAST), arm, on_snapshot=TruthPublisher(node))
         live.start()
         try:

@@ -13,6 +13,7 @@ from pathlib import Path
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.status import collect, format_status
+from schemas import endpoints as ep
 from schemas.keys import Keys
 from schemas.state import ArmStatus
 from tests.test_sequencer_core import bridge_state
@@ -26,8 +27,8 @@ def _arm_status() -> ArmStatus:
 
 
 def _publish_until(stop: threading.Event, node: Node) -> None:
-    bridge = node.publisher(node.keys.bridge_state)
-    arm = node.publisher(node.keys.status)
+    bridge = node.publisher(node.keys(ep.BRIDGE_STATE))
+    arm = node.publisher(node.keys(ep.STATUS))
     state = bridge_state("running", seq=7, detail="fold_out complete")
     while not stop.wait(0.05):
         bridge.put(state)

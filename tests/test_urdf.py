@@ -9,7 +9,7 @@ import pinocchio as pin
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manus.config import ArmConfig
+from manus.config import DEFAULT_ARM, ArmConfig
 from manus.kinematics import fk
 from manus.urdf import build_urdf, shipped_urdf_path
 
@@ -35,7 +35,7 @@ def test_model_has_six_revolute_joints_with_the_configured_limits() -> None:
 @given(st.lists(st.floats(-math.pi, math.pi, allow_nan=False), min_size=6, max_size=6))
 def test_pinocchio_fk_equals_ours(q: list[float]) -> None:
     pin.framesForwardKinematics(MODEL, DATA, np.array(q))
-    assert np.abs(DATA.oMf[FRAME].homogeneous - fk(np.array(q))).max() < 1e-12
+    assert np.abs(DATA.oMf[FRAME].homogeneous - fk(np.array(q), DEFAULT_ARM)).max() < 1e-12
 
 
 def test_other_lengths_give_a_matching_model(tmp_path: object) -> None:

@@ -106,7 +106,7 @@ def _check_links(world: dict[str, np.ndarray], q: list[float]) -> None:
         expected = frames[i].copy()
         expected[:3, :3] = expected[:3, :3] @ rot_z(q[i])
         np.testing.assert_allclose(world[link], expected, atol=1e-9, err_msg=link)
-    np.testing.assert_allclose(world[GRIPPER_FRAME], fk(q), atol=1e-9)
+    np.testing.assert_allclose(world[GRIPPER_FRAME], fk(q, DEFAULT_ARM), atol=1e-9)
 
 
 # -- the model -----------------------------------------------------------------------------
@@ -114,7 +114,7 @@ def _check_links(world: dict[str, np.ndarray], q: list[float]) -> None:
 
 @given(st.lists(angles, min_size=6, max_size=6), st.floats(0.0, 0.09))
 def test_link_transforms_compose_to_the_forward_kinematics(q: list[float], gripper: float) -> None:
-    tfs = link_transforms(q, gripper)
+    tfs = link_transforms(q, gripper, DEFAULT_ARM)
     world = _world([(t.parent, t.child, _matrix(t.translation, t.rotation)) for t in tfs])
     _check_links(world, q)
     # the fingers open symmetrically by the gripper opening (plus their own width)
@@ -154,11 +154,11 @@ def _joints(urdf: str) -> dict[str, dict[str, Any]]:
 
 
 def test_visual_urdf_has_the_joints_of_the_stack_urdf_and_geometry() -> None:
-    ours, stack = _joints(build_visual_urdf()), _joints(build_urdf())
+    ours, stack = _joints(build_visual_urdf(DEFAULT_ARM)), _joints(build_urdf())
     for name, joint in stack.items():
         assert ours[name] == joint, name
     assert {"finger_left", "finger_right"} <= set(ours)
-    root = ET.fromstring(build_visual_urdf())
+    root = ET.fromstring(build_visual_urdf(DEFAULT_ARM))
     assert all(link.find("visual") is not None for link in root.iter("link"))
     assert not any("filename" in el.attrib for el in root.iter())  # no mesh to fetch
 
@@ -235,7 +235,7 @@ def test_core_is_deterministic_and_counts_garbage() -> None:
     assert core.stats.bad_payloads == {"state/joints": 1, "controller/feedback": 1}
     assert core.stats.ignored == 1
     desc = core.robot_description(9)
-    assert json.loads(desc.data)["data"] == build_visual_urdf()
+    assert json.loads(desc.data)["data"] == build_visual_urdf(DEFAULT_ARM)
 
 
 def test_json_export_holds_the_viewer_channels_so_the_arm_moves(tmp_path: Path) -> None:
@@ -405,7 +405,7 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
     ent = got.messages[planned_topic][-1][1]["entities"][0]
     assert ent["id"] == "goal" and len(ent["lines"][0]["points"]) > 100
     # the URDF is served as an asset; an unknown asset is refused
-    assert got.assets[0] == build_visual_urdf().encode()
+    assert got.assets[0] == build_visual_urdf(DEFAULT_ARM).encode()
     assert isinstance(got.assets.get(1, "error"), str)
     # the bad client was answered or ignored and counted; nothing reached the bus
     assert isinstance(stats["client_problems"], int) and stats["client_problems"] >= 3, stats

@@ -39,6 +39,7 @@ import numpy as np
 from manus.node import Node
 from manus.protocol import BITRATE
 from manus.session import client_settings, open_session, router_settings
+from schemas import endpoints as ep
 from schemas.commands import JointVelocityCommand
 from schemas.state import JointState
 from services.can_bridge.main import GIL_SWITCH_S, open_arm_bus
@@ -70,10 +71,10 @@ class _Controller:
 
     def __init__(self, node: Node) -> None:
         self.node = node
-        self.pub = node.publisher(node.keys.joint_velocity)
+        self.pub = node.publisher(node.keys(ep.JOINT_VELOCITY))
         self.delivery_ns: list[int] = []
         self.seq = 0
-        node.subscribe(node.keys.joints, JointState, self._on_state)
+        node.subscribe(node.keys(ep.JOINTS), JointState, self._on_state)
 
     def _on_state(self, js: JointState, rx_ns: int) -> None:
         self.delivery_ns.append(rx_ns - js.stamp_ns)

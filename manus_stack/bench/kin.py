@@ -24,7 +24,7 @@ def _poses(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     q = rng.uniform(-math.pi, math.pi, (n, 6))
     q[:, 4] = rng.uniform(0.2, 2.0, n) * rng.choice([-1, 1], n)  # away from the wrist singularity
-    return q, fk_batch(q)
+    return q, fk_batch(q, DEFAULT_ARM)
 
 
 def _pinocchio_clik(poses: np.ndarray, seeds: np.ndarray) -> dict[str, Any]:
@@ -73,7 +73,7 @@ def _rtb_ikine_lm(poses: np.ndarray, seeds: np.ndarray) -> dict[str, Any]:
     started = time.perf_counter()
     for T, q0 in zip(poses, seeds, strict=True):
         sol = robot.ikine_LM(SE3(T, check=False), q0=q0)
-        ok += bool(sol.success) and np.abs(fk(sol.q)[:3, 3] - T[:3, 3]).max() < 1e-4
+        ok += bool(sol.success) and np.abs(fk(sol.q, DEFAULT_ARM)[:3, 3] - T[:3, 3]).max() < 1e-4
     elapsed = time.perf_counter() - started
     return {
         "us_per_pose": elapsed / len(poses) * 1e6,
@@ -92,12 +92,12 @@ def run(quick: bool = False) -> dict[str, Any]:
 
     started = time.perf_counter()
     for T in poses[:n_single]:
-        ik_all(T)
+        ik_all(T, DEFAULT_ARM)
     single = (time.perf_counter() - started) / n_single * 1e6
 
-    ik_batch(batch_poses[:100])  # warm up
+    ik_batch(batch_poses[:100], DEFAULT_ARM)  # warm up
     started = time.perf_counter()
-    result = ik_batch(batch_poses)
+    result = ik_batch(batch_poses, DEFAULT_ARM)
     batched = (time.perf_counter() - started) / n_batch * 1e6
     branches = float(result.valid.sum(axis=1).mean())
 

@@ -25,11 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import ik_batch
 from manus.node import Node, QueryError, freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
+from schemas import endpoints as ep
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
 from services.planner.resolve import resolve_path
@@ -81,7 +82,7 @@ def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
         core.plan(request)
     return {
         "full_plan": _stats_ms(_timed(lambda: core.plan(request), runs)),
-        "ik_batch_only": _stats_ms(_timed(lambda: ik_batch(resolved.poses[1:]), runs)),
+        "ik_batch_only": _stats_ms(_timed(lambda: ik_batch(resolved.poses[1:], DEFAULT_ARM), runs)),
         "spline_only": _stats_ms(_timed(spline, runs)),
     }
 
@@ -101,7 +102,7 @@ def _over_zenoh(request: PlanRequest, runs: int) -> dict[str, Any]:
             with Node("bench_client", settings, liveliness=False) as client:
                 freeze_startup_heap()  # as the sequencer, the planner's client, does
                 try:
-                    return _round_trips(client, client.keys.plan, request, runs)
+                    return _round_trips(client, client.keys(ep.PLAN), request, runs)
                 finally:
                     gc.unfreeze()
         finally:

@@ -31,9 +31,10 @@ from typing import Any
 from manus.session import client_settings, open_session, router_settings
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_runs
-from manus_stack.regression import CONTROLLER_INPUTS, check_controller
+from manus_stack.regression import check_controller
 from schemas.base import Message
 from services.controller.core import ControllerCore
+from services.controller.wiring import WIRING as CONTROLLER
 from services.recorder.reading import Recording, decode
 from services.recorder.replay import Replayer, schedule
 from services.recorder.shell import RecorderShell
@@ -103,7 +104,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         lockstep_cpu = time.process_time() - made
         rec = Recording(path)
         span = rec.info.duration_s
-        inputs = [(r.suffix, decode(r)) for r in rec.messages(CONTROLLER_INPUTS)]
+        inputs = [(r.suffix, decode(r)) for r in rec.messages(CONTROLLER.input_suffixes)]
         everything = list(rec.messages())
         nbytes = sum(len(r.payload) for r in everything)
 
@@ -112,7 +113,8 @@ def run(quick: bool = False) -> dict[str, Any]:
         check_s = _best(lambda: check_controller(path), max(1, repeats // 2))
         read_s = _best(lambda: [decode(r) for r in rec.messages()], max(1, repeats // 2))
         io_s = _best(
-            lambda: [decode(r) for r in rec.messages(CONTROLLER_INPUTS)], max(1, repeats // 2)
+            lambda: [decode(r) for r in rec.messages(CONTROLLER.input_suffixes)],
+            max(1, repeats // 2),
         )
 
         def rewrite() -> None:
@@ -124,7 +126,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         thesis_path = Path(tmp) / "thesis_mode.mcap"
         record_thesis_runs(shapes, thesis_path, mode="thesis")
         thesis = Recording(thesis_path)
-        thesis_inputs = [(r.suffix, decode(r)) for r in thesis.messages(CONTROLLER_INPUTS)]
+        thesis_inputs = [(r.suffix, decode(r)) for r in thesis.messages(CONTROLLER.input_suffixes)]
         thesis_s = _best(lambda: _core_replay(thesis_inputs), repeats)
         live = _recorder_zenoh(path, Path(tmp) / "live.mcap")
         return {

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from manus.config import DEFAULT_ARM
 from manus.kinematics import fk
 from manus_stack.demo import demo_task
 from manus_stack.task_lockstep import NS, TaskLockStep
@@ -81,7 +82,7 @@ def _pause_resume() -> dict[str, Any]:
     goals = [r for r in rig.requests if isinstance(r, TrajectoryGoal)]
     final = rig.joint_states()[-1][1]
     end = np.asarray(goals[0].trajectory.via_xyz[-1])
-    miss = float(np.linalg.norm(fk(final.position)[:3, 3] - end)) * 1e3
+    miss = float(np.linalg.norm(fk(final.position, DEFAULT_ARM)[:3, 3] - end)) * 1e3
     return {"state": rig.seq.state, "goals": len(goals), "end_error_mm": round(miss, 3)}
 
 

@@ -36,6 +36,7 @@ import psutil
 from manus.node import Node
 from manus.session import client_settings
 from manus_stack.up import LocalStack, StackOptions
+from schemas.endpoints import BRIDGE_STATE, JOINTS
 from schemas.state import BridgeState, JointState
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "thesis_square.mcap"
@@ -131,13 +132,13 @@ def _run_stack(seconds: float, view: bool) -> dict[str, Any]:
                 def on_joints(js: JointState, rx: int) -> None:
                     delivery.append((rx - js.stamp_ns) / 1e6)
 
-                node.subscribe(node.keys.joints, JointState, on_joints)
+                node.subscribe(node.keys(JOINTS), JointState, on_joints)
 
                 def on_bridge(bs: BridgeState, rx: int) -> None:
                     latency.append(bs.reply_latency_ms)
                     last.append(bs)
 
-                node.subscribe(node.keys.bridge_state, BridgeState, on_bridge)
+                node.subscribe(node.keys(BRIDGE_STATE), BridgeState, on_bridge)
                 client = _Client(f"ws://127.0.0.1:{port}") if view else None
                 deadline = time.monotonic() + 30.0
                 while client is not None and not client.subscribed:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import zenoh
 
+from manus.config import load_arm_config
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import client_settings
 from manus_stack.commands.up import add_stack_arguments, stack_options
@@ -141,7 +142,7 @@ def _overview(recording: Path, out: Path, title: str) -> None:
     from services.recorder.plot import plot_recording
 
     try:
-        summary = plot_recording(recording, out, title=title)
+        summary = plot_recording(recording, out, arm=load_arm_config(), title=title)
     except RecordingError as exc:
         print(f"demo: cannot plot the recording: {exc}", file=sys.stderr)
         return

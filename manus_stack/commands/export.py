@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 
+from manus.config import load_arm_config
 from services.recorder import export_cli
 from services.recorder.reading import Recording
 from services.viewer.core import ViewerConfig, ViewerCore
@@ -28,4 +29,4 @@ def run(args: argparse.Namespace) -> int:
     if not (args.json and args.view):
         return export_cli.run(args)
     prefix = Recording(args.file).info.prefix or "manus"
-    return export_cli.run(args, view=ViewerCore(ViewerConfig(prefix=prefix)))
+    return export_cli.run(args, view=ViewerCore(ViewerConfig(prefix=prefix, arm=load_arm_config())))

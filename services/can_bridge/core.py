@@ -33,6 +33,7 @@ from manus.protocol import (
     move_frame,
 )
 from manus.quantize import Quantizer, RoundingQuantizer
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
 from schemas.state import CanFrame
@@ -86,7 +87,7 @@ class BridgeCore:
         """Seq of the newest joint state published (None before the first)."""
         self.pending: PendingCommand | None = None
         """The newest valid velocity command."""
-        self._seq = {"state/joints": 0, "state/status": 0, "state/bridge": 0, "tx": 0, "rx": 0}
+        self._seq = {ep.JOINTS: 0, ep.STATUS: 0, ep.BRIDGE_STATE: 0, ep.CAN_TX: 0, ep.CAN_RX: 0}
         self._faulted_cycle = -1
         self._last_reply_sync_ns: int | None = None
         self._last_arm_ns: int | None = None
@@ -124,8 +125,8 @@ class BridgeCore:
         it is processed (both [ns], same clock)."""
         out = Outputs()
         self.phases.start(now_ns)
-        self._seq["rx"] += 1
-        out.messages.append(("can/rx", _can_frame(frame, frame.t_ns, self._seq["rx"] - 1)))
+        self._seq[ep.CAN_RX] += 1
+        out.messages.append((ep.CAN_RX, _can_frame(frame, frame.t_ns, self._seq[ep.CAN_RX] - 1)))
         self._last_arm_ns = frame.t_ns
         self.phases.frame_seen()
         p = self.assembler.place(frame)
@@ -223,9 +224,9 @@ class BridgeCore:
 
     def _on_status(self, frame: Frame, p: Placement, cycle: Cycle, out: Outputs) -> None:
         st = decode_status(frame.data)
-        seq = self._seq["state/status"]
-        self._seq["state/status"] += 1
-        out.messages.append(("state/status", arm_status(st, stamp_ns=frame.t_ns, seq=seq)))
+        seq = self._seq[ep.STATUS]
+        self._seq[ep.STATUS] += 1
+        out.messages.append((ep.STATUS, arm_status(st, stamp_ns=frame.t_ns, seq=seq)))
         self._status = (cycle.index, frame) if p.accepted else None
         self.phases.on_status(st, frame.t_ns, cycle)
 
@@ -238,8 +239,8 @@ class BridgeCore:
             return
         applied, kind, applied_seq = self._applied
         valid = self.phases.positions_valid and st.mode in (Mode.JOINT, Mode.FOLD_IN, Mode.FOLD_OUT)
-        seq = self._seq["state/joints"]
-        self._seq["state/joints"] += 1
+        seq = self._seq[ep.JOINTS]
+        self._seq[ep.JOINTS] += 1
         js = joint_state(
             st,
             pos,
@@ -251,7 +252,7 @@ class BridgeCore:
             applied_seq=applied_seq,
         )
         self.newest_state_seq = seq
-        out.messages.insert(0, ("state/joints", js))
+        out.messages.insert(0, (ep.JOINTS, js))
 
     def _plausible(self, fields: tuple[int, ...], cycle: Cycle) -> bool:
         """Position fields may move at most ``max_field_step`` per cycle from the last
@@ -308,8 +309,8 @@ class BridgeCore:
 
     def _emit(self, frame: Frame, now_ns: int, out: Outputs, cmd_seq: int = -1) -> None:
         out.frames.append(frame)
-        self._seq["tx"] += 1
-        out.messages.append(("can/tx", _can_frame(frame, now_ns, self._seq["tx"] - 1)))
+        self._seq[ep.CAN_TX] += 1
+        out.messages.append((ep.CAN_TX, _can_frame(frame, now_ns, self._seq[ep.CAN_TX] - 1)))
         fid = FrameId(frame.id)
         counts = _NO_COUNTS
         if fid == FrameId.JOINT:
@@ -324,13 +325,13 @@ class BridgeCore:
         if not (force or self.phases.changed):
             return
         self.phases.changed = False
-        seq = self._seq["state/bridge"]
-        self._seq["state/bridge"] += 1
+        seq = self._seq[ep.BRIDGE_STATE]
+        self._seq[ep.BRIDGE_STATE] += 1
         ph = self.phases
         state = self.health.state(
             stamp_ns=now_ns, seq=seq, phase=ph.phase, estop=ph.estop, detail=ph.detail
         )
-        out.messages.append(("state/bridge", state))
+        out.messages.append((ep.BRIDGE_STATE, state))
 
 
 def _near(a: tuple[int, ...], b: tuple[int, ...], limit: int) -> bool:

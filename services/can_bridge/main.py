@@ -32,6 +32,7 @@ from manus.errors import ConfigError
 from manus.node import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import add_bus_arguments, bus_settings
+from schemas import endpoints as ep
 from services.can_bridge.config import load_bridge_config
 from services.can_bridge.shell import BridgeShell
 
@@ -120,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
             freeze_startup_heap()  # before the cycle runs: no long collections in it
             shell.start()
             print(
-                f"bridge: {args.can_interface} {channel}, serving {shell.node.keys.bridge_command}",
+                f"bridge: {args.can_interface} {channel}, "
+                f"serving {shell.node.keys(ep.BRIDGE_COMMAND)}",
                 file=sys.stderr,
                 flush=True,
             )

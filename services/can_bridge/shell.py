@@ -3,8 +3,9 @@
 One thread owns the bus. It waits in ``bus.recv``, stamps each frame with its arrival
 time, feeds the core and **sends the core's frames before anything else**: the reply to
 a 0x37F leaves before any Zenoh call of that cycle. Only then are the core's messages
-published (``state/joints`` first when a 0x360 came in). Zenoh callbacks (velocity
-commands, e-stop, the ``bridge/command`` queryable) feed the core under ``node.lock``; the
+published (``state/joints`` first when a 0x360 came in). Zenoh callbacks (the wiring map
+:data:`services.can_bridge.wiring.WIRING`: velocity commands, e-stop, the
+``bridge/command`` queryable) feed the core under ``node.lock``; the
 loop takes the same lock only around the core call itself, never around bus or Zenoh I/O.
 
 Times: the core works on the wall clock in ns (``time.time_ns``), the clock python-can
@@ -28,13 +29,13 @@ import can
 import zenoh
 
 from manus.canbus import from_can, to_can
-from manus.node import Node, Publisher
+from manus.node import Node
 from manus.protocol import FrameId
 from manus.session import ZenohSettings
-from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
 from schemas.state import BridgeState, JointState
 from services.can_bridge.config import BridgeConfig
 from services.can_bridge.core import BridgeCore, Outputs
+from services.can_bridge.wiring import WIRING
 
 log = logging.getLogger("manus.bridge")
 
@@ -46,7 +47,6 @@ MAX_STAMP_AGE_NS = 60_000_000_000
 """A frame timestamp older than this is taken for another clock, not for a buffer [ns]."""
 HEALTH_LOG_NS = 60_000_000_000
 """The health is logged at least this often while nothing changes [ns]."""
-SUFFIXES = ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx")
 
 
 class BridgeShell:
@@ -82,39 +82,20 @@ class BridgeShell:
         self.on_state = on_state
         self.node = Node(SERVICE_NAME, settings, session=session, liveliness=False)
         self.lock = self.node.lock
-        keys = self.node.keys
-        self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in SUFFIXES}
+        self._publish_core = WIRING.attach(self.node, self.core, self._publish, now=clock)
         self.send_errors = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_phase = ""
         self._last_log_ns = 0
-        self.node.subscribe(keys.joint_velocity, JointVelocityCommand, self._on_command)
-        self.node.subscribe(keys.estop, EStop, self._on_estop)
-        self.node.queryable(keys.bridge_command, ArmCommand, self._on_arm_command)
         self.node.on_bad_payload = self._on_bad_payload
         self.node.announce()  # alive once it listens and answers
 
-    # -- Zenoh side (callbacks run under node.lock) -------------------------------------------
-
-    def _on_command(self, cmd: JointVelocityCommand, rx_ns: int) -> None:
-        self._publish(self.core.on_command(cmd, rx_ns))
-
-    def _on_estop(self, msg: EStop, rx_ns: int) -> None:
-        log.warning(
-            "e-stop %s by %s %s", "engaged" if msg.engaged else "released", msg.source, msg.reason
-        )
-        self._publish(self.core.on_estop(msg, rx_ns))
+    # -- Zenoh side (the wiring map's callbacks run under node.lock) ---------------------------
 
     def _on_bad_payload(self, key: str) -> None:
         with self.lock:
             self.core.on_bad_payload()
-
-    def _on_arm_command(self, req: ArmCommand) -> ArmCommandReply:
-        reply, out = self.core.on_arm_command(req, self.clock())
-        log.info("arm command %s from %s: %s", req.action, req.source or "?", reply.message)
-        self._publish(out)
-        return reply
 
     # -- the receive loop ---------------------------------------------------------------------
 
@@ -200,12 +181,8 @@ class BridgeShell:
                     self.on_reply(sync_ns, sent)
 
     def _publish(self, out: Outputs) -> None:
-        for suffix, msg in out.messages:
-            pub = self._pubs.get(suffix)
-            if pub is None:
-                log.error("core published on unknown key suffix %r", suffix)
-                continue
-            pub.put(msg)
+        self._publish_core(out)  # every message on its output (an unknown one: WiringError)
+        for _, msg in out.messages:
             if self.on_state is not None and isinstance(msg, JointState):
                 self.on_state(msg.stamp_ns, self.clock())
             if isinstance(msg, BridgeState):

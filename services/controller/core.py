@@ -34,6 +34,7 @@ from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.trajectory import TrajectoryError
+from schemas import endpoints as ep
 from schemas.control import (
     CancelGoal,
     GoalAck,
@@ -433,10 +434,10 @@ class ControllerCore:
         counts = np.asarray(counts, dtype=np.int64)
         self.last_counts = counts
         cmd = self.outbox.command(js, counts, grip)
-        out: Output = [("cmd/joint_velocity", cmd)]
+        out: Output = [(ep.JOINT_VELOCITY, cmd)]
         if xyz is not None:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
-            out.append(("controller/feedback", fb))
+            out.append((ep.FEEDBACK, fb))
         return out + self._flush(js.stamp_ns)
 
 

@@ -13,6 +13,7 @@ import sys
 from manus.config import load_arm_config
 from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
+from schemas import endpoints as ep
 from services.controller.config import QUANTIZERS, ControllerConfig
 from services.controller.shell import ControllerShell
 
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     with ControllerShell(settings, config) as shell:
         freeze_startup_heap()
-        print(f"controller: serving {shell.node.keys.goal}", file=sys.stderr, flush=True)
+        print(f"controller: serving {shell.node.keys(ep.GOAL)}", file=sys.stderr, flush=True)
         stop.wait()
         with shell.node.lock:
             stats = {"sent": dict(shell.sent), "bad_payloads": shell.node.bad_payload_count}

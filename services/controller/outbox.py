@@ -16,6 +16,7 @@ from manus.config import ArmConfig
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
 from schemas.control import ControllerFeedback, GoalResult
@@ -50,7 +51,7 @@ class Outbox:
         out: Output = []
         for r in self._queued:
             out.append(
-                ("controller/result", dataclasses.replace(r, stamp_ns=stamp_ns, seq=self._res_seq))
+                (ep.RESULT, dataclasses.replace(r, stamp_ns=stamp_ns, seq=self._res_seq))
             )
             self._res_seq += 1
         self._queued.clear()

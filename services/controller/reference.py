@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from manus.config import DEFAULT_ARM, ArmConfig
+from manus.config import ArmConfig
 from manus.kinematics import fk_position
 from manus.trajectory import JointTrajectory, Sample, quintic_coefficients
 from schemas.planning import Trajectory
@@ -36,7 +36,8 @@ class Reference:
         msg: Trajectory,
         blend: np.ndarray | None = None,
         blend_s: float = 0.0,
-        arm: ArmConfig = DEFAULT_ARM,
+        *,
+        arm: ArmConfig,
     ) -> None:
         self.arm = arm
         self.traj = JointTrajectory(msg)
@@ -101,12 +102,10 @@ class Reference:
         c = quintic_coefficients(
             old.q - first.q, old.qd - first.qd, old.qdd - first.qdd, zero, zero, zero, blend_s
         )
-        return Reference(msg, c, blend_s, self.arm)
+        return Reference(msg, c, blend_s, arm=self.arm)
 
 
-def rest_to_rest(
-    q0: np.ndarray, q1: np.ndarray, duration_s: float, arm: ArmConfig = DEFAULT_ARM
-) -> Trajectory:
+def rest_to_rest(q0: np.ndarray, q1: np.ndarray, duration_s: float, arm: ArmConfig) -> Trajectory:
     """A two-knot quintic trajectory from ``q0`` to ``q1`` [rad], at rest at both ends.
 
     Used for the thesis mode's final approach (it re-plans locally, in joint space).

@@ -1,13 +1,11 @@
 """The controller's live shell: :class:`ControllerCore` on Zenoh.
 
-Subscribes ``<prefix>/state/joints``, ``<prefix>/state/status`` and
-``<prefix>/state/bridge`` (goals run only while the bridge is ``running``) and
-``<prefix>/heartbeat`` (the supervisor's deadman, for goals with ``heartbeat_timeout``); answers the
-queryables ``controller/goal`` (TrajectoryGoal), ``controller/gripper`` (GripperGoal),
-``controller/cancel`` (CancelGoal) and ``controller/speed_scale`` (SpeedScale), each with
-a GoalAck; publishes what the core returns on ``cmd/joint_velocity``,
-``controller/feedback`` and ``controller/result``. Everything runs under the node lock,
-so the core sees one message at a time, in arrival order.
+Its subscriptions, queryables and publishers are those of its wiring map
+(:data:`services.controller.wiring.WIRING`): the bridge's joint states, status and phase
+(goals run only while the bridge is ``running``), the supervisor's deadman heartbeat;
+goals, gripper goals, cancels and speed scaling, each answered with a GoalAck; commands,
+feedback and results out. Everything runs under the node lock, so the core sees one
+message at a time, in arrival order.
 """
 
 from __future__ import annotations
@@ -17,18 +15,13 @@ from collections import Counter
 
 import zenoh
 
-from manus.node import Node, Publisher
+from manus.node import Node
 from manus.session import ZenohSettings
-from schemas.base import Message
-from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
-from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
+from services.controller.wiring import WIRING
 
 log = logging.getLogger("manus.controller")
-
-PUBLISHED = ("cmd/joint_velocity", "controller/feedback", "controller/result")
-"""Key suffixes the controller publishes on."""
 
 
 class ControllerShell:
@@ -53,40 +46,13 @@ class ControllerShell:
         self.core = ControllerCore(config)
         self.node = Node("controller", settings, session=session, liveliness=False)
         self.sent: Counter[str] = Counter()
-        keys = self.node.keys
-        self._pubs: dict[str, Publisher] = {s: self.node.publisher(keys(s)) for s in PUBLISHED}
-        self.node.subscribe(keys.joints, JointState, self._on_joint_state)
-        self.node.subscribe(keys.status, ArmStatus, self._on_status)
-        self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
-        self.node.subscribe(keys.heartbeat, Heartbeat, self._on_heartbeat)
-        self.node.queryable(keys.goal, TrajectoryGoal, self._on_goal)
-        self.node.queryable(keys.gripper_goal, GripperGoal, self.core.submit_gripper)
-        self.node.queryable(keys.cancel, CancelGoal, self.core.cancel)
-        self.node.queryable(keys.speed_scale, SpeedScale, self.core.set_speed_scale)
+        self._publish = WIRING.attach(self.node, self.core, self._deliver)
         self.node.announce()  # alive once it listens and answers
 
-    def _publish(self, out: Output) -> None:
-        for suffix, msg in out:
-            self._pubs[suffix].put(msg)
+    def _deliver(self, out: Output) -> None:
+        self._publish(out)
+        for suffix, _ in out:
             self.sent[suffix] += 1
-
-    def _on_joint_state(self, js: JointState, rx_ns: int) -> None:
-        self._publish(self.core.on_joint_state(js))
-
-    def _on_status(self, st: ArmStatus, rx_ns: int) -> None:
-        self._publish(self.core.on_status(st))
-
-    def _on_bridge(self, bs: BridgeState, rx_ns: int) -> None:
-        self._publish(self.core.on_bridge_state(bs))
-
-    def _on_heartbeat(self, hb: Heartbeat, rx_ns: int) -> None:
-        self._publish(self.core.on_heartbeat(hb))
-
-    def _on_goal(self, goal: TrajectoryGoal) -> Message:
-        ack = self.core.submit(goal)
-        if not ack.accepted:
-            log.info("refused goal %s: %s", goal.goal_id, ack.reason)
-        return ack
 
     def close(self) -> None:
         """Leave the bus."""

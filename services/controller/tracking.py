@@ -1,6 +1,7 @@
 """One trajectory goal being executed: time base, control law, via-point errors, verdicts.
 
-Two control laws (``TrajectoryGoal.mode``; the laws themselves: :mod:`.laws`):
+Two control laws (``TrajectoryGoal.mode``; each a :class:`~.modes.ControlLaw` of
+:data:`.modes.LAWS`, the arithmetic in :mod:`.laws`):
 
 - ``default``, built for the arm's interface. One global time base: trajectory time 0 is
   the moment the first command acts (the start snapshot + ``command_delay_ms``). The
@@ -11,7 +12,7 @@ Two control laws (``TrajectoryGoal.mode``; the laws themselves: :mod:`.laws`):
   reference at s+120 (a dead-beat law in motor space). Its rounding error is not lost:
   the next cycle predicts from the increments actually applied, so the mean speed is
   exact and there is no limit cycle wider than one rounding step.
-- ``thesis``, the loop of thesis 4.2.3.4 with its sign corrected: qdot = qdot_ref +
+- ``thesis``, the thesis's loop with its sign corrected (docs/protocol.md): qdot = qdot_ref +
   K (q_ref - q) from the snapshot, uniform saturation, rounding; per-segment timing (a
   segment ends when the gripper is within ``thesis_via_threshold_m`` of its via point or
   its time is over, and the next one restarts from its first knot); after the last via
@@ -33,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from manus.kinematics import Vec3, gripper_position
+from manus.kinematics import Vec3
 from manus.quantize import (
     COUNT_RAD_S,
     Quantizer,
@@ -43,7 +44,8 @@ from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
 from services.controller.goals import violation
-from services.controller.laws import default_law, make_quantizer, thesis_law
+from services.controller.laws import make_quantizer
+from services.controller.modes import LAWS, ControlLaw
 from services.controller.reference import Reference, rest_to_rest
 
 
@@ -86,6 +88,7 @@ class TrajectoryRun:
     goal: TrajectoryGoal
     ref: Reference
     config: ControllerConfig
+    law: ControlLaw
     path_tol: np.ndarray
     goal_tol: np.ndarray
     start_ns: int
@@ -118,23 +121,18 @@ class TrajectoryRun:
     ) -> TrajectoryRun:
         """A run whose first cycle is the snapshot at ``snap_ns`` [ns]."""
         quantizer = make_quantizer(config.default_quantizer)
-        run = cls(goal, ref, config, tols[0], tols[1], snap_ns, scale, goal.speed_scale, quantizer)
+        law = LAWS[goal.mode]
+        run = cls(
+            goal, ref, config, law, tols[0], tols[1], snap_ns, scale, goal.speed_scale, quantizer
+        )
         run.last_ns = snap_ns
         run.path_checked = bool(run.path_tol.any())
-        if goal.mode == "default":
-            run.tau = -scale * config.command_delay_ms / 1000.0
+        run.tau = law.start_tau(run)
         return run
-
-    @property
-    def thesis(self) -> bool:
-        """The goal runs the thesis's law."""
-        return self.goal.mode == "thesis"
 
     def tau_at_command(self) -> float:
         """Trajectory time when the command computed now starts acting [s]."""
-        if self.thesis:
-            return self.tau
-        return self.tau + self.scale * self.config.command_delay_ms / 1000.0
+        return self.law.tau_at_command(self)
 
     def current_reference(self) -> tuple[Reference, float]:
         """The reference being followed now and its time when the next command acts."""
@@ -177,10 +175,7 @@ class TrajectoryRun:
         self.scale += min(rate, max(-rate, self.scale_target - self.scale))
         if self.cancelling:
             return self._decelerate(last_counts)
-        if self.thesis:
-            self._thesis_segments(snap_ns, xyz)
-        else:
-            self._default_vias(snap_ns, q)
+        self.law.measure(self, snap_ns, q, xyz)
         ref = self.ref.position(self.tau)
         moving = self.end_ns is None
         if moving:
@@ -189,41 +184,17 @@ class TrajectoryRun:
             )
             if broken is not None:
                 return self._abort(ref, f"{broken} at t = {self.tau:.2f} s")
-            if self.tau >= self._end_tau():
+            if self.tau >= self.law.end_tau(self):
                 self.end_ns = snap_ns
-        if self.thesis:
-            verdict = self._judge(snap_ns, q, xyz, True) if self.end_ns is not None else None
-            counts = self._thesis_law(q)
-        else:
-            counts = self._default_law(q, est, play)
-            at_rest = not est.in_flight  # a zero now stops the arm here
-            verdict = self._judge(snap_ns, q, xyz, at_rest) if self.end_ns is not None else None
+        counts, verdict = self.law.cycle(self, snap_ns, q, xyz, est, play)
         if verdict is not None:
             zero = np.zeros(6, dtype=np.int64)
             return Step(zero, ref, self._segment(), "holding", verdict)
         state = "settling" if self.end_ns is not None else "tracking"
         return Step(counts, ref, self._segment(), state)
 
-    def _end_tau(self) -> float:
-        return self.ref.duration if not self.thesis else float(self.ref.times[-1])
-
     def _segment(self) -> int:
-        return self.segment if self.thesis else self.ref.traj.segment(self.tau)
-
-    # -- laws ----------------------------------------------------------------------------
-
-    def _default_law(
-        self, q: np.ndarray, est: DriveEstimator, play: PlayModel | None
-    ) -> np.ndarray:
-        ref, tau = self.current_reference()
-        holding = self.end_ns is not None
-        return default_law(
-            self.config, ref, (tau, self.tau), self.scale, q, est, play, self.quantizer, holding
-        )
-
-    def _thesis_law(self, q: np.ndarray) -> np.ndarray:
-        ref, tau = self.current_reference()
-        return thesis_law(self.config, ref, tau, self.scale, q)
+        return self.law.segment(self)
 
     def _decelerate(self, last: np.ndarray) -> Step:
         step = self.config.cancel_decel * self.config.cycle_s / COUNT_RAD_S
@@ -242,40 +213,12 @@ class TrajectoryRun:
 
     # -- via points and verdicts ---------------------------------------------------------
 
-    def _record(self, error: float, stamp_ns: int) -> None:
+    def record(self, error: float, stamp_ns: int) -> None:
+        """One via point's error [m], measured at ``stamp_ns`` [ns]."""
         self.via_errors.append(error)
         self.via_stamps.append(stamp_ns)
 
-    def _default_vias(self, snap_ns: int, q: np.ndarray) -> None:
-        times = self.ref.times
-        while len(self.via_errors) < len(times) and times[len(self.via_errors)] <= self.tau:
-            i = len(self.via_errors)
-            prev = self.prev
-            if prev is None or self.tau <= prev[0]:
-                q_i, stamp = q, snap_ns
-            else:
-                frac = min(1.0, max(0.0, (times[i] - prev[0]) / (self.tau - prev[0])))
-                q_i = prev[1] + frac * (q - prev[1])
-                stamp = prev[2] + round(frac * (snap_ns - prev[2]))
-            xyz = gripper_position(q_i, self.config.arm)
-            self._record(math.dist(xyz, self.ref.via_xyz[i]), stamp)
-        self.prev = (self.tau, q.copy(), snap_ns)
-
-    def _thesis_segments(self, snap_ns: int, xyz: Vec3) -> None:
-        ref = self.ref
-        if not self.via_errors:
-            self._record(math.dist(xyz, ref.via_xyz[0]), snap_ns)
-        last = len(ref.times) - 1
-        if self.segment >= last:
-            return
-        nxt = self.segment + 1
-        distance = math.dist(xyz, ref.via_xyz[nxt])
-        if distance < self.config.thesis_via_threshold_m or self.tau >= ref.times[nxt]:
-            self._record(distance, snap_ns)
-            self.segment = nxt
-            self.tau = float(ref.times[nxt])  # per-segment timing: restart at the knot
-
-    def _judge(
+    def judge(
         self,
         snap_ns: int,
         q: np.ndarray,
@@ -304,16 +247,10 @@ class TrajectoryRun:
                 f"position_tolerance {goal.position_tolerance * 1000:.2f} mm"
             )
             return "aborted", f"{what} {late:.2f} s after the end (goal_time_tolerance)"
-        if self.thesis and (self.settle is None or self.settle_tau >= self.settle.duration):
-            if self.settles >= self.config.max_settles:
-                return "aborted", (
-                    f"final position error {self.final_error * 1000:.2f} mm still above "
-                    f"{goal.position_tolerance * 1000:.2f} mm after {self.settles} re-plans"
-                )
-            self._replan(q)
-        return None
+        return self.law.unsettled(self, q)
 
-    def _replan(self, q: np.ndarray) -> None:
+    def replan(self, q: np.ndarray) -> None:
+        """Follow a local rest-to-rest move from ``q`` [rad] to the last knot."""
         cfg = self.config
         way = float(np.max(np.abs(self.ref.end - q)))
         duration = max(cfg.settle_min_s, way / cfg.settle_speed)

@@ -13,6 +13,7 @@ import sys
 from manus.config import load_arm_config
 from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
+from schemas import endpoints as ep
 from services.planner.config import PlannerConfig
 from services.planner.shell import PlannerShell
 
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:
         freeze_startup_heap()
-        print(f"planner: serving {shell.node.keys.plan}", file=sys.stderr, flush=True)
+        print(f"planner: serving {shell.node.keys(ep.PLAN)}", file=sys.stderr, flush=True)
         stop.wait()
         stats = {
             "plans": shell.plans,

@@ -1,26 +1,28 @@
 """The planner's live shell: a Zenoh queryable around :class:`PlannerCore`.
 
-Answers ``<prefix>/planner/plan`` (PlanRequest -> PlanReply) and follows
-``<prefix>/state/joints`` for the default start configuration (valid states only).
-Planning runs outside the node lock on a snapshot of the newest joint state, so a long
-plan never delays joint-state updates and concurrent queries do not wait for each
-other (the core does not mutate anything while planning).
+Its wiring map (:data:`services.planner.wiring.WIRING`): answers ``planner/plan``
+(PlanRequest -> PlanReply) and follows the joint states for the default start
+configuration (valid states only). Planning runs outside the node lock on the newest
+joint state (one attribute, replaced whole by each update), so a long plan never delays
+joint-state updates and concurrent queries do not wait for each other (the core mutates
+nothing while planning). ``compute_ms`` is the time the answer took.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
-import time
 
 import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
-from schemas.planning import PlanReply, PlanRequest
-from schemas.state import JointState
+from schemas.base import Message
+from schemas.endpoints import Endpoint
+from schemas.planning import PlanReply
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
+from services.planner.wiring import WIRING
 
 log = logging.getLogger("manus.planner")
 
@@ -45,25 +47,20 @@ class PlannerShell:
         self.node = Node("planner", settings, session=session, liveliness=False)
         self.plans = 0
         self.refusals = 0
-        self.node.subscribe(self.node.keys.joints, JointState, self._on_joint_state)
-        self.node.queryable(self.node.keys.plan, PlanRequest, self._on_plan, locked=False)
+        WIRING.attach(self.node, self.core, on_reply=self._answered)
         self.node.announce()  # alive once it listens and answers
 
-    def _on_joint_state(self, js: JointState, rx_ns: int) -> None:
-        self.core.on_joint_state(js)
-
-    def _on_plan(self, request: PlanRequest) -> PlanReply:
-        started = time.perf_counter()
-        with self.node.lock:
-            latest = self.core.latest
-        reply = self.core.plan(request, latest)
-        elapsed_ms = (time.perf_counter() - started) * 1e3
+    def _answered(
+        self, endpoint: Endpoint, request: Message, reply: Message, took: float
+    ) -> Message:
+        if not isinstance(reply, PlanReply):
+            return reply
         with self.node.lock:
             self.plans += 1
             self.refusals += not reply.ok
         if reply.error is not None:
             log.info("refused a plan (%s): %s", reply.error.reason, reply.error.message)
-        return dataclasses.replace(reply, compute_ms=elapsed_ms)
+        return dataclasses.replace(reply, compute_ms=took * 1e3)
 
     def close(self) -> None:
         """Leave the bus."""

@@ -27,6 +27,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from schemas.endpoints import trace_suffix
 from services.recorder.reading import Recorded, Recording
 
 
@@ -130,7 +131,7 @@ class RecordedReplies:
         """
         exchanges = {}
         for q in queryables:
-            request, reply = f"trace/{q}/request", f"trace/{q}/reply"
+            request, reply = trace_suffix(q, "request"), trace_suffix(q, "reply")
             found: dict[str, list[Recorded]] = {request: [], reply: []}
             for rec in recording.messages([request, reply]):
                 found[rec.suffix].append(rec)

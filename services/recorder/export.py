@@ -28,12 +28,13 @@ import msgpack
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import CompressionType, Writer
 
+from schemas import endpoints as ep
 from schemas.state import CanFrame
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recording, decode
 from services.recorder.writer import LIBRARY, METADATA_NAME
 
-CAN_SUFFIXES = ("can/rx", "can/tx")
+CAN_SUFFIXES = (ep.CAN_RX, ep.CAN_TX)
 
 
 def _jsonable(value: Any) -> Any:
@@ -194,7 +195,7 @@ def export_candump(src: str | Path, dst: str | Path, *, channel: str = "can0") -
                 skipped += 1
                 continue
             assert isinstance(frame, CanFrame)
-            logger(frame_to_can(frame, received=msg.suffix == "can/rx", channel=channel))
+            logger(frame_to_can(frame, received=msg.suffix == ep.CAN_RX, channel=channel))
             written += 1
     finally:
         logger.stop()

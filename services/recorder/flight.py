@@ -25,9 +25,17 @@ from manus.errors import ManusError
 from schemas.base import Message
 from schemas.commands import EStop
 from schemas.control import GoalResult
-from schemas.flight import TRIGGER, FlightTrigger
+from schemas.endpoints import (
+    ESTOP,
+    EVENTS,
+    FLIGHT_TRIGGER,
+    LIVELINESS,
+    RESULT,
+    STATUS,
+)
+from schemas.flight import FlightTrigger
 from schemas.keys import Keys
-from schemas.liveliness import LIVELINESS, LivelinessChange
+from schemas.liveliness import LivelinessChange
 from schemas.sequencing import TaskEvent
 from schemas.state import ArmStatus
 from services.recorder.errors import RecordingError
@@ -62,7 +70,7 @@ class Trigger:
 
     Attributes:
         t_ns: log time of the sample that fired it [ns].
-        kind: ``estop``, ``arm_error``, ``arm_warning``, ``goal_aborted``, ``task_failed``,
+        kind: ``emergency_stop``, ``arm_error``, ``arm_warning``, ``goal_aborted``, ``task_failed``,
             ``liveliness_lost`` or ``request``.
         detail: the message's own words.
     """
@@ -296,7 +304,7 @@ class FlightCore:
 
     def _trigger(self, suffix: str, payload: bytes, t_ns: int) -> Trigger | None:
         rules = self.config.rules
-        if suffix == "state/status" and (rules.arm_error or rules.warning_codes):
+        if suffix == STATUS and (rules.arm_error or rules.warning_codes):
             st = self._decode(ArmStatus, payload)
             if not isinstance(st, ArmStatus):
                 return None
@@ -309,15 +317,15 @@ class FlightCore:
                 return Trigger(t_ns, "arm_error", f"{st.msg_code} {st.text}")
             if st.msg_class == "warning" and st.msg_code in rules.warning_codes:
                 return Trigger(t_ns, "arm_warning", f"{st.msg_code} {st.text}")
-        elif suffix == "estop" and rules.estop:
+        elif suffix == ESTOP and rules.estop:
             es = self._decode(EStop, payload)
             if isinstance(es, EStop) and es.engaged:
-                return Trigger(t_ns, "estop", f"{es.source} {es.reason}")
-        elif suffix == "controller/result" and rules.goal_aborted:
+                return Trigger(t_ns, "emergency_stop", f"{es.source} {es.reason}")
+        elif suffix == RESULT and rules.goal_aborted:
             res = self._decode(GoalResult, payload)
             if isinstance(res, GoalResult) and res.status == "aborted":
                 return Trigger(t_ns, "goal_aborted", f"{res.goal_id} {res.reason}")
-        elif suffix == "sequencer/events" and rules.task_failed:
+        elif suffix == EVENTS and rules.task_failed:
             ev = self._decode(TaskEvent, payload)
             if isinstance(ev, TaskEvent) and ev.event == "failed":
                 return Trigger(t_ns, "task_failed", f"{ev.task_id} {ev.reason}")
@@ -330,7 +338,7 @@ class FlightCore:
                 and (not rules.services or ch.service in rules.services)
             ):
                 return Trigger(t_ns, "liveliness_lost", ch.service)
-        elif suffix == TRIGGER and rules.request:
+        elif suffix == FLIGHT_TRIGGER and rules.request:
             req = self._decode(FlightTrigger, payload)
             if isinstance(req, FlightTrigger):
                 return Trigger(t_ns, "request", f"{req.source} {req.reason}")

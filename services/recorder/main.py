@@ -82,10 +82,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _send_trigger(args: argparse.Namespace) -> int:
     from manus.node import Node, now_ns
-    from schemas.flight import TRIGGER, FlightTrigger
+    from schemas.endpoints import FLIGHT_TRIGGER
+    from schemas.flight import FlightTrigger
 
     with Node("flight_trigger", bus_settings(args), liveliness=False) as node:
-        pub = node.publisher(node.keys(TRIGGER))
+        pub = node.publisher(node.keys(FLIGHT_TRIGGER))
         time.sleep(0.3)  # let the subscription reach the publisher before the one sample
         pub.put(FlightTrigger(stamp_ns=now_ns(), seq=0, source="manus record", reason=args.trigger))
         time.sleep(0.1)
@@ -161,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
         "messages": stats.messages,
         "bytes": stats.bytes,
         "received": shell.received,
-        "liveliness": shell.liveliness_changes,
+        "liveliness_changes": shell.liveliness_changes,
         "reserved_dropped": shell.reserved_dropped,
         "filtered": shell.filtered,
         "parts": [str(p) for p in getattr(shell.writer, "parts", [])],

@@ -13,7 +13,8 @@ import sys
 
 from manus.node import Node, QueryError
 from manus.session import add_bus_arguments, bus_settings
-from schemas.playback import ACTIONS, CONTROL, PlaybackControl, PlaybackStatus
+from schemas.endpoints import PLAYBACK_CONTROL
+from schemas.playback import ACTIONS, PlaybackControl, PlaybackStatus
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     with Node("playback", bus_settings(args), liveliness=False) as node:
         try:
             status = node.query(
-                node.keys(CONTROL),
+                node.keys(PLAYBACK_CONTROL),
                 PlaybackControl(action=args.action, value=args.value),
                 PlaybackStatus,
                 timeout=args.timeout,

@@ -26,7 +26,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from manus.config import ArmConfig
 from manus.kinematics import fk_batch
+from schemas import endpoints as ep
 from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
@@ -37,12 +39,12 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
 _SUFFIXES = (
-    "state/joints",
-    "controller/feedback",
-    "controller/result",
-    "sim/truth",
-    "trace/controller/goal/request",
-    "trace/planner/plan/reply",
+    ep.JOINTS,
+    ep.FEEDBACK,
+    ep.RESULT,
+    ep.SIM_TRUTH,
+    ep.GOAL.trace("request"),
+    ep.PLAN.trace("reply"),
 )
 
 
@@ -83,8 +85,9 @@ def _preview(traj: Trajectory) -> np.ndarray:
     return np.asarray(traj.via_xyz, dtype=float).reshape(-1, 3)
 
 
-def load_plot_data(path: str | Path) -> PlotData:
-    """Extract the plotted series from a recording.
+def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
+    """Extract the plotted series from a recording (``arm``: the recorded arm's geometry,
+    for the paths of recordings without controller feedback).
 
     Raises:
         RecordingError: the file cannot be read, or it holds neither joint states nor
@@ -142,13 +145,13 @@ def load_plot_data(path: str | Path) -> PlotData:
         vias = [np.asarray(tr.via_xyz, dtype=float).reshape(-1, 3) for tr in chosen]
         data.via_xyz = np.vstack(vias)
     elif len(data.reference):
-        data.planned = [fk_batch(data.reference)[:, :3, 3]]
+        data.planned = [fk_batch(data.reference, arm)[:, :3, 3]]
         data.planned_source = "reference"
     if fb_xyz:
         data.executed = np.asarray(fb_xyz, dtype=float)
         data.executed_source = "feedback"
     elif len(data.q_js):
-        data.executed = fk_batch(data.q_js)[:, :3, 3]
+        data.executed = fk_batch(data.q_js, arm)[:, :3, 3]
         data.executed_source = "joint_states"
     return data
 
@@ -174,9 +177,14 @@ class PlotSummary:
 
 
 def plot_recording(
-    path: str | Path, output: str | Path | None = None, *, title: str | None = None
+    path: str | Path,
+    output: str | Path | None = None,
+    *,
+    arm: ArmConfig,
+    title: str | None = None,
 ) -> PlotSummary:
-    """Draw the four panels of ``path`` to a PNG (default: next to it, ``.png``).
+    """Draw the four panels of ``path`` to a PNG (default: next to it, ``.png``); ``arm``
+    is the recorded arm's geometry.
 
     Raises:
         RecordingError: see :func:`load_plot_data`.
@@ -186,7 +194,7 @@ def plot_recording(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    data = load_plot_data(path)
+    data = load_plot_data(path, arm)
     out = Path(output) if output is not None else Path(path).with_suffix(".png")
     fig, axes = plt.subplots(2, 2, figsize=(14, 10))
     try:

@@ -8,6 +8,7 @@ import argparse
 import json
 import sys
 
+from manus.config import load_arm_config
 from services.recorder.plot import plot_recording
 
 
@@ -16,11 +17,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", help="MCAP recording")
     parser.add_argument("-o", "--output", help="PNG to write (default: FILE with .png)")
     parser.add_argument("--title", help="figure title (default: the file name)")
+    parser.add_argument(
+        "--arm-config",
+        help="the recorded arm's geometry JSON (default: $MANUS_ARM_CONFIG, else thesis values)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Draw the plot."""
-    summary = plot_recording(args.file, args.output, title=args.title)
+    summary = plot_recording(
+        args.file, args.output, arm=load_arm_config(args.arm_config), title=args.title
+    )
     sys.stderr.write(f"plot: {summary.output}\n")
     out = {
         "output": summary.output,

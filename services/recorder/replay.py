@@ -4,13 +4,14 @@
 order (ties in file order), each with its offset from the first one. :class:`Replayer`
 publishes them on Zenoh, under the recording's prefix or another one.
 
-``as_service`` stands in for one service: only the keys that service publishes
-(:data:`SERVICE_OUTPUTS`) are replayed, so, for example, ``can_bridge`` feeds a live
-controller with the recorded arm state while the controller's own outputs stay live. The
-stand-in also declares the service's liveliness tokens (``alive/<service>``, and
-``where/<service>/<host>/<pid>`` with the replay's own host and pid) and answers its
-queryables (:data:`SERVICE_QUERYABLES`) from the recorded exchanges, for as long as the
-:class:`Replayer` is open (:mod:`services.recorder.standin`; the matching rules are in
+``as_service`` stands in for one service: only the keys that service publishes (its
+publications in the endpoint table, :func:`service_outputs_table`) are replayed, so, for
+example, ``can_bridge`` feeds a live controller with the recorded arm state while the
+controller's own outputs stay live. The stand-in also declares the service's liveliness
+tokens (``alive/<service>``, and ``where/<service>/<host>/<pid>`` with the replay's own
+host and pid) and answers its queryables (:func:`service_queryables_table`) from the
+recorded exchanges, for as long as the :class:`Replayer` is open
+(:mod:`services.recorder.standin`; the matching rules are in
 :mod:`services.recorder.answers`). The planner publishes nothing: standing in for it is
 answering ``planner/plan`` only.
 
@@ -31,37 +32,34 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
-from schemas.liveliness import LIVELINESS
-from schemas.playback import CONTROL, PlaybackControl, PlaybackStatus
+from schemas.endpoints import LIVELINESS, PLAYBACK_CONTROL, TABLE, Endpoint, Service
+from schemas.keys import channel_name
+from schemas.playback import PlaybackControl, PlaybackStatus
 from services.recorder.answers import RecordedReplies
 from services.recorder.errors import RecordingError
 from services.recorder.playback import Playback
 from services.recorder.reading import Recorded, Recording
 from services.recorder.standin import StandIn
 
-SERVICE_OUTPUTS: dict[str, tuple[str, ...]] = {
-    "can_bridge": ("state/joints", "state/status", "state/bridge", "can/rx", "can/tx"),
-    "controller": ("cmd/joint_velocity", "controller/feedback", "controller/result"),
-    "simulator": ("sim/truth",),
-    "sequencer": ("sequencer/events", "heartbeat"),
-    "planner": (),
-}
-"""Key suffixes each service publishes (schemas/keys.py, the publisher column); the
-services ``--as`` accepts."""
+REPLAYABLE = (
+    Service.CAN_BRIDGE,
+    Service.CONTROLLER,
+    Service.SIMULATOR,
+    Service.SEQUENCER,
+    Service.PLANNER,
+)
+"""The services ``--as`` accepts."""
 
-SERVICE_QUERYABLES: dict[str, tuple[str, ...]] = {
-    "can_bridge": ("bridge/command",),
-    "planner": ("planner/plan",),
-    "controller": (
-        "controller/goal",
-        "controller/gripper",
-        "controller/cancel",
-        "controller/speed_scale",
-    ),
-    "sequencer": ("sequencer/submit", "sequencer/control", "sequencer/status"),
-}
-"""Queryables each service declares (schemas/keys.py and schemas/sequencing.py); a
-stand-in answers them from the recording."""
+
+def service_outputs_table() -> dict[str, tuple[Endpoint, ...]]:
+    """Key suffixes each service publishes (its publications in the endpoint table)."""
+    return {s.value: TABLE.outputs(s) for s in REPLAYABLE}
+
+
+def service_queryables_table() -> dict[str, tuple[Endpoint, ...]]:
+    """Queryables each service declares (endpoint table); a stand-in answers them from
+    the recording."""
+    return {s.value: q for s in REPLAYABLE if (q := TABLE.queryables(s))}
 
 
 def matching(pub: zenoh.Publisher) -> bool:
@@ -105,7 +103,8 @@ def selected_suffixes(
         patterns = list(only)
         suffixes = [s for s in suffixes if any(_matches(s, p) for p in patterns)]
     if not suffixes:
-        replies = [f"trace/{q}/reply" for q in SERVICE_QUERYABLES.get(as_service or "", ())]
+        queryables = service_queryables_table().get(as_service or "", ())
+        replies = [q.trace("reply") for q in queryables]
         if channels.intersection(replies) and not only:
             return []
         what = ""
@@ -128,11 +127,11 @@ def service_outputs(service: str) -> tuple[str, ...]:
     """The key suffixes ``service`` publishes.
 
     Raises:
-        RecordingError: ``service`` is not one of :data:`SERVICE_OUTPUTS`.
+        RecordingError: ``service`` is not one of :data:`REPLAYABLE`.
     """
-    outputs = SERVICE_OUTPUTS.get(service)
+    outputs = service_outputs_table().get(service)
     if outputs is None:
-        raise RecordingError(f"--as {service!r}: not one of {sorted(SERVICE_OUTPUTS)}")
+        raise RecordingError(f"--as {service!r}: not one of {sorted(REPLAYABLE)}")
     return outputs
 
 
@@ -177,7 +176,7 @@ class Replayer:
     Args:
         settings: how to reach the bus; its prefix replaces the recorded one.
         session: an open session to share (not closed by :meth:`close`).
-        as_service: the service to stand in for (one of :data:`SERVICE_OUTPUTS`).
+        as_service: the service to stand in for (one of :data:`REPLAYABLE`).
         recording: where the stand-in's answers come from (required with ``as_service``).
         mirror: the stand-in mirrors its live exchanges on ``trace/...`` (as the service
             would; see :mod:`services.recorder.standin`).
@@ -207,7 +206,7 @@ class Replayer:
                 raise RecordingError(
                     f"replay as {as_service}: a recording to answer from is needed"
                 )
-            queryables = SERVICE_QUERYABLES.get(as_service, ())
+            queryables = service_queryables_table().get(as_service, ())
             replies = RecordedReplies.from_recording(recording, queryables)
             self.node = Node(as_service, settings, session=session, liveliness=False)
             self.stand_in = StandIn(self.node, queryables, replies, mirror=mirror)
@@ -263,9 +262,8 @@ class Replayer:
                 if delay > 0:
                     time.sleep(delay)
             rec = item.rec
-            attachment = (
-                rec.publish_ns.to_bytes(8, "little") if rec.suffix.startswith("trace/") else None
-            )
+            traced = channel_name(rec.suffix) != rec.suffix  # a query mirror: its query time
+            attachment = rec.publish_ns.to_bytes(8, "little") if traced else None
             self._publisher(rec.suffix).put(rec.payload, attachment=attachment)
             sent += 1
         recorded = items[sent - 1].offset_s if sent else 0.0
@@ -285,7 +283,8 @@ class Replayer:
             wake.set()
             return status
 
-        self.node.queryable(self.node.keys(CONTROL), PlaybackControl, on_control, locked=False)
+        key = self.node.keys(PLAYBACK_CONTROL)
+        self.node.queryable(key, PlaybackControl, on_control, locked=False)
         started = time.monotonic()
         sent = 0
         last = 0.0

@@ -26,7 +26,7 @@ from manus.session import settings_from_env
 from services.recorder.errors import RecordingError
 from services.recorder.playback import Playback
 from services.recorder.reading import Recording
-from services.recorder.replay import SERVICE_OUTPUTS, Replayer, schedule
+from services.recorder.replay import REPLAYABLE, Replayer, schedule
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--as",
         dest="as_service",
-        choices=sorted(SERVICE_OUTPUTS),
+        choices=sorted(REPLAYABLE),
         help="stand in for this service: its outputs, liveliness tokens and query answers",
     )
     parser.add_argument(

@@ -28,6 +28,7 @@ import zenoh
 
 from manus.errors import SchemaError
 from manus.node import Node, now_ns
+from schemas.endpoints import trace_suffix
 from schemas.keys import channel_type
 from services.recorder.answers import RecordedReplies
 
@@ -63,7 +64,7 @@ class StandIn:
             self._declare(suffix, mirror)
 
     def _declare(self, suffix: str, mirror: bool) -> None:
-        request_type = channel_type(f"trace/{suffix}/request")
+        request_type = channel_type(trace_suffix(suffix, "request"))
         keys = self.node.keys
         trace: tuple[zenoh.Publisher, zenoh.Publisher] | None = None
         if mirror:

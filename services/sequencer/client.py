@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Iterable
 
 from manus.node import Node
+from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
 from schemas.state import BridgeState, JointState
 
@@ -32,10 +33,10 @@ class TaskClient:
         self._events: queue.Queue[TaskEvent] = queue.Queue()
         self._running = 0  # consecutive state/bridge reports in phase running
         self.bridge_phase = ""
-        node.subscribe(node.keys("sequencer/events"), TaskEvent, self._on_event, locked=False)
+        node.subscribe(node.keys(ep.EVENTS), TaskEvent, self._on_event, locked=False)
         self._valid_states = 0  # valid joint states since the bridge entered running
-        node.subscribe(node.keys.bridge_state, BridgeState, self._on_bridge, locked=False)
-        node.subscribe(node.keys.joints, JointState, self._on_joints, locked=False)
+        node.subscribe(node.keys(ep.BRIDGE_STATE), BridgeState, self._on_bridge, locked=False)
+        node.subscribe(node.keys(ep.JOINTS), JointState, self._on_joints, locked=False)
 
     def _on_bridge(self, state: BridgeState, rx_ns: int) -> None:
         self.bridge_phase = state.phase
@@ -76,13 +77,13 @@ class TaskClient:
         Raises:
             manus.node.QueryError: no sequencer answered within ``timeout`` [s].
         """
-        return self.node.query(self.node.keys("sequencer/submit"), task, SubmitReply,
+        return self.node.query(self.node.keys(ep.SUBMIT), task, SubmitReply,
                                timeout=timeout)  # fmt: skip
 
     def control(self, action: str, task_id: str = "", timeout: float = 5.0) -> TaskStatus:
         """Cancel, pause, resume (or status of) a task."""
         request = TaskControl(action=action, task_id=task_id)
-        key = "sequencer/status" if action == "status" else "sequencer/control"
+        key = ep.TASK_STATUS if action == "status" else ep.TASK_CONTROL
         return self.node.query(self.node.keys(key), request, TaskStatus, timeout=timeout)
 
     def follow(

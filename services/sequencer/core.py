@@ -39,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
 from schemas.control import (
@@ -58,8 +59,8 @@ from services.sequencer.poses import remainder_path
 from services.sequencer.validate import plan_request, step_label
 
 NS = 1_000_000_000
-EVENTS_SUFFIX = "sequencer/events"
-HEARTBEAT_SUFFIX = "heartbeat"
+EVENTS_SUFFIX = ep.EVENTS
+HEARTBEAT_SUFFIX = ep.HEARTBEAT
 """Key suffix of the deadman heartbeat (``schemas.control.Heartbeat``)."""
 ACTIVE_STATES = ("running", "paused")
 
@@ -385,7 +386,7 @@ class SequencerCore:
             if isinstance(reply, ArmCommandReply) and reply.ok and reply.phase == "stopped":
                 return [
                     self._query(
-                        "bridge/command",
+                        ep.BRIDGE_COMMAND,
                         ArmCommand(action="clear", source="sequencer"),
                         ArmCommandReply,
                         wait=True,
@@ -429,7 +430,7 @@ class SequencerCore:
             request = plan_request(step, start, path)
             if path is not None:  # the rest of a paused path starts from rest: let it stretch
                 request = dataclasses.replace(request, speed_scaling=True)
-            return [self._query("planner/plan", request, PlanReply, wait=True, phase="planning")]
+            return [self._query(ep.PLAN, request, PlanReply, wait=True, phase="planning")]
         if step.kind == "gripper":
             self._goals += 1
             self._goal_id = f"{self.task_id}.{self.step + 1}.{self._goals}"
@@ -438,7 +439,7 @@ class SequencerCore:
                 goal_id=self._goal_id, opening=step.opening, timeout=self.config.gripper_timeout_s
             )
             self._deadline = self._now + int((self.config.gripper_timeout_s + 5.0) * NS)
-            return [self._query("controller/gripper", goal, GoalAck, wait=True, phase="acking")]
+            return [self._query(ep.GRIPPER_GOAL, goal, GoalAck, wait=True, phase="acking")]
         if step.kind == "wait":
             left = self._wait_left if self._wait_left > 0.0 else step.duration
             self._wait_left = 0.0
@@ -449,7 +450,7 @@ class SequencerCore:
         self._seen_fold = False
         self._deadline = self._now + int(self.config.fold_timeout_s * NS)
         cmd = ArmCommand(action=step.kind, source="sequencer")
-        return [self._query("bridge/command", cmd, ArmCommandReply, wait=True, phase="folding")]
+        return [self._query(ep.BRIDGE_COMMAND, cmd, ArmCommandReply, wait=True, phase="folding")]
 
     def _on_plan(self, reply: Message | None, error: str) -> list[Action]:
         if not isinstance(reply, PlanReply):
@@ -475,7 +476,7 @@ class SequencerCore:
         )
         span = reply.trajectory.times[-1] + goal.goal_time_tolerance + self.config.result_margin_s
         self._deadline = self._now + int(span * NS)
-        return [self._query("controller/goal", goal, GoalAck, wait=True, phase="acking")]
+        return [self._query(ep.GOAL, goal, GoalAck, wait=True, phase="acking")]
 
     def _on_ack(self, reply: Message | None, error: str) -> list[Action]:
         if not isinstance(reply, GoalAck):
@@ -523,7 +524,7 @@ class SequencerCore:
         if self._phase == "active" and self._goal_id:
             self._phase = "pausing"
             self._deadline = self._now + int(self.config.cancel_timeout_s * NS)
-            return [self._query("controller/cancel", CancelGoal(goal_id=self._goal_id), GoalAck)]
+            return [self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck)]
         if self._phase == "waiting" and self._deadline is not None:
             self._wait_left = max(0.0, (self._deadline - self._now) / NS)
             self._deadline = None
@@ -545,14 +546,14 @@ class SequencerCore:
         if self._phase == "active" and self._goal_id:
             self._phase = "cancelling"
             self._deadline = self._now + int(self.config.cancel_timeout_s * NS)
-            return [self._query("controller/cancel", CancelGoal(goal_id=self._goal_id), GoalAck)]
+            return [self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck)]
         if self._phase == "pausing":
             self._phase = "cancelling"
             return []
         if self._phase == "folding":
             stop = ArmCommand(action="stop", source="sequencer")
             return [
-                self._query("bridge/command", stop, ArmCommandReply, wait=True, phase="stopping")
+                self._query(ep.BRIDGE_COMMAND, stop, ArmCommandReply, wait=True, phase="stopping")
             ]
         if self._phase in ("planning", "acking"):
             return []  # at the reply (an accepted goal is then cancelled)
@@ -571,11 +572,13 @@ class SequencerCore:
     def _fail(self, reason: str) -> list[Action]:
         out: list[Action] = []
         if self._goal_id and self._phase in ("acking", "active", "pausing", "cancelling"):
-            out.append(self._query("controller/cancel", CancelGoal(goal_id=self._goal_id), GoalAck))
+            out.append(self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck))
         if self._phase == "folding":
             out.append(
                 self._query(
-                    "bridge/command", ArmCommand(action="stop", source="sequencer"), ArmCommandReply
+                    ep.BRIDGE_COMMAND,
+                    ArmCommand(action="stop", source="sequencer"),
+                    ArmCommandReply,
                 )
             )
         label = step_label(self._step(), self.step)
@@ -600,7 +603,7 @@ class SequencerCore:
         if phase in ("pausing", "cancelling"):
             goal_id, self._goal_id = self._goal_id, ""
             stop = self._query(
-                "bridge/command", ArmCommand(action="stop", source="sequencer"), ArmCommandReply
+                ep.BRIDGE_COMMAND, ArmCommand(action="stop", source="sequencer"), ArmCommandReply
             )
             what = "pause" if phase == "pausing" else "cancel"
             msg = (

@@ -13,6 +13,7 @@ import sys
 from manus.config import load_arm_config
 from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
+from schemas import endpoints as ep
 from services.sequencer.config import SequencerConfig
 from services.sequencer.shell import SequencerShell
 
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     with SequencerShell(settings, config) as shell:
         freeze_startup_heap()
-        print(f"sequencer: serving {shell.node.keys('sequencer/submit')}", file=sys.stderr,
+        print(f"sequencer: serving {shell.node.keys(ep.SUBMIT)}", file=sys.stderr,
               flush=True)  # fmt: skip
         stop.wait()
         stats = {

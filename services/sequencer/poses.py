@@ -35,7 +35,7 @@ starts from rest (the planner stretches more if the joint limits need it)."""
 
 
 def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig | None) -> ViaPoint:
-    T = fk(np.asarray(q, dtype=float), cfg)
+    T = fk(np.asarray(q, dtype=float), cfg or ArmConfig())
     return ViaPoint(
         xyz=[float(v) for v in T[:3, 3]],
         velocity=[0.0, 0.0, 0.0],

@@ -1,12 +1,11 @@
 """The sequencer's live shell: the supervisor API on Zenoh around :class:`SequencerCore`.
 
-Queryables (``schemas.sequencing``): ``<prefix>/sequencer/submit`` (Task -> SubmitReply:
-validates the whole task, asking the planner for every move, before anything moves),
-``<prefix>/sequencer/control`` (TaskControl -> TaskStatus: cancel, pause, resume,
-status) and ``<prefix>/sequencer/status``. Publishes ``<prefix>/sequencer/events``
-(TaskEvent) and, while a task runs, ``<prefix>/heartbeat`` (the controller's deadman, one
-per joint state). Follows ``state/joints``, ``state/bridge``, ``controller/feedback``,
-``controller/result``, ``estop`` and the liveliness tokens.
+Its wiring map (:data:`services.sequencer.wiring.WIRING`): the queryables task control
+and status (TaskControl -> TaskStatus: cancel, pause, resume, status); the task events
+and, while a task runs, the deadman heartbeat (one per joint state) out; joint states,
+bridge states, controller feedback and results and e-stops in. Besides: task submission
+(Task -> SubmitReply: validates the whole task, asking the planner for every move, before
+anything moves) and the liveliness tokens.
 
 The core's queries run one at a time, in order, on a worker thread (never under the node
 lock, so the callbacks that carry results keep flowing); a ticker feeds the core the
@@ -22,23 +21,19 @@ import uuid
 
 import zenoh
 
-from manus.node import Node, Publisher, QueryError, now_ns
+from manus.node import Node, QueryError, now_ns
 from manus.session import ZenohSettings
-from schemas.commands import EStop
-from schemas.control import ControllerFeedback, GoalResult
+from schemas import endpoints as ep
 from schemas.planning import PlanReply
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskStatus
-from schemas.state import BridgeState, JointState
+from schemas.sequencing import SubmitReply, Task, TaskControl
 from services.sequencer.config import SequencerConfig
 from services.sequencer.core import (
-    EVENTS_SUFFIX,
-    HEARTBEAT_SUFFIX,
     Action,
-    Publish,
     Query,
     SequencerCore,
 )
 from services.sequencer.validate import Validator
+from services.sequencer.wiring import WIRING
 
 log = logging.getLogger("manus.sequencer")
 
@@ -69,55 +64,21 @@ class SequencerShell:
         self.query_timeout = query_timeout
         self.submitted = 0
         self.refused = 0
-        keys = self.node.keys
-        self._pubs: dict[str, Publisher] = {
-            suffix: self.node.publisher(keys(suffix))
-            for suffix in (EVENTS_SUFFIX, HEARTBEAT_SUFFIX)
-        }
         self._queries: queue.Queue[Query | None] = queue.Queue()
         self._stop = threading.Event()
-        self.node.subscribe(keys.joints, JointState, self._on_joints)
-        self.node.subscribe(keys.bridge_state, BridgeState, self._on_bridge)
-        self.node.subscribe(keys.feedback, ControllerFeedback, self._on_feedback)
-        self.node.subscribe(keys.result, GoalResult, self._on_result)
-        self.node.subscribe(keys.estop, EStop, self._on_estop)
+        self._publish = WIRING.attach(self.node, self.core, self._do)
         self.node.watch_liveliness(self._on_alive)
-        self.node.queryable(keys("sequencer/submit"), Task, self._on_submit, locked=False)
-        self.node.queryable(keys("sequencer/control"), TaskControl, self._on_control)
-        self.node.queryable(keys("sequencer/status"), TaskControl, self._on_status)
+        self.node.queryable(self.node.keys(ep.SUBMIT), Task, self._on_submit, locked=False)
         self._worker = threading.Thread(target=self._work, name="sequencer-queries", daemon=True)
         self._ticker = threading.Thread(target=self._tick, name="sequencer-tick", daemon=True)
         self._worker.start()
         self._ticker.start()
         self.node.announce()  # alive once it listens and answers
 
-    # -- bus inputs (under the node lock) --------------------------------------------------
-
-    def _on_joints(self, js: JointState, rx_ns: int) -> None:
-        self._do(self.core.on_joint_state(js, rx_ns))
-
-    def _on_bridge(self, bs: BridgeState, rx_ns: int) -> None:
-        self._do(self.core.on_bridge_state(bs, rx_ns))
-
-    def _on_feedback(self, fb: ControllerFeedback, rx_ns: int) -> None:
-        self._do(self.core.on_feedback(fb, rx_ns))
-
-    def _on_result(self, res: GoalResult, rx_ns: int) -> None:
-        self._do(self.core.on_result(res, rx_ns))
-
-    def _on_estop(self, msg: EStop, rx_ns: int) -> None:
-        self._do(self.core.on_estop(msg, rx_ns))
+    # -- bus inputs (the wiring map's, under the node lock) ---------------------------------
 
     def _on_alive(self, service: str, alive: bool) -> None:
         self._do(self.core.on_liveliness(service, alive, now_ns()))
-
-    def _on_control(self, req: TaskControl) -> TaskStatus:
-        status, actions = self.core.control(req, now_ns())
-        self._do(actions)
-        return status
-
-    def _on_status(self, req: TaskControl) -> TaskStatus:
-        return self.core.status()
 
     # -- submit: validate the whole task, then start it --------------------------------------
 
@@ -131,7 +92,7 @@ class SequencerShell:
         while (request := validator.next_request()) is not None:
             try:
                 reply = self.node.query(
-                    self.node.keys.plan, request, PlanReply, timeout=self.query_timeout
+                    self.node.keys(ep.PLAN), request, PlanReply, timeout=self.query_timeout
                 )
             except QueryError as exc:
                 validator.on_reply(None, str(exc))
@@ -158,17 +119,10 @@ class SequencerShell:
     # -- outputs -----------------------------------------------------------------------------
 
     def _do(self, actions: list[Action]) -> None:
+        self._publish(actions)  # the Publish actions (an unknown key: WiringError)
         for action in actions:
-            if isinstance(action, Publish):
-                self._publisher(action.suffix).put(action.message)
-            else:
+            if isinstance(action, Query):
                 self._queries.put(action)
-
-    def _publisher(self, suffix: str) -> Publisher:
-        pub = self._pubs.get(suffix)
-        if pub is None:
-            pub = self._pubs[suffix] = self.node.publisher(self.node.keys(suffix))
-        return pub
 
     def _work(self) -> None:
         while True:

@@ -19,7 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig, read_json_object
+from manus.config import (
+    FOLDED_Q_DEG,
+    UNFOLDED_Q_DEG,
+    ArmConfig,
+    load_arm_config,
+    read_json_object,
+)
 from manus.errors import ConfigError
 from services.simulator.faults import FaultConfig
 
@@ -82,7 +88,7 @@ class SimConfig:
     """
 
     seed: int = 0
-    arm: ArmConfig = DEFAULT_ARM
+    arm: ArmConfig = field(default_factory=ArmConfig)
     start_pose: str | tuple[float, ...] = "folded"
     start_gripper_mm: float = 0.0
     folded_q_deg: tuple[float, ...] = FOLDED_Q_DEG
@@ -170,14 +176,17 @@ class SimConfig:
         return self.start_pose
 
     @classmethod
-    def from_mapping(cls, data: dict[str, Any], *, source: str = "<mapping>") -> SimConfig:
-        """Build from JSON-like data (see the module docstring).
+    def from_mapping(
+        cls, data: dict[str, Any], *, source: str = "<mapping>", arm: ArmConfig | None = None
+    ) -> SimConfig:
+        """Build from JSON-like data (see the module docstring); ``arm``: the arm when the
+        data has none.
 
         Raises:
             ConfigError: naming the source and the key.
         """
         known = {f.name for f in fields(cls)}
-        kwargs: dict[str, Any] = {}
+        kwargs: dict[str, Any] = {} if arm is None else {"arm": arm}
         for key, value in data.items():
             if key not in known:
                 raise ConfigError(f"{source}: unknown simulator setting `{key}` ({sorted(known)})")
@@ -204,19 +213,25 @@ class SimConfig:
 
 
 def load_sim_config(
-    path: str | os.PathLike[str] | None = None, *, seed: int | None = None
+    path: str | os.PathLike[str] | None = None,
+    *,
+    seed: int | None = None,
+    arm_config: str | os.PathLike[str] | None = None,
 ) -> SimConfig:
-    """Defaults < JSON file (``path`` or ``$MANUS_SIM_CONFIG``) < ``seed``.
+    """Defaults < the arm configuration every service reads (``arm_config`` or
+    ``$MANUS_ARM_CONFIG``, :func:`manus.config.load_arm_config`) < JSON file (``path`` or
+    ``$MANUS_SIM_CONFIG``; its ``arm`` simulates an arm other than the one the stack
+    models, for model-error tests) < ``seed``.
 
     Raises:
-        ConfigError: the file cannot be read, is not JSON, or holds a bad setting.
+        ConfigError: a file cannot be read, is not JSON, or holds a bad setting.
     """
     chosen = path if path is not None else os.environ.get("MANUS_SIM_CONFIG")
-    config = SimConfig()
+    config = SimConfig(arm=load_arm_config(arm_config))
     if chosen:
         file = Path(chosen)
         data = read_json_object(file, "simulator config")
-        config = SimConfig.from_mapping(data, source=str(file))
+        config = SimConfig.from_mapping(data, source=str(file), arm=config.arm)
     if seed is not None:
         config = config.with_overrides(seed=seed)
     return config

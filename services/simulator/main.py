@@ -57,6 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", help="simulator config JSON (default $MANUS_SIM_CONFIG)")
     parser.add_argument("--seed", type=int, help="random seed (overrides the config)")
     parser.add_argument(
+        "--arm-config",
+        help="arm geometry/limits JSON, the same file the other services read (default: "
+        "$MANUS_ARM_CONFIG, else thesis values; the simulator config's `arm` overrides it)",
+    )
+    parser.add_argument(
         "--zenoh",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -101,7 +106,7 @@ def wait_for_client(bus: SlcanPtyBus, stop: threading.Event, deadline: float | N
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulator (or write the step-response plot)."""
-    config = load_sim_config(args.config, seed=args.seed)
+    config = load_sim_config(args.config, seed=args.seed, arm_config=args.arm_config)
     if args.step_response:
         from services.simulator.stepresponse import plot_step_response
 

@@ -13,6 +13,7 @@ import logging
 from manus.errors import ConfigError
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from schemas.state import SimTruth
 
 log = logging.getLogger("manus.sim")
@@ -30,7 +31,7 @@ class TruthPublisher:
 
     def __init__(self, node: Node) -> None:
         self.node = node
-        self._pub = node.publisher(node.keys.sim_truth)
+        self._pub = node.publisher(node.keys(ep.SIM_TRUTH))
         self._seq = 0
 
     def __call__(self, truth: SimTruth) -> None:

@@ -44,11 +44,12 @@ from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ManusError
 from manus.kinematics import fk
 from manus.trajectory import JointTrajectory
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import EStop
 from schemas.control import GoalResult, TrajectoryGoal
 from schemas.keys import Keys, channel_type
-from schemas.liveliness import LIVELINESS, LivelinessChange
+from schemas.liveliness import LivelinessChange
 from schemas.planning import PlanReply, Trajectory
 from schemas.sequencing import TaskEvent
 from schemas.state import ArmStatus, BridgeState, JointState, SimTruth
@@ -56,22 +57,22 @@ from services.viewer import scene
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
 from services.viewer.scene import SchemaInfo
 
-JSON_SUFFIXES = (
-    "state/joints",
-    "state/status",
-    "state/bridge",
-    "cmd/joint_velocity",
-    "controller/feedback",
-    "controller/result",
-    "sequencer/events",
-    "estop",
-    "sim/truth",
-    LIVELINESS,
+JSON_SUFFIXES: tuple[str, ...] = (
+    ep.JOINTS,
+    ep.STATUS,
+    ep.BRIDGE_STATE,
+    ep.JOINT_VELOCITY,
+    ep.FEEDBACK,
+    ep.RESULT,
+    ep.EVENTS,
+    ep.ESTOP,
+    ep.SIM_TRUTH,
+    ep.LIVELINESS,
 )
 """Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
 
-GOAL_REQUEST = "trace/controller/goal/request"
-PLAN_REPLY = "trace/planner/plan/reply"
+GOAL_REQUEST = ep.GOAL.trace("request")
+PLAN_REPLY = ep.PLAN.trace("reply")
 
 ROBOT_DESCRIPTION_SCHEMA = scene.json_schema_info(
     "std_msgs/String",
@@ -232,14 +233,14 @@ class ViewerCore:
         """The newest goal's path and via points [m] (what ``viz/planned`` shows)."""
         self._urdf = build_visual_urdf(self.config.arm)
         self._handlers = {
-            "state/joints": self._joints,
-            "state/status": self._arm_status,
-            "state/bridge": self._bridge,
-            "controller/result": self._result,
-            "sequencer/events": self._task_event,
-            "estop": self._estop,
-            "sim/truth": self._truth,
-            LIVELINESS: self._liveliness,
+            ep.JOINTS: self._joints,
+            ep.STATUS: self._arm_status,
+            ep.BRIDGE_STATE: self._bridge,
+            ep.RESULT: self._result,
+            ep.EVENTS: self._task_event,
+            ep.ESTOP: self._estop,
+            ep.SIM_TRUTH: self._truth,
+            ep.LIVELINESS: self._liveliness,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }

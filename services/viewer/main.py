@@ -12,6 +12,7 @@ import json
 import sys
 from pathlib import Path
 
+from manus.config import load_arm_config
 from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.viewer.layout import layout_json
@@ -31,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
     parser.add_argument("--layout", metavar="FILE", help="write the Foxglove layout and exit")
+    parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     add_bus_arguments(parser)
 
 
@@ -48,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         port=args.port,
         queue_size=max(1, args.queue),
         backlog=max(1, args.backlog),
+        arm=load_arm_config(args.arm_config),
     )
     try:
         freeze_startup_heap()

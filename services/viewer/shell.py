@@ -18,6 +18,7 @@ import threading
 
 import zenoh
 
+from manus.config import DEFAULT_ARM, ArmConfig
 from manus.node import Node, now_ns
 from manus.session import ZenohSettings
 from schemas.liveliness import LivelinessChange
@@ -43,6 +44,7 @@ class ViewerShell:
         session: an open session to share (not closed by :meth:`close`).
         queue_size: samples buffered before new ones are dropped.
         backlog: messages buffered per Foxglove client.
+        arm: the arm's geometry (forward kinematics, URDF).
 
     Attributes:
         received: samples received from the bus.
@@ -59,8 +61,9 @@ class ViewerShell:
         session: zenoh.Session | None = None,
         queue_size: int = DEFAULT_QUEUE,
         backlog: int = DEFAULT_BACKLOG,
+        arm: ArmConfig = DEFAULT_ARM,
     ) -> None:
-        self.core = ViewerCore(ViewerConfig(prefix=settings.prefix))
+        self.core = ViewerCore(ViewerConfig(prefix=settings.prefix, arm=arm))
         self.sink = FoxgloveSink(
             host=host,
             port=port,

@@ -1,0 +1,27 @@
+"""The planner's wiring: joint states (the default start) and ``planner/plan``.
+
+Drives the live shell (:mod:`.shell`, which plans outside the node lock), the lock-step
+harness (``manus_stack.task_lockstep``) and the regression check
+(``manus_stack.regression``).
+"""
+
+from __future__ import annotations
+
+from manus.wiring import Answer, Input, Publications, Wiring, messages
+from schemas import endpoints as ep
+from schemas.state import JointState
+from services.planner.core import PlannerCore
+
+
+def _on_joint_state(core: PlannerCore, js: JointState, t_ns: int) -> Publications:
+    core.on_joint_state(js)
+    return []
+
+
+WIRING: Wiring[PlannerCore, Publications] = Wiring(
+    ep.Service.PLANNER,
+    messages,
+    inputs=(Input(ep.JOINTS, _on_joint_state),),
+    answers=(Answer(ep.PLAN, lambda core, req, t: (core.plan(req), []), locked=False),),
+)
+"""The planner's wiring map (it publishes nothing: its replies are its output)."""

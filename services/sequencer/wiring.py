@@ -1,0 +1,42 @@
+"""The sequencer's wiring: what it follows on the bus, the queries it answers.
+
+Drives the live shell (:mod:`.shell`) and the lock-step harness
+(``manus_stack.task_lockstep``). The core's outputs are :data:`~.core.Action` values:
+:class:`~.core.Publish` ones are its publications (task events, the deadman heartbeat);
+:class:`~.core.Query` ones are requests to other services, carried by the shell's worker
+(live) or answered by the owning core (lock-step). Liveliness changes come from the
+node's token watch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from manus.wiring import Answer, Input, Wiring
+from schemas import endpoints as ep
+from schemas.base import Message
+from services.sequencer.core import Action, Publish, SequencerCore
+
+
+def publications(actions: Iterable[Action]) -> list[tuple[str, Message]]:
+    """The :class:`Publish` actions among ``actions``, as (key suffix, message)."""
+    return [(a.suffix, a.message) for a in actions if isinstance(a, Publish)]
+
+
+WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
+    ep.Service.SEQUENCER,
+    publications,
+    inputs=(
+        Input(ep.JOINTS, lambda core, js, t: core.on_joint_state(js, t)),
+        Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs, t)),
+        Input(ep.FEEDBACK, lambda core, fb, t: core.on_feedback(fb, t)),
+        Input(ep.RESULT, lambda core, res, t: core.on_result(res, t)),
+        Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
+    ),
+    answers=(
+        Answer(ep.TASK_CONTROL, lambda core, req, t: core.control(req, t)),
+        Answer(ep.TASK_STATUS, lambda core, req, t: (core.status(), [])),
+    ),
+)
+"""The sequencer's wiring map (``sequencer/submit`` is the shell's: it waits for the
+planner's answers, see :meth:`.shell.SequencerShell._on_submit`)."""
