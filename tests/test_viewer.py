@@ -432,3 +432,14 @@ def test_manus_view_writes_the_layout(tmp_path: Path) -> None:
     out = tmp_path / "layout.json"
     assert main(["view", "--layout", str(out)]) == 0
     assert out.read_text() == layout_json()
+
+
+def test_a_taken_port_is_a_clear_error() -> None:
+    from services.viewer.server import FoxgloveSink, ViewerError
+
+    first = FoxgloveSink(port=0)
+    try:
+        with pytest.raises(ViewerError, match=f"127.0.0.1:{first.port}: .*another manus view"):
+            FoxgloveSink(port=first.port)
+    finally:
+        first.close()

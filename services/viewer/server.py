@@ -26,6 +26,7 @@ from collections.abc import Callable
 import foxglove
 from foxglove.websocket import ChannelView, Client, ClientChannel, ServerListener
 
+from manus.errors import ManusError
 from services.viewer.core import FoxMessage
 from services.viewer.scene import SchemaInfo
 
@@ -35,6 +36,10 @@ DEFAULT_PORT = 8765
 DEFAULT_BACKLOG = 1024
 
 log = logging.getLogger("manus.viewer")
+
+
+class ViewerError(ManusError):
+    """The viewer cannot serve (the port is taken, the address is wrong)."""
 
 
 CLIENT_LOGGER = "foxglove.websocket.connected_client"
@@ -64,7 +69,7 @@ def _install_sdk_logging() -> ClientProblemCounter:
     with _INSTALLED:
         if not _installed:
             logging.getLogger(CLIENT_LOGGER).addHandler(_PROBLEMS)
-            foxglove.set_log_level(logging.INFO)
+            foxglove.set_log_level(logging.WARNING)
             _installed = True
     return _PROBLEMS
 
@@ -123,15 +128,21 @@ class FoxgloveSink:
         self._urdf = urdf.encode()
         self._channels: dict[str, foxglove.Channel] = {}
         self.logged = 0
-        self.server = foxglove.start_server(
-            name=name,
-            host=host,
-            port=port,
-            context=self.context,
-            server_listener=_Listener(self),
-            asset_handler=self._asset,
-            message_backlog_size=backlog,
-        )
+        try:
+            self.server = foxglove.start_server(
+                name=name,
+                host=host,
+                port=port,
+                context=self.context,
+                server_listener=_Listener(self),
+                asset_handler=self._asset,
+                message_backlog_size=backlog,
+            )
+        except RuntimeError as exc:
+            raise ViewerError(
+                f"cannot serve Foxglove on {host}:{port}: {exc} (another manus view? "
+                "choose another --port)"
+            ) from exc
 
     @property
     def port(self) -> int:
