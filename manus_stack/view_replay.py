@@ -1,12 +1,16 @@
 """``manus replay FILE --view``: a recording shown in Foxglove as the live viewer shows it.
 
 The recording's samples go through the viewer's core (:class:`services.viewer.core.
-ViewerCore`) at their recorded pace (``rate``; None: as fast as possible) and out of the
-viewer's WebSocket server (:class:`services.viewer.server.FoxgloveSink`), with the
-recorded log times. Nothing is published on the bus. Playback waits until a client has
-subscribed (open the connection in the app first), then plays ``start_s`` .. ``until_s``
-of the recording (seconds from its first message), ``loop`` times over if asked, and
-keeps serving until stopped.
+ViewerCore`) and out of the viewer's WebSocket server (:class:`services.viewer.server.
+FoxgloveSink`), with the recorded log times, paced by the replay's clock
+(:class:`services.recorder.playback.Playback`: ``rate``, ``start_s`` .. ``until_s``,
+``loops``). Nothing is published on the bus. Playback waits until a client has subscribed
+(open the connection in the app first).
+
+The server announces the recording's time range, so the app shows its playback bar: play,
+pause, speed and seek requests go to the same clock (a seek starts the view afresh from
+there: a new core, the executed path from that point on), and the server tells the app
+the current time as it plays.
 """
 
 from __future__ import annotations
@@ -15,10 +19,27 @@ import threading
 import time
 from dataclasses import dataclass
 
+from foxglove.websocket import (
+    PlaybackCommand,
+    PlaybackControlRequest,
+    PlaybackState,
+    PlaybackStatus,
+)
+
 from manus.config import load_arm_config
-from services.recorder.reading import Recording
+from schemas.playback import PlaybackControl
+from services.recorder.playback import Playback
+from services.recorder.reading import Recorded, Recording
 from services.viewer.core import ViewerConfig, ViewerCore
 from services.viewer.server import DEFAULT_HOST, DEFAULT_PORT, FoxgloveSink
+
+TIME_EVERY_NS = 50_000_000
+"""Tell the app the playback time at least this often [ns of log time]."""
+_STATUS = {
+    "playing": PlaybackStatus.Playing,
+    "paused": PlaybackStatus.Paused,
+    "finished": PlaybackStatus.Ended,
+}
 
 
 @dataclass
@@ -29,11 +50,13 @@ class ViewReplayStats:
         samples: recorded samples fed to the core.
         shown: Foxglove messages logged.
         passes: times the selection was played.
+        app_requests: playback requests from the app (play, pause, speed, seek).
     """
 
     samples: int = 0
     shown: int = 0
     passes: int = 0
+    app_requests: int = 0
 
 
 class ViewReplay:
@@ -49,15 +72,26 @@ class ViewReplay:
         self.recording = Recording(path)
         self.prefix = self.recording.info.prefix or "manus"
         self.config = ViewerConfig(prefix=self.prefix, arm=load_arm_config())
+        self.records: list[Recorded] = list(self.recording.messages())
+        self.first_ns = self.records[0].log_ns if self.records else 0
         probe = ViewerCore(self.config)
         self.sink = FoxgloveSink(
-            host=host, port=port, urdf=probe.urdf, describe_topic=probe.topics.robot_description
+            host=host,
+            port=port,
+            urdf=probe.urdf,
+            describe_topic=probe.topics.robot_description,
+            playback_range=(self.first_ns, self.records[-1].log_ns if self.records else 0),
         )
         self._describe = threading.Event()
         self.sink.on_describe = self._describe.set
+        self.sink.on_playback = self._on_app_request
         for topic, schema, encoding in probe.channels():
             self.sink.advertise(topic, schema, encoding)
         self.stats = ViewReplayStats()
+        self.playback: Playback | None = None
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._fresh = False  # a seek: start the view afresh
 
     @property
     def port(self) -> int:
@@ -73,6 +107,42 @@ class ViewReplay:
             stop.wait(0.05)
         return True
 
+    def _state(self, request_id: str | None, did_seek: bool) -> PlaybackState:
+        p = self.playback
+        assert p is not None
+        status = p.status()
+        return PlaybackState(
+            status=_STATUS[status.state],
+            current_time=self.first_ns + round(status.position * 1e9),
+            playback_speed=status.rate or 1.0,
+            did_seek=did_seek,
+            request_id=request_id,
+        )
+
+    def _on_app_request(self, req: PlaybackControlRequest) -> PlaybackState | None:
+        """The app's play, pause, speed and seek (on an SDK thread)."""
+        with self._lock:
+            p = self.playback
+            if p is None:  # not playing yet
+                return None
+            self.stats.app_requests += 1
+            now = time.monotonic()
+            did_seek = False
+            if req.seek_time is not None:
+                offset = (req.seek_time - self.first_ns) / 1e9
+                lo, hi = p.offsets[p.first], p.offsets[p.end - 1]
+                did_seek = p.control(
+                    PlaybackControl(action="seek", value=min(max(offset, lo), hi)), now
+                ).ok
+                self._fresh = self._fresh or did_seek
+            if req.playback_speed > 0 and p.rate is not None:
+                p.control(PlaybackControl(action="rate", value=req.playback_speed), now)
+            action = "resume" if req.playback_command == PlaybackCommand.Play else "pause"
+            p.control(PlaybackControl(action=action), now)
+            state = self._state(req.request_id, did_seek)
+        self._wake.set()
+        return state
+
     def play(
         self,
         *,
@@ -82,43 +152,56 @@ class ViewReplay:
         loops: int = 1,
         stop: threading.Event | None = None,
     ) -> ViewReplayStats:
-        """Play the selection ``loops`` times (a fresh core each time, so paths restart).
+        """Play the selection ``loops`` times (a fresh core each pass and after a seek, so
+        the paths restart), as the app's playback bar asks meanwhile.
 
         Args:
             rate: time scale (2: twice as fast); None: as fast as possible.
             start_s: start offset from the first message [s].
-            until_s: stop at this offset [s] (None: the end).
+            until_s: stop after this offset [s] (None: the end).
             loops: how many passes.
             stop: set it to stop early.
         """
         stop = stop or threading.Event()
-        first = self.recording.info.start_ns
-        lo = first + round(start_s * 1e9)
-        hi = None if until_s is None else first + round(until_s * 1e9)
-        for _ in range(max(1, loops)):
-            core = ViewerCore(self.config)
-            self.sink.log(core.robot_description(lo))
-            t0_wall = time.monotonic()
-            for rec in self.recording.messages():
-                if stop.is_set():
-                    return self.stats
-                if rec.log_ns < lo:
-                    continue
-                if hi is not None and rec.log_ns > hi:
+        offsets = [(r.log_ns - self.first_ns) / 1e9 for r in self.records]
+        with self._lock:
+            self.playback = p = Playback(
+                offsets, rate=rate, start_s=start_s, until_s=until_s, loops=loops
+            )
+        core: ViewerCore | None = None
+        loop = 0
+        told_ns = -TIME_EVERY_NS
+        while not stop.is_set():
+            with self._lock:
+                now = time.monotonic()
+                due = p.due(now)
+                if p.state == "finished":
                     break
-                if rate is not None:
-                    due = t0_wall + (rec.log_ns - lo) / 1e9 / rate
-                    delay = due - time.monotonic()
-                    if delay > 0 and stop.wait(delay):
-                        return self.stats
-                if self._describe.is_set():
-                    self._describe.clear()
-                    self.sink.log(core.robot_description(rec.log_ns))
-                self.stats.samples += 1
-                for msg in core.on_sample(rec.key, rec.payload, rec.log_ns):
-                    self.sink.log(msg)
-                    self.stats.shown += 1
-            self.stats.passes += 1
+                index = p.take(now) if due is not None and due <= now else -1
+                fresh, self._fresh = self._fresh, False
+                if p.loop != loop:
+                    loop, fresh = p.loop, True
+            if index < 0:
+                self._wake.wait(0.1 if due is None else min(due - now, 0.1))
+                self._wake.clear()
+                continue
+            rec = self.records[index]
+            if core is None or fresh:
+                core = ViewerCore(self.config)
+                self._describe.set()
+            if self._describe.is_set():
+                self._describe.clear()
+                self.sink.log(core.robot_description(rec.log_ns))
+            self.stats.samples += 1
+            for msg in core.on_sample(rec.key, rec.payload, rec.log_ns):
+                self.sink.log(msg)
+                self.stats.shown += 1
+            if abs(rec.log_ns - told_ns) >= TIME_EVERY_NS:
+                self.sink.server.broadcast_time(rec.log_ns)
+                told_ns = rec.log_ns
+        self.stats.passes = p.loop if p.state == "finished" else p.loop - 1
+        with self._lock:
+            self.sink.server.broadcast_playback_state(self._state(None, False))
         return self.stats
 
     def close(self) -> None:

@@ -7,6 +7,7 @@ import asyncio
 import base64
 import json
 import math
+import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -443,3 +444,62 @@ def test_a_taken_port_is_a_clear_error() -> None:
             FoxgloveSink(port=first.port)
     finally:
         first.close()
+
+
+def _playback_request(play: bool, speed: float, seek_ns: int | None, request_id: str) -> bytes:
+    """The app's binary playback control request (opcode 3, little-endian)."""
+    rid = request_id.encode()
+    return (
+        struct.pack("<BBfBQ", 3, 0 if play else 1, speed, seek_ns is not None, seek_ns or 0)
+        + struct.pack("<I", len(rid))
+        + rid
+    )
+
+
+def test_the_apps_playback_bar_pauses_seeks_and_speeds_up_a_view_replay() -> None:
+    import threading
+
+    from manus_stack.view_replay import ViewReplay
+
+    stop = threading.Event()
+    with ViewReplay(str(SQUARE), port=0) as replay:
+        first = replay.first_ns
+        player = threading.Thread(target=lambda: replay.play(rate=1.0, stop=stop))
+
+        def paused() -> bool:
+            return replay.playback is not None and replay.playback.state == "paused"
+
+        async def scenario() -> tuple[dict[str, Any], list[int]]:
+            protocols = [websockets.Subprotocol(SUBPROTOCOL)]
+            url = f"ws://127.0.0.1:{replay.port}"
+            tf_times: list[int] = []
+            async with websockets.connect(url, subprotocols=protocols, max_size=None) as ws:
+                info = json.loads(await ws.recv())
+                advert = json.loads(await ws.recv())
+                tf = next(c for c in advert["channels"] if c["topic"] == "manus/viz/tf")
+                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                    {"id": 1, "channelId": tf["id"]}]}))  # fmt: skip
+                await asyncio.to_thread(eventually, lambda: replay.playback is not None, 10.0)
+                await ws.send(_playback_request(False, 1.0, None, "pause-1"))
+                await asyncio.to_thread(eventually, paused, 5.0, "paused")
+                await ws.send(_playback_request(True, 4.0, first + 15 * 10**9, "seek-1"))
+                loop = asyncio.get_running_loop()
+                deadline = loop.time() + 10
+                while loop.time() < deadline and len(tf_times) < 20:
+                    frame = await asyncio.wait_for(ws.recv(), deadline - loop.time())
+                    if isinstance(frame, bytes) and frame[0] == 1:
+                        tf_times.append(struct.unpack_from("<IQ", frame, 1)[1])
+            return info, tf_times
+
+        player.start()
+        try:
+            info, tf_times = asyncio.run(scenario())
+        finally:
+            stop.set()
+            player.join()
+        p = replay.playback
+    assert p is not None and replay.stats.app_requests >= 2
+    assert p.rate == 4.0
+    after = [t for t in tf_times if t >= first + 15 * 10**9]
+    assert len(after) >= 10, [(t - first) / 1e9 for t in tf_times]  # played on from 15 s
+    assert info["op"] == "serverInfo"

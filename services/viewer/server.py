@@ -24,7 +24,14 @@ from collections import Counter
 from collections.abc import Callable
 
 import foxglove
-from foxglove.websocket import ChannelView, Client, ClientChannel, ServerListener
+from foxglove.websocket import (
+    ChannelView,
+    Client,
+    ClientChannel,
+    PlaybackControlRequest,
+    PlaybackState,
+    ServerListener,
+)
 
 from manus.errors import ManusError
 from services.viewer.core import FoxMessage
@@ -94,6 +101,13 @@ class _Listener(ServerListener):
     def on_message_data(self, client: Client, client_channel_id: int, data: bytes) -> None:
         self.sink.client_events["client_message"] += 1
 
+    def on_playback_control_request(
+        self, playback_control_request: PlaybackControlRequest
+    ) -> PlaybackState | None:
+        self.sink.client_events["playback_control"] += 1
+        handler = self.sink.on_playback
+        return handler(playback_control_request) if handler is not None else None
+
 
 class FoxgloveSink:
     """The SDK's WebSocket server with the viewer's channels.
@@ -105,6 +119,8 @@ class FoxgloveSink:
         describe_topic: the robot description topic (re-sent on each subscription).
         backlog: messages buffered per client before its oldest are dropped.
         name: server name shown in the app.
+        playback_range: for a recording, its first and last log time [ns]: the app then
+            shows a playback bar whose requests go to :attr:`on_playback`.
     """
 
     def __init__(
@@ -116,12 +132,14 @@ class FoxgloveSink:
         describe_topic: str = "",
         backlog: int = DEFAULT_BACKLOG,
         name: str = "manus",
+        playback_range: tuple[int, int] | None = None,
     ) -> None:
         self.problems = _install_sdk_logging()
         self._problems_at_start = self.problems.count
         self.context = foxglove.Context()
         self.describe_topic = describe_topic
         self.on_describe: Callable[[], None] | None = None
+        self.on_playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None = None
         self.client_events: Counter[str] = Counter()
         self.assets_served = 0
         self.assets_refused = 0
@@ -137,6 +155,7 @@ class FoxgloveSink:
                 server_listener=_Listener(self),
                 asset_handler=self._asset,
                 message_backlog_size=backlog,
+                playback_time_range=playback_range,
             )
         except RuntimeError as exc:
             raise ViewerError(
