@@ -42,7 +42,7 @@ LIVELINESS = {
     "controller": "controller",
     "sequencer": "sequencer",
     "record": "recorder",
-    "flight": "flight_recorder",
+    "flight": "recorder",  # the flight recorder runs as a second recorder process
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 

@@ -8,7 +8,9 @@ when the bus is quiet, and writes each completed dump with :func:`write_dump` in
 summary) that ``manus replay``, ``manus export`` and ``manus plot`` read, with a
 ``flight`` metadata record (the triggers, the window). Liveliness changes are recorded and
 fed to the core as the recorder does (``<prefix>/liveliness``), so a vanished service is
-a trigger. It listens only; its own token is ``alive/flight_recorder``.
+a trigger. It listens only. It runs as the recorder (tokens ``alive/recorder`` and
+``where/recorder/<host>/<pid>``, the recorder's identity in the deployed access control),
+so a recorder and a flight recorder show as two recorder processes.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import zenoh
 
 from manus.node import Node, now_ns
 from manus.session import ZenohSettings
+from schemas.endpoints import Service
 from schemas.liveliness import LivelinessChange
 from services.recorder.flight import Dump, FlightConfig, FlightCore
 from services.recorder.writer import RecordingWriter
@@ -32,8 +35,8 @@ log = logging.getLogger("manus.recorder.flight")
 
 DEFAULT_QUEUE = 100_000
 """Samples waiting for the worker before new ones are dropped."""
-NAME = "flight_recorder"
-"""Liveliness name of the flight recorder."""
+NAME = Service.RECORDER
+"""Liveliness name of the flight recorder: the recorder's."""
 
 _Item = tuple[str, bytes, int, int | None]
 
