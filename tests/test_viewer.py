@@ -32,7 +32,7 @@ from manus.urdf import build_urdf
 from schemas.control import TrajectoryGoal
 from schemas.state import JointState
 from services.recorder.reading import Recording, decode
-from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerConfig, ViewerCore, quaternion
+from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerConfig, ViewerCore
 from services.viewer.layout import LAYOUT_FILE, layout_json
 from services.viewer.model import (
     GRIPPER_FRAME,
@@ -40,6 +40,7 @@ from services.viewer.model import (
     ROOT_FRAME,
     build_visual_urdf,
     link_transforms,
+    quaternion,
 )
 from services.viewer.server import URDF_URI
 from services.viewer.shell import ViewerShell

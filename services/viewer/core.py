@@ -32,12 +32,10 @@ from __future__ import annotations
 import base64
 import json
 import math
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import msgpack
-import numpy as np
 from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 
 from manus.config import DEFAULT_ARM, ArmConfig
@@ -54,8 +52,10 @@ from schemas.planning import PlanReply, Trajectory
 from schemas.sequencing import TaskEvent
 from schemas.state import ArmStatus, BridgeState, JointState, SimTruth
 from services.viewer import scene
-from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
+from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms, quaternion
+from services.viewer.path import GripperPath
 from services.viewer.scene import SchemaInfo
+from services.viewer.topics import Topics
 
 JSON_SUFFIXES: tuple[str, ...] = (
     ep.JOINTS,
@@ -165,52 +165,6 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serializable")
 
 
-def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
-    """Unit quaternion (x, y, z, w) of a rotation matrix, shape (3, 3)."""
-    m = R
-    tr = float(m[0, 0] + m[1, 1] + m[2, 2])
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        return ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4)
-    i = int(np.argmax([m[0, 0], m[1, 1], m[2, 2]]))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k]) * 2
-    q = [0.0, 0.0, 0.0, 0.0]
-    q[i] = s / 4
-    q[j] = (m[j, i] + m[i, j]) / s
-    q[k] = (m[k, i] + m[i, k]) / s
-    q[3] = (m[k, j] - m[j, k]) / s
-    return (q[0], q[1], q[2], q[3])
-
-
-class _Path:
-    """A bounded gripper path: a point only after a move of ``step`` [m]."""
-
-    def __init__(self, cfg: ViewerConfig) -> None:
-        self.points: deque[tuple[float, float, float]] = deque(maxlen=cfg.path_points)
-        self.step2 = cfg.path_step_m**2
-        self.every = cfg.path_every
-        self.pending = 0
-
-    def add(self, xyz: tuple[float, float, float]) -> bool:
-        """Append ``xyz`` if far enough from the last point; True when the path is due."""
-        if self.points:
-            last = self.points[-1]
-            d2 = (xyz[0] - last[0]) ** 2 + (xyz[1] - last[1]) ** 2 + (xyz[2] - last[2]) ** 2
-            if d2 < self.step2:
-                return False
-        self.points.append(xyz)
-        self.pending += 1
-        if self.pending >= self.every or len(self.points) == 2:
-            self.pending = 0
-            return True
-        return False
-
-    def clear(self) -> None:
-        self.points.clear()
-        self.pending = 0
-
-
 class ViewerCore:
     """Bus samples -> Foxglove messages (see the module docstring for the channels).
 
@@ -222,9 +176,13 @@ class ViewerCore:
         self.config = config or ViewerConfig()
         self.keys = Keys(self.config.prefix)
         self.stats = ViewerStats()
-        self.topics = _Topics(self.keys)
-        self._executed = _Path(self.config)
-        self._true = _Path(self.config)
+        self.topics = Topics(self.keys)
+        self._executed = GripperPath(
+            self.config.path_points, self.config.path_step_m, self.config.path_every
+        )
+        self._true = GripperPath(
+            self.config.path_points, self.config.path_step_m, self.config.path_every
+        )
         self._status: tuple[str, int] = ("none", 0)
         self._phase = ""
         self.joints: JointState | None = None
@@ -330,7 +288,13 @@ class ViewerCore:
         return self._proto(self.topics.log, scene.log(level, name, text, t_ns), t_ns)
 
     def _path(
-        self, topic: str, entity: str, path: _Path, rgba: tuple[float, ...], t_ns: int, stamp: int
+        self,
+        topic: str,
+        entity: str,
+        path: GripperPath,
+        rgba: tuple[float, ...],
+        t_ns: int,
+        stamp: int,
     ) -> FoxMessage:
         ent = scene.path_entity(entity, ROOT_FRAME, stamp, list(path.points), rgba)
         return self._proto(topic, scene.scene_update([ent], stamp), t_ns)
@@ -468,26 +432,3 @@ class ViewerCore:
         what = "up" if msg.alive else "gone"
         return [self._log("info" if msg.alive else "warning", msg.service or "liveliness",
                           f"{msg.service} {what}", t_ns)]  # fmt: skip
-
-
-class _Topics:
-    """Topic names of one prefix and the JSON schemas of the forwarded types."""
-
-    def __init__(self, keys: Keys) -> None:
-        viz = keys("viz")
-        self.robot_description = f"{viz}/robot_description"
-        self.tf = f"{viz}/tf"
-        self.planned = f"{viz}/planned"
-        self.via_poses = f"{viz}/via_poses"
-        self.executed = f"{viz}/executed"
-        self.true = f"{viz}/true"
-        self.log = f"{viz}/log"
-        self._json: dict[type[Message], SchemaInfo] = {}
-
-    def json_schema(self, msg_type: type[Message]) -> SchemaInfo:
-        info = self._json.get(msg_type)
-        if info is None:
-            info = self._json[msg_type] = scene.json_schema_info(
-                msg_type.TYPE_NAME, msg_type.json_schema()
-            )
-        return info
