@@ -193,3 +193,20 @@ def test_write_dump_writes_a_valid_file(tmp_path: Path) -> None:
     path = tmp_path / "d.mcap"
     assert write_dump(dump, path, "manus") == len(dump.samples)
     assert Recording(path).info.messages == len(dump.samples)
+
+
+@pytest.mark.slow
+def test_manus_record_trigger_asks_a_running_flight_recorder_to_write(
+    zenoh_settings: ZenohSettings, tmp_path: Path
+) -> None:
+    from manus_stack.cli import main
+
+    bus = ["--connect", *zenoh_settings.connect, "--prefix", zenoh_settings.prefix]
+    with FlightShell(zenoh_settings, tmp_path, FlightConfig(ring_s=2.0, after_s=0.2)) as shell:
+        assert main(["record", "--trigger", "the gripper slipped", *bus]) == 0
+        eventually(lambda: len(shell.files) == 1, 5.0, "one flight file")
+    path = shell.files[0]
+    assert path.name.endswith("-request-manus-record-the-gripper-slipped.mcap")
+    with path.open("rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert "the gripper slipped" in meta["flight"]["triggers"]
