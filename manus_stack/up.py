@@ -241,9 +241,13 @@ class LocalStack:
         if opts.record and opts.flight_ring_s > 0 and "record" in have:
             ring = ["--ring", f"{opts.flight_ring_s:g}", "--out-dir", str(opts.flight_dir)]
             self._spawn("flight", ring, command="record")
-        if opts.view:
-            self._spawn("view", ["--port", str(opts.view_port)])
+        viewer = self._spawn("view", ["--port", str(opts.view_port)]) if opts.view else None
         self.wait_alive(deadline)
+        while viewer is not None and not port_in_use(f"tcp/127.0.0.1:{opts.view_port}"):
+            self._check(viewer)  # the viewer holds no token: wait for its port
+            if time.monotonic() > deadline:
+                raise StackError(f"manus view did not listen in time (log {viewer.log})")
+            time.sleep(0.05)
 
     def expected(self) -> set[str]:
         """Liveliness names of the started services."""
