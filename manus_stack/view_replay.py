@@ -150,6 +150,7 @@ class ViewReplay:
         start_s: float = 0.0,
         until_s: float | None = None,
         loops: int = 1,
+        paused: bool = False,
         stop: threading.Event | None = None,
     ) -> ViewReplayStats:
         """Play the selection ``loops`` times (a fresh core each pass and after a seek, so
@@ -160,13 +161,14 @@ class ViewReplay:
             start_s: start offset from the first message [s].
             until_s: stop after this offset [s] (None: the end).
             loops: how many passes.
+            paused: start paused (the app's play button starts it).
             stop: set it to stop early.
         """
         stop = stop or threading.Event()
         offsets = [(r.log_ns - self.first_ns) / 1e9 for r in self.records]
         with self._lock:
             self.playback = p = Playback(
-                offsets, rate=rate, start_s=start_s, until_s=until_s, loops=loops
+                offsets, rate=rate, start_s=start_s, until_s=until_s, loops=loops, paused=paused
             )
         core: ViewerCore | None = None
         loop = 0

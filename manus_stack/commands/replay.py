@@ -42,6 +42,7 @@ def _view(args: argparse.Namespace) -> int:
                 start_s=args.start,
                 until_s=args.until,
                 loops=args.loop,
+                paused=args.paused,
                 stop=stop,
             )
             sys.stderr.write(f"stats: {json.dumps(stats.__dict__)}; Ctrl-C ends\n")
