@@ -15,7 +15,6 @@ process, which then stops the children in reverse order (the recorder last but t
 router), each by its pid (SIGINT, then SIGKILL after a grace period).
 
 :class:`LocalStack` waits until every started service's liveliness token is up.
-Services whose command is not part of this installation yet are reported, not started.
 """
 
 from __future__ import annotations
@@ -76,7 +75,7 @@ class StackOptions:
         prefix: key prefix of the arm.
         can_interface: python-can interface of a real arm (empty: the simulator).
         can_channel: its channel.
-        record: start the recorder (``manus record``) when it is installed.
+        record: start the recorder (``manus record``) first.
         sim_args: extra arguments of ``manus sim``.
         flight_ring_s: seconds the flight recorder keeps (0, or ``record`` off: none).
         view: start ``manus view`` (the Foxglove WebSocket server).
@@ -110,13 +109,6 @@ class StackOptions:
         return self.run_dir / "sim.device"
 
 
-def available_commands() -> set[str]:
-    """``manus`` subcommands of this installation."""
-    from manus_stack.cli import COMMANDS
-
-    return set(COMMANDS)
-
-
 def endpoint_port(endpoint: str) -> tuple[str, int]:
     """``tcp/127.0.0.1:7447`` -> ("127.0.0.1", 7447)."""
     host, _, port = endpoint.split("/", 1)[-1].rpartition(":")
@@ -136,20 +128,12 @@ class LocalStack:
 
     Args:
         options: what to start and where.
-        out: where progress lines go (None: nowhere).
     """
 
-    def __init__(self, options: StackOptions, out: IO[str] | None = None) -> None:
+    def __init__(self, options: StackOptions) -> None:
         self.options = options
-        self.out = out
         self.children: list[Child] = []
-        self.skipped: list[str] = []
         self.device = ""
-
-    def _say(self, text: str) -> None:
-        if self.out is not None:
-            self.out.write(text + "\n")
-            self.out.flush()
 
     def _env(self) -> dict[str, str]:
         env = dict(os.environ)
@@ -209,13 +193,9 @@ class LocalStack:
             if time.monotonic() > deadline:
                 raise StackError(f"the router did not listen on {opts.endpoint} in time")
             time.sleep(0.05)
-        have = available_commands()
         if opts.record:
-            if "record" in have:
-                self._spawn("record", ["--output", str(opts.recording)])
-                self.wait_alive(deadline)
-            else:
-                self.skipped.append("record")
+            self._spawn("record", ["--output", str(opts.recording)])
+            self.wait_alive(deadline)
         if opts.can_interface:
             bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
         else:
@@ -234,11 +214,8 @@ class LocalStack:
             ("sequencer", []),
         ]
         for name, args in plan:
-            if name in have:
-                self._spawn(name, args)
-            else:
-                self.skipped.append(name)
-        if opts.record and opts.flight_ring_s > 0 and "record" in have:
+            self._spawn(name, args)
+        if opts.record and opts.flight_ring_s > 0:
             ring = ["--ring", f"{opts.flight_ring_s:g}", "--out-dir", str(opts.flight_dir)]
             self._spawn("flight", ring, command="record")
         viewer = self._spawn("view", ["--port", str(opts.view_port)]) if opts.view else None
@@ -286,8 +263,6 @@ class LocalStack:
             lines.append(f"flight recorder: last {opts.flight_ring_s:g} s -> {opts.flight_dir}")
         if any(c.name == "view" for c in self.children):
             lines.append(f"viewer: ws://127.0.0.1:{opts.view_port} (Foxglove: open connection)")
-        for name in self.skipped:
-            lines.append(f"{name:<10} not started: `manus {name}` is not in this installation yet")
         return lines
 
     def exited(self) -> list[Child]:

@@ -61,6 +61,39 @@ def decoder(advert: dict[str, Any]) -> Callable[[bytes], Any]:
     return json.loads
 
 
+Decoders = dict[int, tuple[str, Callable[[bytes], Any]]]
+
+
+def _text(msg: dict[str, Any], got: Received, topics: list[str], decoders: Decoders) -> list[Any]:
+    """Take in a JSON frame; the subscriptions to send for it."""
+    op = msg.get("op")
+    subs = []
+    if op == "serverInfo":
+        got.server_info = msg
+    elif op == "advertise":
+        for ch in msg["channels"]:
+            got.channels[ch["topic"]] = ch
+            if ch["topic"] in topics:
+                sub = len(decoders) + 1
+                decoders[sub] = (ch["topic"], decoder(ch))
+                subs.append({"id": sub, "channelId": ch["id"]})
+    elif op == "status":
+        got.statuses.append(msg)
+    return subs
+
+
+def _binary(frame: bytes, got: Received, decoders: Decoders) -> None:
+    """Take in a binary frame: message data (1) or an asset (4)."""
+    if frame[0] == 1:  # messageData: subscription id, log time, payload
+        sub, log_ns = struct.unpack_from("<IQ", frame, 1)
+        topic, decode = decoders[sub]
+        got.messages.setdefault(topic, []).append((log_ns, decode(frame[13:])))
+    elif frame[0] == 4:  # fetchAssetResponse: request id, status, error length
+        request_id, status, err_len = struct.unpack_from("<IBI", frame, 1)
+        body = frame[10:]
+        got.assets[request_id] = body if status == 0 else body[:err_len].decode()
+
+
 async def collect(
     url: str,
     topics: list[str],
@@ -72,46 +105,22 @@ async def collect(
     """Connect, subscribe to ``topics`` as they are advertised, fetch ``assets``, and
     collect until ``until(received)`` or ``timeout`` [s]."""
     got = Received()
-    decoders: dict[int, tuple[str, Callable[[bytes], Any]]] = {}
-    next_sub = 1
+    decoders: Decoders = {}
     protocols = [websockets.Subprotocol(SUBPROTOCOL)]
     async with websockets.connect(url, subprotocols=protocols, max_size=None) as ws:
         for i, uri in enumerate(assets):
             await ws.send(json.dumps({"op": "fetchAsset", "uri": uri, "requestId": i}))
         loop = asyncio.get_running_loop()
         deadline = loop.time() + timeout
-        while not until(got):
-            left = deadline - loop.time()
-            if left <= 0:
-                break
+        while not until(got) and loop.time() < deadline:
             try:
-                frame = await asyncio.wait_for(ws.recv(), left)
+                frame = await asyncio.wait_for(ws.recv(), deadline - loop.time())
             except TimeoutError:
                 break
             if isinstance(frame, str):
-                msg = json.loads(frame)
-                op = msg.get("op")
-                if op == "serverInfo":
-                    got.server_info = msg
-                elif op == "advertise":
-                    subs = []
-                    for ch in msg["channels"]:
-                        got.channels[ch["topic"]] = ch
-                        if ch["topic"] in topics:
-                            decoders[next_sub] = (ch["topic"], decoder(ch))
-                            subs.append({"id": next_sub, "channelId": ch["id"]})
-                            next_sub += 1
-                    if subs:
-                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
-                elif op == "status":
-                    got.statuses.append(msg)
-                continue
-            if frame[0] == 1:  # messageData
-                sub, log_ns = struct.unpack_from("<IQ", frame, 1)
-                topic, decode = decoders[sub]
-                got.messages.setdefault(topic, []).append((log_ns, decode(frame[13:])))
-            elif frame[0] == 4:  # fetchAssetResponse: request id, status, error length
-                request_id, status, err_len = struct.unpack_from("<IBI", frame, 1)
-                body = frame[10:]
-                got.assets[request_id] = body if status == 0 else body[:err_len].decode()
+                subs = _text(json.loads(frame), got, topics, decoders)
+                if subs:
+                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            else:
+                _binary(frame, got, decoders)
     return got

@@ -83,6 +83,50 @@ def _core(seconds: float, cap: int) -> dict[str, Any]:
     }
 
 
+def _flood(
+    session: zenoh.Session,
+    items: list[tuple[str, bytes, int]],
+    span: int,
+    seconds: float,
+    proc: psutil.Process,
+) -> tuple[int, float, int, list[float]]:
+    """Publish ``items`` ten times over at their recorded pace, looping, for ``seconds``;
+    sample ``proc``'s resident memory meanwhile: (sent, elapsed [s], most RSS [B], RSS
+    every 5 s [MiB])."""
+    pubs: dict[str, zenoh.Publisher] = {}
+    sent = 0
+    t0 = time.monotonic()
+    offset = 0.0
+    rss_max = proc.memory_info().rss
+    next_probe = next_series = t0
+    series: list[float] = []
+    while time.monotonic() - t0 < seconds:
+        for suffix, payload, t in items:
+            delay = t0 + offset + t / 1e9 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            pub = pubs.get(suffix)
+            if pub is None:
+                pub = pubs[suffix] = session.declare_publisher(f"benchflight/{suffix}")
+            for copy in range(10):
+                pub.put(payload + bytes([copy]))
+                sent += 1
+            if time.monotonic() >= next_probe:
+                rss = proc.memory_info().rss
+                rss_max = max(rss_max, rss)
+                next_probe += 0.25
+                if time.monotonic() >= next_series:
+                    series.append(round(rss / MIB, 1))
+                    next_series += 5.0
+            if time.monotonic() - t0 >= seconds:
+                break
+        offset += span / 1e9
+    elapsed = time.monotonic() - t0
+    for pub in pubs.values():
+        pub.undeclare()
+    return sent, elapsed, rss_max, series
+
+
 def _live(seconds: float, cap: int) -> dict[str, Any]:
     items, span = _traffic()
     with socket.socket() as s:
@@ -101,43 +145,13 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
                 child.stderr.readline()  # "flight recorder: ..." once it listens
                 proc = psutil.Process(child.pid)
                 time.sleep(1.0)
-                rss0 = rss_max = proc.memory_info().rss
+                rss0 = proc.memory_info().rss
                 pub_session = open_session(settings)
-                pubs: dict[str, zenoh.Publisher] = {}
-                sent = 0
-                t0 = time.monotonic()
-                offset = 0.0
-                next_probe = t0
-                series: list[float] = []
-                next_series = t0
-                while time.monotonic() - t0 < seconds:
-                    for suffix, payload, t in items:
-                        delay = t0 + offset + t / 1e9 - time.monotonic()
-                        if delay > 0:
-                            time.sleep(delay)
-                        pub = pubs.get(suffix)
-                        if pub is None:
-                            pub = pubs[suffix] = pub_session.declare_publisher(
-                                f"benchflight/{suffix}"
-                            )
-                        for copy in range(10):
-                            pub.put(payload + bytes([copy]))
-                            sent += 1
-                        if time.monotonic() >= next_probe:
-                            rss = proc.memory_info().rss
-                            rss_max = max(rss_max, rss)
-                            next_probe += 0.25
-                            if time.monotonic() >= next_series:
-                                series.append(round(rss / MIB, 1))
-                                next_series += 5.0
-                        if time.monotonic() - t0 >= seconds:
-                            break
-                    offset += span / 1e9
-                elapsed = time.monotonic() - t0
+                flood = _flood(pub_session, items, span, seconds, proc)
+                sent, elapsed, rss_max, series = flood
                 time.sleep(0.5)
                 rss1 = proc.memory_info().rss
-                for pub in pubs.values():
-                    pub.undeclare()
+                rss_max = max(rss_max, rss1)
                 pub_session.close()
             finally:
                 child.send_signal(signal.SIGINT)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import re
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -200,6 +201,14 @@ class FlightCore:
         self._dump: Dump | None = None
         self._ring_ns = round(self.config.ring_s * 1e9)
         self._after_ns = round(self.config.after_s * 1e9)
+        self._checks: dict[str, Callable[[bytes, int], Trigger | None]] = {
+            STATUS: self._status_changed,
+            ESTOP: self._estop,
+            RESULT: self._result,
+            EVENTS: self._task_event,
+            LIVELINESS: self._liveliness,
+            FLIGHT_TRIGGER: self._request,
+        }
 
     @property
     def collecting(self) -> Dump | None:
@@ -303,43 +312,60 @@ class FlightCore:
             return None
 
     def _trigger(self, suffix: str, payload: bytes, t_ns: int) -> Trigger | None:
+        check = self._checks.get(suffix)
+        return check(payload, t_ns) if check is not None else None
+
+    def _status_changed(self, payload: bytes, t_ns: int) -> Trigger | None:
         rules = self.config.rules
-        if suffix == STATUS and (rules.arm_error or rules.warning_codes):
-            st = self._decode(ArmStatus, payload)
-            if not isinstance(st, ArmStatus):
-                return None
-            now, before = (st.msg_class, st.msg_code), self._status
-            if st.msg_class != "general":
-                self._status = now
-            if now == before:
-                return None
-            if st.msg_class == "error" and rules.arm_error:
-                return Trigger(t_ns, "arm_error", f"{st.msg_code} {st.text}")
-            if st.msg_class == "warning" and st.msg_code in rules.warning_codes:
-                return Trigger(t_ns, "arm_warning", f"{st.msg_code} {st.text}")
-        elif suffix == ESTOP and rules.estop:
-            es = self._decode(EStop, payload)
-            if isinstance(es, EStop) and es.engaged:
-                return Trigger(t_ns, "emergency_stop", f"{es.source} {es.reason}")
-        elif suffix == RESULT and rules.goal_aborted:
-            res = self._decode(GoalResult, payload)
-            if isinstance(res, GoalResult) and res.status == "aborted":
-                return Trigger(t_ns, "goal_aborted", f"{res.goal_id} {res.reason}")
-        elif suffix == EVENTS and rules.task_failed:
-            ev = self._decode(TaskEvent, payload)
-            if isinstance(ev, TaskEvent) and ev.event == "failed":
-                return Trigger(t_ns, "task_failed", f"{ev.task_id} {ev.reason}")
-        elif suffix == LIVELINESS and rules.liveliness_lost:
-            ch = self._decode(LivelinessChange, payload)
-            if (
-                isinstance(ch, LivelinessChange)
-                and ch.kind == "alive"
-                and not ch.alive
-                and (not rules.services or ch.service in rules.services)
-            ):
-                return Trigger(t_ns, "liveliness_lost", ch.service)
-        elif suffix == FLIGHT_TRIGGER and rules.request:
-            req = self._decode(FlightTrigger, payload)
-            if isinstance(req, FlightTrigger):
-                return Trigger(t_ns, "request", f"{req.source} {req.reason}")
+        if not (rules.arm_error or rules.warning_codes):
+            return None
+        st = self._decode(ArmStatus, payload)
+        if not isinstance(st, ArmStatus):
+            return None
+        now, before = (st.msg_class, st.msg_code), self._status
+        if st.msg_class != "general":
+            self._status = now
+        if now == before:
+            return None
+        detail = f"{st.msg_code} {st.text}"
+        if st.msg_class == "error" and rules.arm_error:
+            return Trigger(t_ns, "arm_error", detail)
+        if st.msg_class == "warning" and st.msg_code in rules.warning_codes:
+            return Trigger(t_ns, "arm_warning", detail)
+        return None
+
+    def _estop(self, payload: bytes, t_ns: int) -> Trigger | None:
+        es = self._decode(EStop, payload) if self.config.rules.estop else None
+        if isinstance(es, EStop) and es.engaged:
+            return Trigger(t_ns, "emergency_stop", f"{es.source} {es.reason}")
+        return None
+
+    def _result(self, payload: bytes, t_ns: int) -> Trigger | None:
+        res = self._decode(GoalResult, payload) if self.config.rules.goal_aborted else None
+        if isinstance(res, GoalResult) and res.status == "aborted":
+            return Trigger(t_ns, "goal_aborted", f"{res.goal_id} {res.reason}")
+        return None
+
+    def _task_event(self, payload: bytes, t_ns: int) -> Trigger | None:
+        ev = self._decode(TaskEvent, payload) if self.config.rules.task_failed else None
+        if isinstance(ev, TaskEvent) and ev.event == "failed":
+            return Trigger(t_ns, "task_failed", f"{ev.task_id} {ev.reason}")
+        return None
+
+    def _liveliness(self, payload: bytes, t_ns: int) -> Trigger | None:
+        rules = self.config.rules
+        ch = self._decode(LivelinessChange, payload) if rules.liveliness_lost else None
+        if (
+            isinstance(ch, LivelinessChange)
+            and ch.kind == "alive"
+            and not ch.alive
+            and (not rules.services or ch.service in rules.services)
+        ):
+            return Trigger(t_ns, "liveliness_lost", ch.service)
+        return None
+
+    def _request(self, payload: bytes, t_ns: int) -> Trigger | None:
+        req = self._decode(FlightTrigger, payload) if self.config.rules.request else None
+        if isinstance(req, FlightTrigger):
+            return Trigger(t_ns, "request", f"{req.source} {req.reason}")
         return None

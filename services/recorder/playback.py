@@ -110,41 +110,54 @@ class Playback:
 
     def control(self, req: PlaybackControl, now: float) -> PlaybackStatus:
         """Carry out a control request; the status after it."""
-        ok, message = True, ""
-        if req.action == "pause":
-            if self.state == "playing":
-                self.state = "paused"
-                self._anchor = None
-        elif req.action == "resume":
-            if self.state == "paused":
-                self.state = "playing"
-                self._steps = 0
-                self._anchor = None
-        elif req.action == "step":
-            if self.state == "paused":
-                self._steps += 1
-            else:
-                ok, message = False, f"step: only while paused (the replay is {self.state})"
-        elif req.action == "seek":
-            last = self.offsets[self.end - 1]
-            first = self.offsets[self.first]
-            if not first <= req.value <= last:
-                ok, message = False, f"seek {req.value:g} s: outside {first:g} .. {last:g} s"
-            else:
-                self.index = bisect.bisect_left(self.offsets, req.value, self.first, self.end)
-                self._anchor = None
-                if self.state == "finished":
-                    self.state = "paused"
-        elif req.action == "rate":
-            try:
-                self._check_rate(req.value)
-            except RecordingError as exc:
-                ok, message = False, str(exc)
-            else:
-                if self.state == "playing" and self._anchor is not None:
-                    self._anchor = (now, self._virtual(now))
-                self.rate = req.value
-        return self.status(ok, message)
+        act = {
+            "pause": self._pause,
+            "resume": self._resume,
+            "step": self._step,
+            "seek": self._seek,
+            "rate": self._rate,
+        }.get(req.action)
+        refusal = act(req.value, now) if act is not None else ""
+        return self.status(not refusal, refusal)
+
+    def _pause(self, value: float, now: float) -> str:
+        if self.state == "playing":
+            self.state = "paused"
+            self._anchor = None
+        return ""
+
+    def _resume(self, value: float, now: float) -> str:
+        if self.state == "paused":
+            self.state = "playing"
+            self._steps = 0
+            self._anchor = None
+        return ""
+
+    def _step(self, value: float, now: float) -> str:
+        if self.state != "paused":
+            return f"step: only while paused (the replay is {self.state})"
+        self._steps += 1
+        return ""
+
+    def _seek(self, value: float, now: float) -> str:
+        first, last = self.offsets[self.first], self.offsets[self.end - 1]
+        if not first <= value <= last:
+            return f"seek {value:g} s: outside {first:g} .. {last:g} s"
+        self.index = bisect.bisect_left(self.offsets, value, self.first, self.end)
+        self._anchor = None
+        if self.state == "finished":
+            self.state = "paused"
+        return ""
+
+    def _rate(self, value: float, now: float) -> str:
+        try:
+            self._check_rate(value)
+        except RecordingError as exc:
+            return str(exc)
+        if self.state == "playing" and self._anchor is not None:
+            self._anchor = (now, self._virtual(now))
+        self.rate = value
+        return ""
 
     def status(self, ok: bool = True, message: str = "") -> PlaybackStatus:
         """Where the replay is."""

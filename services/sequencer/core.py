@@ -17,7 +17,7 @@ leave the arm) before anything moves. The :class:`Reply` ends it: every problem 
 accepted, and then the task starts at once (after checking again what may have changed
 meanwhile).
 
-Steps (SPEC 7, thesis 4.2.2), one class per kind in :mod:`services.sequencer.steps`:
+Steps (docs/protocol.md, Thesis task form), one class per kind in :mod:`services.sequencer.steps`:
 
 - **move / pose**: plan from the newest joint state (``planner/plan`` with an explicit
   ``start``), send the trajectory (``controller/goal``), wait for its ``GoalResult``.

@@ -48,7 +48,7 @@ def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig) -> ViaPoint
 
 
 def _start_placeholder() -> ViaPoint:
-    # The planner replaces the first via point by the start pose (SPEC 5.1).
+    # The planner replaces the first via point by the start pose.
     zero = [0.0, 0.0, 0.0]
     return ViaPoint(xyz=zero, velocity=zero, ypr=zero, angular_velocity=zero, time=0.0, type=2)
 

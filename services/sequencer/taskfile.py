@@ -1,6 +1,6 @@
 """Task scripts -> :class:`schemas.sequencing.Task`: the thesis form and TOML task files.
 
-**Thesis form** (SPEC 7, thesis 4.2.2): via-point files and gripper openings [mm],
+**Thesis form** (docs/protocol.md, Thesis task form): via-point files and gripper openings [mm],
 alternating, in execution order, as on the thesis's command line::
 
     manus run paths/thesis_square.txt 40 paths/thesis_circle.txt 0

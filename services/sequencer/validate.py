@@ -1,8 +1,8 @@
 """Whole-task validation before anything moves (deterministic; the core asks the planner).
 
 Every step is checked on its own (openings in range, known pose names, via points that
-obey SPEC 5.1: each kind's :meth:`~services.sequencer.steps.Step.problems`), and every
-move is planned from where the previous steps leave the arm: the arm's current
+obey the via-point rules: each kind's :meth:`~services.sequencer.steps.Step.problems`),
+and every move is planned from where the previous steps leave the arm: the arm's current
 configuration at first, the fold poses after a fold, the last knot of the previous plan
 after a move. The :class:`Validator` hands out one :class:`~schemas.planning.PlanRequest`
 at a time (with an explicit ``start``) and takes the planner's reply; when it has none
