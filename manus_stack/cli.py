@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("manus_stack.commands.bench", "benchmarks; prints figures as JSON"),
     "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
     "bridge": ("services.can_bridge.main", "the CAN bridge: owns the bus and the 60 ms cycle"),
+    "guardian": ("services.guardian.main", "stop the arm when a sync goes unanswered (CAN only)"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
     "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
     "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),
@@ -37,6 +38,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("manus_stack.commands.export", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
     "view": ("services.viewer.main", "the arm live in Foxglove (WebSocket server, 127.0.0.1:8765)"),
     "plot": ("services.recorder.plot_cli", "plot a recording: yz path, joints, increments, errors"),
+    "scene": ("manus_stack.commands.scene", "draw the arm in its scene, or check a scene file"),
 }
 """Subcommand -> (module, one-line help)."""
 

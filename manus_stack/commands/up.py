@@ -6,10 +6,11 @@
     manus up --view                            # and the arm live in Foxglove (port 8765)
 
 Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
-planner, controller, sequencer and recorder (``manus_stack.up``), waits until each one's
-liveliness token is up, prints where things are, and runs until Ctrl-C (or
-``--duration``), then stops every process it started, newest first, by pid. Exits 1 if
-something did not come up or died meanwhile (naming it and its log).
+the CAN guardian (not with ``--no-guardian``), planner, controller, sequencer and
+recorder (``manus_stack.up``), waits until each one's liveliness token is up, prints
+where things are, and runs until Ctrl-C (or ``--duration``), then stops every process it
+started, newest first, by pid. Exits 1 if something did not come up or died meanwhile
+(naming it and its log).
 """
 
 from __future__ import annotations
@@ -46,6 +47,12 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         help="do not start the recorder (nor the flight recorder)",
     )
     parser.add_argument(
+        "--no-guardian",
+        dest="guardian",
+        action="store_false",
+        help="do not start the CAN guardian beside the bridge",
+    )
+    parser.add_argument(
         "--ring",
         type=float,
         default=30.0,
@@ -76,6 +83,7 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         can_interface=args.can_interface,
         can_channel=args.can_channel,
         record=args.record,
+        guardian=args.guardian,
         flight_ring_s=max(0.0, args.ring),
         view=args.view,
         view_port=args.view_port,
