@@ -35,7 +35,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("manus_stack.commands.demo", "the stack, the thesis path, an error table and a plot"),
     "record": ("services.recorder.main", "record the bus to MCAP (or --recover a crashed file)"),
     "replay": ("manus_stack.commands.replay", "replay an MCAP onto the bus, or --check a core"),
-    "export": ("services.recorder.export_cli", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
+    "playback": ("services.recorder.playback_cli", "pause, resume, step, seek or rate a replay"),
+    "export": ("manus_stack.commands.export", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
+    "view": ("services.viewer.main", "the arm live in Foxglove (WebSocket server, 127.0.0.1:8765)"),
     "plot": ("services.recorder.plot_cli", "plot a recording: yz path, joints, increments, errors"),
     "scene": ("manus_stack.commands.scene", "draw the arm in its scene, or check a scene file"),
 }

@@ -7,12 +7,14 @@ to their shutdown, and ``manus replay --check`` can replay it through a core), t
 simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
 ``manus bridge`` on that device (or the real CAN interface), ``manus guardian`` beside it
 (the simulator's second node, or the same CAN interface; its reporter declares
-``alive/guardian``), ``manus planner``,
-``manus controller`` and ``manus sequencer``. Every child is a client of the router
-(``MANUS_ZENOH_CONNECT``), writes its output to ``<run dir>/logs/<name>.log`` and runs
-in its own session, so a Ctrl-C reaches only this process, which then stops the
-children in reverse order (the recorder last but the router), each by its pid (SIGINT,
-then SIGKILL after a grace period).
+``alive/guardian``), ``manus planner``, ``manus controller`` and ``manus sequencer``, then
+the flight recorder (``manus record --ring``, files under ``<run dir>/flight``; last, so
+that it is stopped first and the orderly shutdown of the others is no fault) and, with
+``view``, ``manus view``. Every child is a client of the router (``MANUS_ZENOH_CONNECT``),
+writes its output to ``<run dir>/logs/<name>.log`` and runs in its own session, so a
+Ctrl-C reaches only this process, which then stops the children in reverse order (the
+recorder last but the router), each by its pid (SIGINT, then SIGKILL after a grace
+period).
 
 :class:`LocalStack` waits until every started service's liveliness token is up.
 """
@@ -42,10 +44,11 @@ LIVELINESS = {
     "sequencer": "sequencer",
     "record": "recorder",
     "guardian": "guardian",
+    "flight": "recorder",  # the flight recorder runs as a second recorder process
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
-NICE = {"planner": 5, "sequencer": 5, "record": 5}
+NICE = {"planner": 5, "sequencer": 5, "record": 5, "flight": 5, "view": 10}
 """Niceness of the services off the 60 ms loop: the simulator, bridge, controller and
 router keep the CPU first when the machine is busy (a late joint state stops a path)."""
 
@@ -79,6 +82,9 @@ class StackOptions:
         guardian: start ``manus guardian`` beside the bridge (on the simulator's second
             node, or on the same CAN interface as the bridge).
         sim_args: extra arguments of ``manus sim``.
+        flight_ring_s: seconds the flight recorder keeps (0, or ``record`` off: none).
+        view: start ``manus view`` (the Foxglove WebSocket server).
+        view_port: its port.
     """
 
     run_dir: Path
@@ -89,6 +95,14 @@ class StackOptions:
     record: bool = True
     guardian: bool = True
     sim_args: list[str] = field(default_factory=list)
+    flight_ring_s: float = 30.0
+    view: bool = False
+    view_port: int = 8765
+
+    @property
+    def flight_dir(self) -> Path:
+        """Where the flight recorder writes."""
+        return self.run_dir / "flight"
 
     @property
     def recording(self) -> Path:
@@ -136,12 +150,12 @@ class LocalStack:
         env["PYTHONUNBUFFERED"] = "1"
         return env
 
-    def _spawn(self, name: str, args: list[str]) -> Child:
+    def _spawn(self, name: str, args: list[str], command: str = "") -> Child:
         logs = self.options.run_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         log = logs / f"{name}.log"
         stream = log.open("wb")
-        argv = [sys.executable, "-m", "manus_stack.cli", name, *args]
+        argv = [sys.executable, "-m", "manus_stack.cli", command or name, *args]
         nice = NICE.get(name, 0)
         proc = subprocess.Popen(
             argv,
@@ -214,7 +228,16 @@ class LocalStack:
         ]
         for name, args in plan:
             self._spawn(name, args)
+        if opts.record and opts.flight_ring_s > 0:
+            ring = ["--ring", f"{opts.flight_ring_s:g}", "--out-dir", str(opts.flight_dir)]
+            self._spawn("flight", ring, command="record")
+        viewer = self._spawn("view", ["--port", str(opts.view_port)]) if opts.view else None
         self.wait_alive(deadline)
+        while viewer is not None and not port_in_use(f"tcp/127.0.0.1:{opts.view_port}"):
+            self._check(viewer)  # the viewer holds no token: wait for its port
+            if time.monotonic() > deadline:
+                raise StackError(f"manus view did not listen in time (log {viewer.log})")
+            time.sleep(0.05)
 
     def expected(self) -> set[str]:
         """Liveliness names of the started services."""
@@ -249,6 +272,10 @@ class LocalStack:
             lines.append(f"{c.name:<10} pid {c.proc.pid:<7} log {c.log}")
         if any(c.name == "record" for c in self.children):
             lines.append(f"recording: {opts.recording}")
+        if any(c.name == "flight" for c in self.children):
+            lines.append(f"flight recorder: last {opts.flight_ring_s:g} s -> {opts.flight_dir}")
+        if any(c.name == "view" for c in self.children):
+            lines.append(f"viewer: ws://127.0.0.1:{opts.view_port} (Foxglove: open connection)")
         return lines
 
     def exited(self) -> list[Child]:

@@ -42,11 +42,13 @@ from schemas import (
     collision,
     commands,
     control,
+    flight,
     guardian,
     health,
     jog,
     liveliness,
     planning,
+    playback,
     sequencing,
     state,
 )
@@ -422,6 +424,23 @@ LIVELINESS = Topic(
     doc="recordings only: every liveliness token change the recorder saw",
 )
 
+FLIGHT_TRIGGER = Topic(
+    "recorder/trigger",
+    Kind.PUBLICATION,
+    ANYONE,
+    flight.FlightTrigger,
+    audience=_SUP,
+    doc="ask the flight recorder (manus record --ring) to write what it holds now",
+)
+PLAYBACK_CONTROL = _query(
+    "replay/control",
+    Service.RECORDER,
+    playback.PlaybackControl,
+    playback.PlaybackStatus,
+    "pause, resume, step, seek, rate or status of a running manus replay",
+    _SUP,
+)
+
 
 class Table:
     """The endpoints, by suffix, in declaration order (:data:`TABLE`)."""
@@ -530,6 +549,8 @@ TABLE = Table(
         WHERE,
         HEALTH,
         LIVELINESS,
+        FLIGHT_TRIGGER,
+        PLAYBACK_CONTROL,
     )
 )
 """Every endpoint of the stack."""

@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from schemas import endpoints as ep
+from schemas.endpoints import ESTOP, FLIGHT_TRIGGER, LIVELINESS, PLAYBACK_CONTROL
 from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from services.recorder.answers import Answer, Exchange, RecordedReplies, pair_exchanges
@@ -153,16 +154,18 @@ def test_standing_in_for_the_planner_publishes_nothing_but_is_a_replay() -> None
 
 
 def test_the_stand_in_tables_cover_every_key_of_the_schemas() -> None:
-    """Every published key has one publishing service (estop: anyone; liveliness: the
-    recorder's channel; jog: the supervisor, no service), every queryable one serving
-    service."""
+    """Every published key has one publishing service (estop and the flight recorder's
+    trigger: anyone; liveliness: the recorder's channel; jog: the supervisor, no service),
+    every queryable one serving service (but the replay's own control, answered by the
+    replay about itself)."""
     SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
     names = set(channel_types())
     supervisors = {e.suffix for e in ep.TABLE if e.owner == ep.SUPERVISOR}
-    published = {n for n in names if "#" not in n} - {"estop", "liveliness"} - supervisors
+    published = {n for n in names if "#" not in n} - {ESTOP, LIVELINESS, FLIGHT_TRIGGER}
+    published -= supervisors
     outputs = [s for out in SERVICE_OUTPUTS.values() for s in out]
     assert sorted(outputs) == sorted(published)
     each = {e.suffix for e in ep.TABLE if e.owner == ep.EACH_SERVICE}  # health/<service>
-    queryables = {n.split("#")[0] for n in names if "#" in n} - each
+    queryables = {n.split("#")[0] for n in names if "#" in n} - each - {PLAYBACK_CONTROL}
     served = [q for qs in SERVICE_QUERYABLES.values() for q in qs]
     assert sorted(served) == sorted(queryables)

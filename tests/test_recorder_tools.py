@@ -46,8 +46,8 @@ REGENERATE = "python -m manus_stack.recordings, then look at manus plot tests/da
 
 
 def test_json_export_keeps_everything_and_validates_against_the_schemas(tmp_path: Path) -> None:
-    out = tmp_path / "square.json.mcap"
-    assert main(["export", str(SQUARE), "--json", "-o", str(out)]) == 0
+    out = tmp_path / "square.json.mcap"  # the recorded channels only (tests/test_viewer.py: more)
+    assert main(["export", str(SQUARE), "--json", "--no-view", "-o", str(out)]) == 0
     src, dst = Recording(SQUARE), Recording(out)
     assert dst.info.messages == src.info.messages
     validators = {}

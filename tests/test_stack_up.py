@@ -3,8 +3,10 @@ liveliness, stops all of them (and only them) cleanly."""
 
 from __future__ import annotations
 
+import asyncio
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -13,7 +15,8 @@ from pathlib import Path
 import psutil
 import pytest
 
-from tests.conftest import free_port
+from tests.conftest import eventually, free_port
+from tests.foxglove_client import collect
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -21,6 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.mark.slow
 def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
+    view_port = free_port()
     cmd = [
         sys.executable,
         "-m",
@@ -32,6 +36,9 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
         "uptest",
         "--run-dir",
         str(tmp_path),
+        "--view",
+        "--view-port",
+        str(view_port),
     ]
     proc = subprocess.Popen(
         cmd,
@@ -48,6 +55,18 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
         while not any(line.startswith("up: every service is alive") for line in lines):
             assert time.monotonic() < deadline and proc.poll() is None, lines
             lines.append(proc.stdout.readline())
+        # the viewer (no liveliness token: it may still be starting) shows the arm moving
+        eventually(lambda: _listening(view_port), 30.0, "manus view listening")
+        tf = "uptest/viz/tf"
+        got = asyncio.run(
+            collect(
+                f"ws://127.0.0.1:{view_port}",
+                [tf],
+                until=lambda r: len(r.messages.get(tf, [])) >= 5,
+                timeout=30,
+            )
+        )
+        assert len(got.messages.get(tf, [])) >= 5, got.channels.keys()
         os.kill(proc.pid, signal.SIGINT)  # Ctrl-C
         rest, err = proc.communicate(timeout=60)
     finally:
@@ -62,7 +81,9 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
         words = line.split()
         if len(words) >= 3 and words[1] == "pid":
             pids[words[0]] = int(words[2])
-    assert {"router", "sim", "bridge", "planner", "controller", "sequencer", "record"} <= set(pids)
+    assert {
+        "router", "sim", "bridge", "planner", "controller", "sequencer", "record", "flight", "view"
+    } <= set(pids)  # fmt: skip
     down = next(line for line in out.splitlines() if line.startswith("down: "))
     assert all(f"{name} 0" in down for name in pids)  # every child exited cleanly
     for pid in pids.values():
@@ -72,3 +93,10 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
     text = (tmp_path / "logs" / "sequencer.log").read_text()
     assert "sequencer: serving uptest/sequencer/submit" in text
     assert (tmp_path / "recording.mcap").stat().st_size > 0
+    assert (tmp_path / "flight").is_dir()
+    assert not list((tmp_path / "flight").iterdir())  # an orderly shutdown is no fault
+
+
+def _listening(port: int) -> bool:
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", port)) == 0

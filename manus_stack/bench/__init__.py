@@ -16,5 +16,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "fuzz": ("manus_stack.bench.fuzz", False),
     "collision": ("manus_stack.bench.collision", False),
     "jog": ("manus_stack.bench.jog", False),
+    "view": ("manus_stack.bench.view", False),
+    "flight": ("manus_stack.bench.flight", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -3,6 +3,7 @@
     manus up                                   # simulator on a pty, everything else, recorder
     manus up --can-interface socketcan --can-channel can0    # a real arm instead
     manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
+    manus up --view                            # and the arm live in Foxglove (port 8765)
 
 Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
 the CAN guardian (not with ``--no-guardian``), planner, controller, sequencer and
@@ -40,7 +41,10 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--can-channel", default="", help="its channel (e.g. can0)")
     parser.add_argument(
-        "--no-record", dest="record", action="store_false", help="do not start the recorder"
+        "--no-record",
+        dest="record",
+        action="store_false",
+        help="do not start the recorder (nor the flight recorder)",
     )
     parser.add_argument(
         "--no-guardian",
@@ -48,6 +52,17 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_false",
         help="do not start the CAN guardian beside the bridge",
     )
+    parser.add_argument(
+        "--ring",
+        type=float,
+        default=30.0,
+        metavar="S",
+        help="seconds the flight recorder keeps (files under <run dir>/flight; 0: none)",
+    )
+    parser.add_argument(
+        "--view", action="store_true", help="also serve the arm to Foxglove (manus view)"
+    )
+    parser.add_argument("--view-port", type=int, default=8765, help="manus view's port")
     parser.add_argument(
         "--start-timeout",
         type=float,
@@ -69,6 +84,9 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         can_channel=args.can_channel,
         record=args.record,
         guardian=args.guardian,
+        flight_ring_s=max(0.0, args.ring),
+        view=args.view,
+        view_port=args.view_port,
     )
 
 

@@ -3,7 +3,10 @@
 Foxglove decodes JSON with JSON Schema but not MessagePack, so
 :func:`export_json` rewrites every channel with the ``json`` message encoding and the same
 JSON Schema; ``bytes`` fields become base64 strings, as the schemas say
-(``contentEncoding: base64``). Times, sequences and channel names are kept.
+(``contentEncoding: base64``). Times, sequences and channel names are kept. Given a
+``view`` (:class:`View`: the viewer's core, passed in by ``manus export``, since a service
+never imports another), it also writes what the live viewer shows, in Foxglove's own
+schemas (the arm's link transforms, paths, log), so the file opens with the arm moving.
 
 :func:`export_candump` writes the raw frames of ``can/rx`` (from the arm) and ``can/tx``
 (sent by the bridge) with python-can's ``can.Logger`` (the format follows the file
@@ -15,9 +18,10 @@ from __future__ import annotations
 
 import base64
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import can
 import msgpack
@@ -43,6 +47,38 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+class _Schema(Protocol):
+    @property
+    def name(self) -> str: ...
+    @property
+    def encoding(self) -> str: ...
+    @property
+    def data(self) -> bytes: ...
+
+
+class ViewMessage(Protocol):
+    """A message of another format to add (``services.viewer.core.FoxMessage``)."""
+
+    @property
+    def topic(self) -> str: ...
+    @property
+    def schema(self) -> _Schema: ...
+    @property
+    def encoding(self) -> str: ...
+    @property
+    def data(self) -> bytes: ...
+    @property
+    def log_ns(self) -> int: ...
+
+
+class View(Protocol):
+    """Turns recorded samples into more channels (``services.viewer.core.ViewerCore``)."""
+
+    def robot_description(self, t_ns: int) -> ViewMessage: ...
+
+    def on_sample(self, key: str, payload: bytes, t_ns: int) -> Iterable[ViewMessage]: ...
+
+
 @dataclass(frozen=True)
 class ExportStats:
     """What an export wrote.
@@ -50,14 +86,17 @@ class ExportStats:
     Attributes:
         messages: messages (or frames) written.
         skipped: messages that could not be converted (not MessagePack, bad frame).
+        view_messages: messages the view added.
     """
 
     messages: int
     skipped: int
+    view_messages: int = 0
 
 
-def export_json(src: str | Path, dst: str | Path) -> ExportStats:
-    """Write ``src`` again as an MCAP with JSON-encoded messages (opens in Foxglove).
+def export_json(src: str | Path, dst: str | Path, view: View | None = None) -> ExportStats:
+    """Write ``src`` again as an MCAP with JSON-encoded messages (opens in Foxglove), and
+    with ``view``, the channels it makes of them (those not recorded already).
 
     Raises:
         RecordingError: ``src`` cannot be read or ``dst`` cannot be written.
@@ -83,7 +122,28 @@ def export_json(src: str | Path, dst: str | Path) -> ExportStats:
             channel_ids[key] = writer.register_channel(
                 key, MessageEncoding.JSON, sid, {"suffix": info.suffix}
             )
+        viewed: dict[str, tuple[int, list[int]]] = {}  # topic -> (channel id, [next seq])
+
+        def add_view(vm: ViewMessage) -> None:
+            if vm.topic in channel_ids:  # a recorded channel: already written
+                return
+            entry = viewed.get(vm.topic)
+            if entry is None:
+                sid = schema_ids.get(vm.schema.name)
+                if sid is None:
+                    sid = writer.register_schema(vm.schema.name, vm.schema.encoding, vm.schema.data)
+                    schema_ids[vm.schema.name] = sid
+                cid = writer.register_channel(vm.topic, vm.encoding, sid)
+                entry = viewed[vm.topic] = (cid, [0])
+            writer.add_message(entry[0], vm.log_ns, vm.data, vm.log_ns, entry[1][0])
+            entry[1][0] += 1
+
+        if view is not None:
+            add_view(view.robot_description(rec.info.start_ns))
         for msg in rec.messages():
+            if view is not None:
+                for vm in view.on_sample(msg.key, msg.payload, msg.log_ns):
+                    add_view(vm)
             try:
                 value = msgpack.unpackb(msg.payload, raw=False, strict_map_key=False)
             except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
@@ -93,7 +153,7 @@ def export_json(src: str | Path, dst: str | Path) -> ExportStats:
             writer.add_message(channel_ids[msg.key], msg.log_ns, data, msg.publish_ns, msg.sequence)
             written += 1
         writer.finish()  # type: ignore[no-untyped-call]
-    return ExportStats(written, skipped)
+    return ExportStats(written, skipped, sum(seq[0] for _, seq in viewed.values()))
 
 
 def frame_to_can(frame: CanFrame, *, received: bool, channel: str) -> can.Message:

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from services.recorder.export import export_candump, export_json
+from services.recorder.export import View, export_candump, export_json
 from services.recorder.reading import Recording
 
 
@@ -24,8 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--can-channel", default="can0", help="channel name in the CAN log")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Export or describe the recording."""
+def run(args: argparse.Namespace, view: View | None = None) -> int:
+    """Export or describe the recording (``view``: more channels for ``--json``)."""
     src = Path(args.file)
     if args.info:
         info = Recording(src).info
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.json:
         dst = Path(args.output) if args.output else src.with_suffix(".json.mcap")
-        stats = export_json(src, dst)
+        stats = export_json(src, dst, view)
     else:
         dst = Path(args.output) if args.output else src.with_suffix(".log")
         stats = export_candump(src, dst, channel=args.can_channel)

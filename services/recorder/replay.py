@@ -32,10 +32,12 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
-from schemas.endpoints import LIVELINESS, TABLE, Endpoint, Service
+from schemas.endpoints import LIVELINESS, PLAYBACK_CONTROL, TABLE, Endpoint, Service
 from schemas.keys import channel_name
+from schemas.playback import PlaybackControl, PlaybackStatus
 from services.recorder.answers import RecordedReplies
 from services.recorder.errors import RecordingError
+from services.recorder.playback import Playback
 from services.recorder.reading import Recorded, Recording
 from services.recorder.standin import StandIn
 
@@ -267,6 +269,45 @@ class Replayer:
             sent += 1
         recorded = items[sent - 1].offset_s if sent else 0.0
         return ReplayStats(sent, time.monotonic() - started, recorded)
+
+    def play_controlled(
+        self, items: list[Scheduled], playback: Playback, *, stop: threading.Event | None = None
+    ) -> ReplayStats:
+        """Publish ``items`` as ``playback`` says (its offsets are the items'), answering
+        ``<prefix>/replay/control`` meanwhile (pause, resume, step, seek, rate, status)."""
+        lock = threading.Lock()
+        wake = threading.Event()
+
+        def on_control(req: PlaybackControl) -> PlaybackStatus:
+            with lock:
+                status = playback.control(req, time.monotonic())
+            wake.set()
+            return status
+
+        key = self.node.keys(PLAYBACK_CONTROL)
+        self.node.queryable(key, PlaybackControl, on_control, locked=False)
+        started = time.monotonic()
+        sent = 0
+        last = 0.0
+        while stop is None or not stop.is_set():
+            with lock:
+                now = time.monotonic()
+                due = playback.due(now)
+                if playback.state == "finished":
+                    break
+                index = playback.take(now) if due is not None and due <= now else -1
+            if index < 0:
+                wake.wait(0.1 if due is None else min(due - now, 0.1))
+                wake.clear()
+                continue
+            rec = items[index].rec
+            attachment = (
+                rec.publish_ns.to_bytes(8, "little") if rec.suffix.startswith("trace/") else None
+            )
+            self._publisher(rec.suffix).put(rec.payload, attachment=attachment)
+            sent += 1
+            last = items[index].offset_s
+        return ReplayStats(sent, time.monotonic() - started, last)
 
     def close(self) -> None:
         """Leave the bus (a stand-in's queryables and tokens go too)."""

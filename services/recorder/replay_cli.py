@@ -8,6 +8,10 @@ the recording (:mod:`services.recorder.replay`); ``--hold S`` keeps the stand-in
 seconds after the last message (``inf``: until SIGINT/SIGTERM; the default when there is
 nothing to publish, as for the planner). Prints one ``stats:`` JSON line on standard
 error (with ``--as``: how its queries were answered).
+
+``--start S`` / ``--until S`` play a part (offsets from the first selected message),
+``--loop N`` plays it N times, ``--paused`` starts paused; while it runs the replay answers
+``<prefix>/replay/control`` (``manus playback pause|resume|step|seek S|rate R|status``).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import sys
 from manus.node import wait_for_signal
 from manus.session import settings_from_env
 from services.recorder.errors import RecordingError
+from services.recorder.playback import Playback
 from services.recorder.reading import Recording
 from services.recorder.replay import REPLAYABLE, Replayer, schedule
 
@@ -43,6 +48,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="with --as: stay up S seconds after the last message (inf: until Ctrl-C; "
         "default 0, or inf when there is nothing to publish)",
+    )
+    parser.add_argument("--start", type=float, default=0.0, metavar="S", help="start offset [s]")
+    parser.add_argument("--until", type=float, metavar="S", help="stop after this offset [s]")
+    parser.add_argument("--loop", type=int, default=1, metavar="N", help="play N times")
+    parser.add_argument(
+        "--paused", action="store_true", help="start paused (manus playback resume|step)"
     )
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--mode", choices=("client", "peer", "router"), help="zenoh mode")
@@ -74,7 +85,22 @@ def run(args: argparse.Namespace) -> int:
             f"replay: {len(items)} messages of {args.file} onto {settings.prefix}/**{who}\n"
         )
         sys.stderr.flush()
-        stats = replayer.play(items, rate=None if args.max else args.rate, stop=stop)
+        stats = (
+            replayer.play_controlled(
+                items,
+                Playback(
+                    [i.offset_s for i in items],
+                    rate=None if args.max else args.rate,
+                    start_s=args.start,
+                    until_s=args.until,
+                    loops=args.loop,
+                    paused=args.paused,
+                ),
+                stop=stop,
+            )
+            if items
+            else replayer.play(items, stop=stop)
+        )
         if args.as_service is not None and hold > 0 and not stop.is_set():
             stop.wait(None if math.isinf(hold) else hold)
         summary: dict[str, object] = dict(stats.__dict__)

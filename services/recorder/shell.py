@@ -26,7 +26,8 @@ import zenoh
 
 from manus.node import Node, now_ns
 from manus.session import ZenohSettings
-from schemas.liveliness import LivelinessChange
+from schemas.liveliness import LIVELINESS, LivelinessChange
+from services.recorder.split import KeyFilter, SplitWriter
 from services.recorder.writer import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_FLUSH_INTERVAL_NS,
@@ -48,11 +49,15 @@ class RecorderShell:
         session: an open session to share (not closed by :meth:`close`).
         chunk_size: largest uncompressed chunk [bytes].
         flush_interval_ns: longest time a message waits in an open chunk [ns].
+        split_bytes: write in parts of this size (``services.recorder.split``; 0: one file).
+        split_s: ... or of this much time [s] (0: one file).
+        keys: which key suffixes to record (None: all).
 
     Attributes:
         received: bus samples received.
         liveliness_changes: token changes received (appeared, vanished).
         reserved_dropped: samples published on ``<prefix>/liveliness`` and not recorded.
+        filtered: samples and token changes left out by ``keys``.
         write_errors: items the writer could not record.
     """
 
@@ -64,14 +69,31 @@ class RecorderShell:
         session: zenoh.Session | None = None,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         flush_interval_ns: int = DEFAULT_FLUSH_INTERVAL_NS,
+        split_bytes: int = 0,
+        split_s: float = 0.0,
+        keys: KeyFilter | None = None,
     ) -> None:
-        self.writer = RecordingWriter(
-            output,
-            prefix=settings.prefix,
-            chunk_size=chunk_size,
-            flush_interval_ns=flush_interval_ns,
-            source="manus record",
-        )
+        self.writer: RecordingWriter | SplitWriter
+        if split_bytes or split_s:
+            self.writer = SplitWriter(
+                output,
+                split_bytes=split_bytes,
+                split_s=split_s,
+                prefix=settings.prefix,
+                chunk_size=chunk_size,
+                flush_interval_ns=flush_interval_ns,
+                source="manus record",
+            )
+        else:
+            self.writer = RecordingWriter(
+                output,
+                prefix=settings.prefix,
+                chunk_size=chunk_size,
+                flush_interval_ns=flush_interval_ns,
+                source="manus record",
+            )
+        self._keys = keys
+        self.filtered = 0
         self._queue: queue.SimpleQueue[_Item | None] = queue.SimpleQueue()
         self._closing = False
         self._poll_s = min(flush_interval_ns / 4e9, 0.1)
@@ -94,6 +116,10 @@ class RecorderShell:
         if self._closing:  # its own tokens vanish as it leaves: not part of the recording
             return
         suffix = self.node.keys.suffix(key)
+        if self._keys is not None and not self._keys(LIVELINESS):
+            with self._count_lock:
+                self.filtered += 1
+            return
         with self._count_lock:  # seq and queue order agree
             change = LivelinessChange.from_token(
                 key, suffix, alive=alive, stamp_ns=rx_ns, seq=self.liveliness_changes
@@ -108,6 +134,10 @@ class RecorderShell:
         if key == self._liveliness_key:
             with self._count_lock:
                 self.reserved_dropped += 1
+            return
+        if self._keys is not None and not self._keys(self.node.keys.suffix(key)):
+            with self._count_lock:
+                self.filtered += 1
             return
         publish: int | None = None
         attachment = sample.attachment

@@ -168,6 +168,14 @@ class RecordingWriter:
             self.stats.channels[key] = ChannelStats()
         return entry
 
+    def tell(self) -> int:
+        """Bytes written to the output so far (the open chunk not included) [B]."""
+        return self._stream.tell()
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """Add a metadata record (e.g. ``flight``: why a flight recording was written)."""
+        self._writer.add_metadata(name, data)
+
     # -- writing -------------------------------------------------------------------------
 
     def write_payload(

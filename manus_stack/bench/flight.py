@@ -1,0 +1,184 @@
+"""The flight recorder's memory under a flood: ``manus bench flight``.
+
+``core``: :class:`services.recorder.flight.FlightCore` (30 s ring) fed the thesis square
+recording's traffic ten times over (each recorded sample ten times, fresh bytes each), for
+``seconds`` of log time, with a memory cap well below what 30 s of that would take: the
+most bytes it accounted, the memory ``tracemalloc`` saw it hold, the cap, samples evicted
+early, and the cost per sample.
+
+``live``: ``manus record --ring 30`` in its own process on a loopback router while a
+publisher here sends that tenfold traffic in real time: the recorder process's resident
+memory before, at most (sampled every 0.25 s) and after, the bytes it held at most, the
+samples its queue dropped.
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+import psutil
+import zenoh
+
+from manus.session import client_settings, open_session, router_settings
+from services.recorder.flight import FlightConfig, FlightCore
+from services.recorder.reading import Recording
+
+DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "thesis_square.mcap"
+MIB = 1024 * 1024
+
+
+def _traffic() -> tuple[list[tuple[str, bytes, int]], int]:
+    """The recording's samples (key suffix, payload, offset [ns]) and its span [ns]."""
+    rec = Recording(DATA)
+    first = rec.info.start_ns
+    items = [(m.suffix, m.payload, m.log_ns - first) for m in rec.messages()]
+    return items, rec.info.end_ns - first + 60_000_000
+
+
+def _core(seconds: float, cap: int) -> dict[str, Any]:
+    items, span = _traffic()
+    keys = {suffix: f"manus/{suffix}" for suffix, _, _ in items}  # one str per key, as live
+    timing = FlightCore(FlightConfig(ring_s=30.0, after_s=1.0, cap_bytes=cap))
+    t0 = time.perf_counter()
+    for suffix, payload, t in items:  # the cost per sample, without tracemalloc's own
+        for copy in range(10):
+            timing.on_sample(keys[suffix], payload + bytes([copy]), t)
+    us_per_sample = 1e6 * (time.perf_counter() - t0) / (10 * len(items))
+    gc.collect()
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    core = FlightCore(FlightConfig(ring_s=30.0, after_s=1.0, cap_bytes=cap))
+    n = 0
+    peak_used = 0
+    offset = 0
+    while offset < seconds * 1e9:
+        for suffix, payload, t in items:
+            for copy in range(10):
+                core.on_sample(keys[suffix], payload + bytes([copy]), offset + t)
+                n += 1
+        offset += span
+        peak_used = max(peak_used, tracemalloc.get_traced_memory()[0] - base)
+    used = tracemalloc.get_traced_memory()[0] - base
+    tracemalloc.stop()
+    return {
+        "samples": n,
+        "samples_per_s_of_log_time": round(n / (offset / 1e9)),
+        "cap_mib": round(cap / MIB, 2),
+        "held_mib": round(core.stats.held_bytes / MIB, 2),
+        "peak_accounted_mib": round(core.stats.peak_bytes / MIB, 2),
+        "traced_mib": round(used / MIB, 2),
+        "peak_traced_mib": round(peak_used / MIB, 2),
+        "evicted_by_cap": core.stats.evicted_by_cap,
+        "us_per_sample": round(us_per_sample, 2),
+    }
+
+
+def _flood(
+    session: zenoh.Session,
+    items: list[tuple[str, bytes, int]],
+    span: int,
+    seconds: float,
+    proc: psutil.Process,
+) -> tuple[int, float, int, list[float]]:
+    """Publish ``items`` ten times over at their recorded pace, looping, for ``seconds``;
+    sample ``proc``'s resident memory meanwhile: (sent, elapsed [s], most RSS [B], RSS
+    every 5 s [MiB])."""
+    pubs: dict[str, zenoh.Publisher] = {}
+    sent = 0
+    t0 = time.monotonic()
+    offset = 0.0
+    rss_max = proc.memory_info().rss
+    next_probe = next_series = t0
+    series: list[float] = []
+    while time.monotonic() - t0 < seconds:
+        for suffix, payload, t in items:
+            delay = t0 + offset + t / 1e9 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            pub = pubs.get(suffix)
+            if pub is None:
+                pub = pubs[suffix] = session.declare_publisher(f"benchflight/{suffix}")
+            for copy in range(10):
+                pub.put(payload + bytes([copy]))
+                sent += 1
+            if time.monotonic() >= next_probe:
+                rss = proc.memory_info().rss
+                rss_max = max(rss_max, rss)
+                next_probe += 0.25
+                if time.monotonic() >= next_series:
+                    series.append(round(rss / MIB, 1))
+                    next_series += 5.0
+            if time.monotonic() - t0 >= seconds:
+                break
+        offset += span / 1e9
+    elapsed = time.monotonic() - t0
+    for pub in pubs.values():
+        pub.undeclare()
+    return sent, elapsed, rss_max, series
+
+
+def _live(seconds: float, cap: int) -> dict[str, Any]:
+    items, span = _traffic()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    router = open_session(router_settings(endpoint))
+    try:
+        settings = client_settings(endpoint, prefix="benchflight")
+        with tempfile.TemporaryDirectory() as tmp:
+            argv = [sys.executable, "-m", "manus_stack.cli", "record", "--ring", "30",
+                    "--ring-mib", f"{cap / MIB:g}", "--out-dir", tmp, "--connect", endpoint,
+                    "--prefix", "benchflight"]  # fmt: skip
+            child = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
+            try:
+                assert child.stderr is not None
+                child.stderr.readline()  # "flight recorder: ..." once it listens
+                proc = psutil.Process(child.pid)
+                time.sleep(1.0)
+                rss0 = proc.memory_info().rss
+                pub_session = open_session(settings)
+                flood = _flood(pub_session, items, span, seconds, proc)
+                sent, elapsed, rss_max, series = flood
+                time.sleep(0.5)
+                rss1 = proc.memory_info().rss
+                rss_max = max(rss_max, rss1)
+                pub_session.close()
+            finally:
+                child.send_signal(signal.SIGINT)
+                _, err = child.communicate(timeout=30)
+            stats = json.loads(err.split("stats: ", 1)[1].splitlines()[0])
+    finally:
+        router.close()
+    return {
+        "seconds": round(elapsed, 1),
+        "sent": sent,
+        "sent_per_s": round(sent / elapsed),
+        "received": stats["samples"],
+        "dropped_by_queue": stats["dropped"],
+        "cap_mib": round(cap / MIB, 2),
+        "peak_accounted_mib": round(stats["peak_bytes"] / MIB, 2),
+        "evicted_by_cap": stats["evicted_by_cap"],
+        "rss_before_mib": round(rss0 / MIB, 1),
+        "rss_max_mib": round(rss_max / MIB, 1),
+        "rss_after_mib": round(rss1 / MIB, 1),
+        "rss_every_5s_mib": series,
+    }
+
+
+def run(quick: bool = False) -> dict[str, Any]:
+    """Core and live figures (a 4 MiB cap: a 30 s ring of the tenfold traffic needs ~25)."""
+    cap = 4 * MIB
+    return {
+        "core": _core(40.0 if quick else 120.0, cap),
+        "live": _live(10.0 if quick else 90.0, cap),
+    }
