@@ -38,7 +38,7 @@ from enum import StrEnum
 from typing import Any, Generic, TypeVar
 
 from manus.errors import SchemaError
-from schemas import commands, control, liveliness, planning, sequencing, state
+from schemas import commands, control, liveliness, planning, sequencing, simfault, state
 from schemas.base import Message
 
 M = TypeVar("M", bound=Message)
@@ -245,6 +245,13 @@ ESTOP = Topic(
 )
 SIM_TRUTH = _pub(
     "sim/truth", Service.SIMULATOR, state.SimTruth, "the simulator's true state, once per cycle"
+)
+SIM_FAULT = _query(
+    "sim/fault",
+    Service.SIMULATOR,
+    simfault.SimFault,
+    simfault.SimFaultReply,
+    "switch a fault on in the running simulator (soaks, tests; no real arm has it)",
 )
 
 # -- planner and controller -------------------------------------------------------------------

@@ -12,5 +12,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
+    "chaos": ("manus_stack.bench.chaos", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""
