@@ -150,7 +150,7 @@ FAULTS: tuple[FaultKind, ...] = (
         hold_s=0.5,
         reason=("error",),
     ),
-    FaultKind("estop", Action.ESTOP, hold_s=0.5, reason=("e-stop", "estop")),
+    FaultKind("e_stop", Action.ESTOP, hold_s=0.5, reason=("e-stop", "estop")),
 )
 """Every fault kind the soak draws from."""
 
