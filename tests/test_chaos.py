@@ -94,15 +94,15 @@ def test_the_desk_switches_faults_on_and_off_in_the_running_core() -> None:
 
 
 def test_the_truth_log_reads_back_what_was_written(tmp_path: Path) -> None:
-    log = TruthLog(tmp_path / "truth.log")
+    log = TruthLog(tmp_path / "truth.txt")
     q = [0.1, -0.2, 0.3, 1e-17, -1.5707963267948966, 2.0]
     for k in range(3):
         log(SimTruth(stamp_ns=k * 60 * MS, seq=99, q_true=q, q_reported=q, gripper=0.04,
                      xyz=[0.0, 0.0, 0.0], ypr=[0.0, 0.0, 0.0]))  # fmt: skip
     log.close()
-    with open(tmp_path / "truth.log", "a") as f:
+    with open(tmp_path / "truth.txt", "a") as f:
         f.write("180000000 3 0.1")  # torn by a kill
-    lines = read_truth_log(tmp_path / "truth.log")
+    lines = read_truth_log(tmp_path / "truth.txt")
     assert [line.seq for line in lines] == [0, 1, 2]
     assert lines[2] == TruthLine(120 * MS, 2, tuple(q), 0.04)
 

@@ -95,7 +95,7 @@ class Soak:
         self.seed = seed
         self.out = out
         endpoint = f"tcp/127.0.0.1:{free_port()}"
-        self.truth_log = run_dir / "truth.log"
+        self.truth_log = run_dir / "truth.txt"
         self.options = StackOptions(
             run_dir=run_dir,
             endpoint=endpoint,

@@ -250,8 +250,9 @@ class ControllerCore:
     def on_joint_state(self, js: JointState) -> Output:
         """One cycle: the command for this joint state, feedback and any results."""
         last = self.last_js
-        if last is not None and js.seq <= last.seq:
+        if last is not None and js.seq <= last.seq and js.stamp_ns <= last.stamp_ns:
             return []  # a duplicate or an old state: already answered
+        # (a lower seq with a newer stamp: a bridge started again; a gap, answered)
         cfg = self.config
         gap = last is not None and (
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
