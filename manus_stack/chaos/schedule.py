@@ -163,6 +163,9 @@ class TaskKind:
 
     name: str
     words: tuple[str, ...]
+    window_s: float = 2.0
+    """the fault comes within this long after the last step starts moving the arm [s]
+    (short steps, such as the gripper's, end sooner)"""
 
     def task(self) -> Task:
         """The :class:`Task` to submit."""
@@ -179,7 +182,7 @@ class TaskKind:
 
 TASKS: tuple[TaskKind, ...] = (
     TaskKind("square", ("fold_out", "thesis_square.txt")),
-    TaskKind("gripper", ("fold_out", "40", "5", "40")),
+    TaskKind("gripper", ("fold_out", "40", "5", "40"), window_s=0.4),
     TaskKind("circle", ("fold_out", "thesis_circle.txt")),
     TaskKind("fold", ("fold_in", "fold_out")),
 )
@@ -202,20 +205,16 @@ def draw(
     rounds: int,
     faults: tuple[FaultKind, ...] = FAULTS,
     tasks: tuple[TaskKind, ...] = TASKS,
-    delay_s: tuple[float, float] = (0.3, 2.0),
 ) -> list[Round]:
     """The schedule: tasks in turn, faults in a seeded shuffled order (each kind once
-    before any repeats), delays uniform in ``delay_s`` [s]."""
+    before any repeats), delays uniform in [0.15, 1] x the task's ``window_s``."""
     rng = np.random.default_rng(seed)
     order: list[int] = []
     while len(order) < rounds:
         order.extend(int(i) for i in rng.permutation(len(faults)))
-    return [
-        Round(
-            i,
-            tasks[i % len(tasks)],
-            faults[order[i]],
-            round(float(rng.uniform(*delay_s)), 3),
-        )
-        for i in range(rounds)
-    ]
+    out = []
+    for i in range(rounds):
+        task = tasks[i % len(tasks)]
+        delay = round(float(rng.uniform(0.15, 1.0)) * task.window_s, 3)
+        out.append(Round(i, task, faults[order[i]], delay))
+    return out
