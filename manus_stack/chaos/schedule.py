@@ -106,7 +106,9 @@ _STATES = [0x350, 0x360]
 FAULTS: tuple[FaultKind, ...] = (
     *_signals("bridge", "can_bridge"),
     *_signals("controller", "controller"),
-    *_signals("planner", "planner"),
+    # not on the command path: the running move goes on with fresh commands until the
+    # sequencer sees the planner's token vanish and cancels it (a deceleration)
+    *_signals("planner", "planner", stops=False, outcome=Outcome.ANY),
     FaultKind("sequencer_sigkill", Action.SIGKILL, "sequencer", event=False),
     FaultKind("sequencer_sigstop", Action.SIGSTOP, "sequencer", reason=("heartbeat", "gone")),
     *_signals("record", "recorder", stops=False, outcome=Outcome.SUCCEEDED),

@@ -66,6 +66,7 @@ class Done:
     refused: str = ""
     fault_ns: int = 0
     fault_sim_ns: int = 0
+    step: str = ""
     recovery_ns: int = 0
     ready_ns: int = 0
     next_submit_ns: int = 0
@@ -195,7 +196,9 @@ class Soak:
         if not self._wait(lambda: self._last_step_moving(done), 60.0):
             done.note = "the task's last step never moved the arm: fault injected anyway"
         time.sleep(rnd.delay_s)
-        self._say(f"round {rnd.index}: {rnd.task.name} + {rnd.fault.name}")
+        started = [e for e in self.w.events_of(done.task_id) if e.event == "step_started"]
+        done.step = started[-1].kind if started else ""
+        self._say(f"round {rnd.index}: {rnd.task.name} ({done.step}) + {rnd.fault.name}")
         self._inject(done, rnd.fault)
         self._finish(done, rnd.fault)
 
@@ -356,6 +359,7 @@ class Soak:
                     "round": done.round.index,
                     "fault": done.round.fault.name,
                     "task": done.round.task.name,
+                    "step": done.step,
                     "t_s": round((done.fault_ns - self.t0) / 1e9, 2),
                     "what": what,
                 }
@@ -366,6 +370,7 @@ class Soak:
             row: dict[str, Any] = {
                 "round": done.round.index,
                 "task": done.round.task.name,
+                "step": done.step,
                 "fault": fault.name,
             }
             rounds.append(row)
