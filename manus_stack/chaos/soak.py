@@ -353,17 +353,18 @@ class Soak:
         def sim(wall: int) -> int:
             return wall - offset
 
-        def violated(done: Done, what: str) -> None:
-            violations.append(
-                {
-                    "round": done.round.index,
-                    "fault": done.round.fault.name,
-                    "task": done.round.task.name,
-                    "step": done.step,
-                    "t_s": round((done.fault_ns - self.t0) / 1e9, 2),
-                    "what": what,
-                }
-            )
+        def violated(done: Done, what: str, after: str = "") -> None:
+            violation = {
+                "round": done.round.index,
+                "fault": done.round.fault.name,
+                "task": done.round.task.name,
+                "step": done.step,
+                "t_s": round((done.fault_ns - self.t0) / 1e9, 2),
+                "what": what,
+            }
+            if after:  # the aftermath of the previous round's fault
+                violation["after"] = after
+            violations.append(violation)
 
         for done in self.done:
             fault = done.round.fault
@@ -385,9 +386,9 @@ class Soak:
             early = [e for e in finals if e.stamp_ns < done.fault_ns]
             if early and early[0].event != "succeeded":
                 before = self.done.index(done) - 1
-                after = f" (after {self.done[before].round.fault.name})" if before >= 0 else ""
-                what = f"the task {early[0].event} with no fault{after}: {early[0].reason!r}"
-                violated(done, what)
+                after = self.done[before].round.fault.name if before >= 0 else ""
+                what = f"the task {early[0].event} before its fault: {early[0].reason!r}"
+                violated(done, what, after)
             elif early:
                 row["note"] = "the task succeeded before the fault came (an idle arm was hit)"
             if fault.stops and not (early and early[0].event != "succeeded"):
