@@ -3,6 +3,10 @@ one-minute soak of the whole stack with a fixed seed."""
 
 from __future__ import annotations
 
+import itertools
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import can
@@ -10,16 +14,20 @@ import numpy as np
 import pytest
 
 from manus.errors import ConfigError, SchemaError
+from manus.node import Node
+from manus.session import ZenohSettings
 from manus_stack.chaos import judge
 from manus_stack.chaos.schedule import FAULTS, TASKS, Action, FaultKind, draw
 from manus_stack.chaos.soak import run_soak
-from schemas.simfault import SimFault
+from schemas import endpoints as ep
+from schemas.simfault import SimFault, SimFaultReply
 from schemas.state import SimTruth
 from services.simulator.core import SimCore
 from services.simulator.fault_desk import FaultDesk, fault_from_request
 from services.simulator.faults import FrameFault, InjectedMessage, Silence, StuckJoint
 from services.simulator.live import LiveSim
 from services.simulator.truth_log import TruthLine, TruthLog, read_truth_log
+from tests.conftest import eventually
 
 MS = 1_000_000
 
@@ -220,3 +228,33 @@ def test_a_one_minute_soak_with_a_fixed_seed(tmp_path: Path) -> None:
     assert stopping and stopping <= set(figures["worst_stop_ms"]) | {
         r["fault"] for r in figures["rounds"] if r.get("stop_ms") is None
     }
+
+
+@pytest.mark.slow
+def test_a_running_sim_takes_faults_through_its_door(
+    tmp_path: Path, router_endpoint: str, zenoh_settings: ZenohSettings
+) -> None:
+    truth_file = tmp_path / "truth.txt"
+    cmd = [
+        sys.executable, "-m", "manus_stack.cli", "sim", "--no-wait-client", "--duration", "6",
+        "--zenoh-connect", router_endpoint, "--prefix", "test", "--truth-log", str(truth_file),
+    ]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        with Node("chaos-test", zenoh_settings, liveliness=False) as node:
+            key = node.keys(ep.SIM_FAULT)
+            eventually(lambda: "simulator" in node.alive_services(timeout=0.3), 10.0, "sim up")
+            reply = node.query(key, SimFault(kind="drop", ids=[0x360], count=5), SimFaultReply)
+            assert reply.ok and reply.start_ns == reply.sim_time_ns >= 0, reply
+            refused = node.query(key, SimFault(kind="delay", delay_ms=0.0), SimFaultReply)
+            assert not refused.ok and "delay_ms" in refused.message
+        _, err = proc.communicate(timeout=20.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    stats = json.loads(next(li for li in err.splitlines() if li.startswith("stats: "))[7:])
+    assert stats["dropped"] == 5
+    lines = read_truth_log(truth_file)
+    assert len(lines) >= 60 and [t.seq for t in lines] == list(range(len(lines)))
+    assert all(b.stamp_ns - a.stamp_ns == judge.CYCLE_NS for a, b in itertools.pairwise(lines))

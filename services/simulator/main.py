@@ -150,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
         live = LiveSim(SimCore(config), bus, on_snapshot=on_snapshot if sinks else None)
         if node is not None:
             node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
+            node.announce()
         if isinstance(bus, SlcanPtyBus) and args.wait_client:
             wait_for_client(bus, stop, deadline)
         if not stop.is_set():
