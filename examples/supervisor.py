@@ -13,9 +13,9 @@ positions in metres). It
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
 
-Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it
-was refused. Via-point files are read here (14 columns in mm, deg, s; SPEC 5.1) and
-sent in SI units.
+Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it was
+refused. Via-point files are read here (14 columns in mm, deg, s; docs/protocol.md, Thesis
+via-point format) and sent in SI units.
 """
 
 from __future__ import annotations
@@ -68,7 +68,8 @@ def task_from_words(words: list[str]) -> dict[str, Any]:
     return {"steps": steps, "name": "supervisor example: " + " ".join(words)}
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
+    """The command line (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("task", nargs="+", help="via-point files and openings [mm]")
     parser.add_argument("--connect", default="tcp/127.0.0.1:7447", help="router endpoint")
@@ -78,71 +79,97 @@ def main() -> int:
     parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
-    args = parser.parse_args()
-    p = args.prefix
+    return parser.parse_args()
 
-    # A client of the local router, loopback only: no scouting.
+
+def open_session(endpoint: str) -> zenoh.Session:
+    """A client of the router at ``endpoint``, loopback only: no scouting."""
     config = zenoh.Config()
     config.insert_json5("mode", '"client"')
-    config.insert_json5("connect/endpoints", json.dumps([args.connect]))
+    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
     config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
-    try:
-        alive = set()
-        for reply in session.liveliness().get(f"{p}/alive/**", timeout=2.0):
-            if reply.ok is not None:
-                alive.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
-        print(f"alive: {', '.join(sorted(alive)) or 'nothing'}", flush=True)
+    return zenoh.open(config)
 
-        events: queue.Queue[dict[str, Any]] = queue.Queue()
+
+class Sequencer:
+    """The sequencer's API under ``prefix``: liveliness, queries, and its task events."""
+
+    def __init__(self, session: zenoh.Session, prefix: str) -> None:
+        self.session = session
+        self.prefix = prefix
+        self.events: queue.Queue[dict[str, Any]] = queue.Queue()
         session.declare_subscriber(
-            f"{p}/sequencer/events",
-            lambda s: events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
+            f"{prefix}/sequencer/events",
+            lambda s: self.events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
         )
 
-        def ask(key: str, request: dict[str, Any], timeout: float = 60.0) -> dict[str, Any]:
-            payload = msgpack.packb(request, use_bin_type=True)
-            for reply in session.get(f"{p}/{key}", payload=payload, timeout=timeout):
-                if reply.ok is None:
-                    err = reply.err.payload.to_bytes().decode() if reply.err is not None else "?"
-                    raise RuntimeError(f"{key}: {err}")
-                answer: dict[str, Any] = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
-                return answer
-            raise RuntimeError(f"{key}: no reply (is the sequencer running?)")
+    def alive(self) -> set[str]:
+        """Names of the services whose liveliness token is up."""
+        alive = set()
+        for reply in self.session.liveliness().get(f"{self.prefix}/alive/**", timeout=2.0):
+            if reply.ok is not None:
+                alive.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        return alive
 
-        submitted = ask("sequencer/submit", task_from_words(args.task))
+    def ask(self, key: str, request: dict[str, Any], timeout: float = 60.0) -> dict[str, Any]:
+        """Query ``<prefix>/<key>`` with a MessagePack map; the decoded reply."""
+        payload = msgpack.packb(request, use_bin_type=True)
+        for reply in self.session.get(f"{self.prefix}/{key}", payload=payload, timeout=timeout):
+            if reply.ok is None:
+                err = reply.err.payload.to_bytes().decode() if reply.err is not None else "?"
+                raise RuntimeError(f"{key}: {err}")
+            answer: dict[str, Any] = msgpack.unpackb(reply.ok.payload.to_bytes(), raw=False)
+            return answer
+        raise RuntimeError(f"{key}: no reply (is the sequencer running?)")
+
+    def control(self, action: str, task_id: str) -> dict[str, Any]:
+        """``sequencer/control``: pause, resume, cancel or status of a task."""
+        return self.ask("sequencer/control", {"action": action, "task_id": task_id})
+
+
+def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
+    """Print the task's events (pausing and resuming it if asked) until it ends: exit status."""
+    start = time.monotonic()
+    paused_at: float | None = None
+    while time.monotonic() - start < args.timeout:
+        now = time.monotonic() - start
+        if args.pause_after is not None and paused_at is None and now >= args.pause_after:
+            status = seq.control("pause", task_id)
+            print(f"pause -> {status['state']} ok={status['ok']}", flush=True)
+            paused_at = now
+        if paused_at is not None and paused_at >= 0 and now >= paused_at + args.resume_after:
+            status = seq.control("resume", task_id)
+            print(f"resume -> {status['state']} ok={status['ok']}", flush=True)
+            paused_at = -1.0  # done
+        try:
+            event = seq.events.get(timeout=0.1)
+        except queue.Empty:
+            continue
+        if event["task_id"] != task_id or event["event"] == "step_progress":
+            continue
+        reason = f": {event['reason']}" if event["reason"] else ""
+        print(f"event: {event['event']} step {event['step']}/{event['total']}{reason}",
+              flush=True)  # fmt: skip
+        if event["event"] in ("succeeded", "failed", "cancelled"):
+            return 0 if event["event"] == "succeeded" else 1
+    print("timeout: cancelling", flush=True)
+    seq.control("cancel", task_id)
+    return 1
+
+
+def main() -> int:
+    args = parse_args()
+    session = open_session(args.connect)
+    try:
+        seq = Sequencer(session, args.prefix)
+        print(f"alive: {', '.join(sorted(seq.alive())) or 'nothing'}", flush=True)
+        submitted = seq.ask("sequencer/submit", task_from_words(args.task))
         if not submitted["accepted"]:
             print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)
             return 2
         task_id = submitted["task_id"]
         print(f"accepted: task {task_id}", flush=True)
-
-        start = time.monotonic()
-        paused_at: float | None = None
-        while time.monotonic() - start < args.timeout:
-            now = time.monotonic() - start
-            if args.pause_after is not None and paused_at is None and now >= args.pause_after:
-                status = ask("sequencer/control", {"action": "pause", "task_id": task_id})
-                print(f"pause -> {status['state']} ok={status['ok']}", flush=True)
-                paused_at = now
-            if paused_at is not None and paused_at >= 0 and now >= paused_at + args.resume_after:
-                status = ask("sequencer/control", {"action": "resume", "task_id": task_id})
-                print(f"resume -> {status['state']} ok={status['ok']}", flush=True)
-                paused_at = -1.0  # done
-            try:
-                event = events.get(timeout=0.1)
-            except queue.Empty:
-                continue
-            if event["task_id"] != task_id or event["event"] == "step_progress":
-                continue
-            reason = f": {event['reason']}" if event["reason"] else ""
-            print(f"event: {event['event']} step {event['step']}/{event['total']}{reason}",
-                  flush=True)  # fmt: skip
-            if event["event"] in ("succeeded", "failed", "cancelled"):
-                return 0 if event["event"] == "succeeded" else 1
-        print("timeout: cancelling", flush=True)
-        ask("sequencer/control", {"action": "cancel", "task_id": task_id})
-        return 1
+        return follow(seq, task_id, args)
     finally:
         session.close()
 

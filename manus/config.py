@@ -2,7 +2,7 @@
 
 All values are SI (m, rad, rad/s) inside the stack; the defaults are written in the
 thesis's units (mm, deg) next to their conversion so they can be checked against
-SPEC.md section 2. Configuration layers defaults < file < environment < command line;
+docs/protocol.md, The arm. Configuration layers defaults < file < environment < command line;
 this module holds the defaults, the validation and the file layer.
 """
 
@@ -28,7 +28,7 @@ N_JOINTS = 6
 
 def _default_lower() -> tuple[float, ...]:
     # Joint 5 (wrist pitch) has a finite range; the others may turn more than once
-    # (SPEC 2): +-360 deg keeps a full turn available either way.
+    # (docs/protocol.md, Limits): +-360 deg keeps a full turn available either way.
     return tuple(d * DEG for d in (-360.0, -360.0, -360.0, -360.0, -120.0, -360.0))
 
 
@@ -107,11 +107,6 @@ class ArmConfig:
         """Upper joint limits [rad], shape (6,)."""
         return np.asarray(self.upper, dtype=float)
 
-    @property
-    def speed_array(self) -> np.ndarray:
-        """Joint speed limits [rad/s], shape (6,)."""
-        return np.asarray(self.max_speed, dtype=float)
-
     @classmethod
     def from_mapping(cls, data: dict[str, Any], *, source: str = "<mapping>") -> ArmConfig:
         """Build a config from thesis units: lengths in mm, angles in deg.
@@ -188,7 +183,7 @@ def load_arm_config(path: str | os.PathLike[str] | None = None) -> ArmConfig:
 
 
 UNFOLDED_Q_DEG = (0.0, 30.0, -30.0, 0.0, -60.0, 0.0)
-"""The operational (unfolded) pose of SPEC 4, DH joint angles [deg]."""
+"""The operational (unfolded) pose (docs/protocol.md, Kinematics), DH joint angles [deg]."""
 
 FOLDED_Q_DEG = (0.0, -90.0, -90.0, 0.0, -90.0, 0.0)
 """The compact folded pose (upper arm up, forearm down, gripper at about (160, 105, 80) mm)

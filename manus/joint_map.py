@@ -1,7 +1,9 @@
-"""Encoder (motor) angles <-> DH joint angles: the one place the map of SPEC 2.2 lives.
+"""Encoder (motor) angles <-> DH joint angles: the one place the map lives.
+
+The map is docs/protocol.md, Encoder map.
 
 The arm reports motor angles e1..e6; joints 2 and 3 are mechanically coupled and joint 4
-has a 90 deg offset. In degrees (thesis Table 4.2):
+has a 90 deg offset. In degrees:
 
     q1 = e1   q2 = -e2   q3 = e3 - e2 + 90   q4 = e4 + 90   q5 = e5   q6 = e6
 

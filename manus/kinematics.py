@@ -1,6 +1,7 @@
 """Forward kinematics, geometric Jacobian and closed-form inverse kinematics.
 
-Standard Denavit-Hartenberg (SPEC 2.1), A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i):
+Standard Denavit-Hartenberg (docs/protocol.md, Kinematics),
+A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i):
 
     i  a   alpha  d   theta
     1  0   -90    0   q1
@@ -10,7 +11,8 @@ Standard Denavit-Hartenberg (SPEC 2.1), A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alp
     5  0   +90    0   q5
     6  0     0    L4  q6
 
-The inverse kinematics is derived from this product (the thesis's eqs 3.6/3.8 are wrong).
+The inverse kinematics is derived from this product (the thesis's printed IK
+is wrong: docs/protocol.md, Corrections to the thesis).
 With u = L2 c2 + L3 s23 and v = L2 s2 - L3 c23 the wrist centre is
 
     p_w = (c1 u - s1 L1,  s1 u + c1 L1,  -v)
@@ -22,7 +24,6 @@ R_36 = R_03^T R, a ZYZ-like spherical wrist (two wrist branches).
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -118,39 +119,6 @@ Vec3 = tuple[float, float, float]
 """A 3-vector as plain floats (the scalar functions below)."""
 
 
-class Chain(NamedTuple):
-    """Joint axes and frame origins of one configuration, base frame, plain floats.
-
-    Attributes:
-        axes: z_0..z_5, the axis of each joint [-] (unit vectors).
-        origins: p_0..p_6, the origin of each frame [m]; ``origins[-1]`` is the gripper.
-    """
-
-    axes: list[Vec3]
-    origins: list[Vec3]
-
-    @property
-    def position(self) -> Vec3:
-        """Gripper position [m] (what :func:`fk_position` gives)."""
-        return self.origins[-1]
-
-    def columns(self) -> list[tuple[float, float, float, float, float, float]]:
-        """The geometric Jacobian's columns as plain floats, one per joint.
-
-        Column i: z_i x (p_e - p_i) [m/rad] over z_i [-].
-        """
-        ex, ey, ez = self.origins[-1]
-        columns = []
-        for (zx, zy, zz), (px, py, pz) in zip(self.axes, self.origins, strict=False):
-            dx, dy, dz = ex - px, ey - py, ez - pz
-            columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
-        return columns
-
-    def jacobian(self) -> np.ndarray:
-        """Geometric Jacobian (what :func:`jacobian` gives), shape (6, 6)."""
-        return np.array(self.columns()).T
-
-
 def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> Vec3:
     """Gripper position [m] for DH angles ``q`` [rad], shape (6,), in closed form.
 
@@ -182,7 +150,7 @@ def jacobian_columns(
 ) -> list[tuple[float, float, float, float, float, float]]:
     """The geometric Jacobian's columns (what :func:`jacobian` gives) in closed form.
 
-    For the controller's cycle (half the work of :func:`chain`), from the DH table's
+    For the controller's cycle (no NumPy call per joint), from the DH table's
     structure: z_0 = e_z; z_1 = z_2 = (-s1, c1, 0); z_3 = R_03 e_z = (c1 s23, s1 s23, c23);
     z_4 = R_03 (-s4, c4, 0); z_5 = R_03 (c4 s5, s4 s5, c5); origins p_0 = p_1 = 0,
     p_2 = p_3 (the elbow) = R_01 (L2 c2, L2 s2, L1), p_4 = p_5 (the wrist centre)
@@ -222,52 +190,6 @@ def jacobian_columns(
         columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
     columns.append((0.0, 0.0, 0.0, *z5))
     return columns
-
-
-@functools.lru_cache(maxsize=8)
-def _dh_terms(cfg: ArmConfig) -> tuple[tuple[float, float, float, float], ...]:
-    """(a, cos alpha, sin alpha, d) of each joint [m, -, -, m] (:func:`chain`'s constants)."""
-    return tuple((a, math.cos(alpha), math.sin(alpha), d) for a, alpha, d in dh_table(cfg))
-
-
-def chain(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> Chain:
-    """Joint axes and origins for DH angles ``q`` [rad], shape (6,), with :mod:`math`.
-
-    The scalar twin of :func:`joint_frames` for the controller's cycle, where NumPy's
-    per-call overhead on 4x4 products dominates (a test keeps the two equal). Each
-    A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) turns the frame's x and y axes by theta about
-    its z, moves the origin d along that z and a along the new x, then turns y and z by
-    alpha about the new x.
-    """
-    angles = q.tolist() if isinstance(q, np.ndarray) else q
-    x0, x1, x2 = 1.0, 0.0, 0.0
-    y0, y1, y2 = 0.0, 1.0, 0.0
-    z0, z1, z2 = 0.0, 0.0, 1.0
-    p0, p1, p2 = 0.0, 0.0, 0.0
-    axes: list[Vec3] = []
-    origins: list[Vec3] = [(p0, p1, p2)]
-    for (a, ca, sa, d), theta in zip(_dh_terms(cfg), angles, strict=True):
-        axes.append((z0, z1, z2))
-        ct, st = math.cos(theta), math.sin(theta)
-        x0, x1, x2, w0, w1, w2 = (
-            ct * x0 + st * y0,
-            ct * x1 + st * y1,
-            ct * x2 + st * y2,
-            ct * y0 - st * x0,
-            ct * y1 - st * x1,
-            ct * y2 - st * x2,
-        )
-        p0, p1, p2 = p0 + d * z0 + a * x0, p1 + d * z1 + a * x1, p2 + d * z2 + a * x2
-        y0, y1, y2, z0, z1, z2 = (
-            ca * w0 + sa * z0,
-            ca * w1 + sa * z1,
-            ca * w2 + sa * z2,
-            ca * z0 - sa * w0,
-            ca * z1 - sa * w1,
-            ca * z2 - sa * w2,
-        )
-        origins.append((p0, p1, p2))
-    return Chain(axes, origins)
 
 
 class IkSolutions(NamedTuple):
@@ -530,21 +452,6 @@ def ik_nearest(
             limit=cfg.singular_tol,
         )
     return best
-
-
-def check_limits(q: np.ndarray, cfg: ArmConfig, *, where: str = "configuration") -> None:
-    """Raise :class:`KinematicsError` naming the first joint outside its limits."""
-    for j in range(N_JOINTS):
-        if not cfg.lower[j] <= q[j] <= cfg.upper[j]:
-            lim = cfg.lower[j] if q[j] < cfg.lower[j] else cfg.upper[j]
-            raise KinematicsError(
-                f"{where}: joint {j + 1} at {math.degrees(q[j]):.2f} deg is beyond its limit "
-                f"{math.degrees(lim):.1f} deg",
-                reason="joint_limit",
-                joint=j + 1,
-                value=float(q[j]),
-                limit=lim,
-            )
 
 
 def branch_of(q: np.ndarray, cfg: ArmConfig) -> tuple[int, int, int]:

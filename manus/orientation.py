@@ -1,8 +1,8 @@
 """The via-point orientation convention: (yaw, roll, pitch) <-> rotation matrix.
 
 The thesis lists orientations as yaw, roll, pitch (degrees, in that column order) and never
-says what they mean. This project defines them (SPEC 2.1) as fixed-axis angles in the
-base frame, applied roll first, then pitch, then yaw:
+says what they mean. This project defines them (docs/protocol.md, Orientation convention) as
+fixed-axis angles in the base frame, applied roll first, then pitch, then yaw:
 
     R = Rz(yaw) @ Ry(pitch) @ Rx(roll)
 

@@ -1,8 +1,9 @@
-"""The Manus transparent-mode CAN protocol (SPEC 3): identifiers, units and codecs.
+"""The Manus transparent-mode CAN protocol: identifiers, units and codecs.
 
-Pure functions over ``(arbitration_id, data, is_remote)``; nothing here touches a bus.
-Both the simulator (the arm's side) and the bridge (the PC's side) use this module, and
-``schemas/manus.dbc`` describes the same frames for CAN tools.
+The protocol is docs/protocol.md, The CAN protocol. Pure functions over ``(arbitration_id,
+data, is_remote)``; nothing here touches a bus. Both the simulator (the arm's side) and the
+bridge (the PC's side) use this module, and ``schemas/manus.dbc`` describes the same frames
+for CAN tools.
 
 Multi-byte fields are signed 16-bit big-endian; command bytes are signed 8-bit.
 """
@@ -41,10 +42,6 @@ class FrameId(IntEnum):
     FOLD_IN = 0x376  # PC -> arm: fold in (likewise)
 
 
-REPLY_IDS = frozenset(
-    {FrameId.STOP, FrameId.CARTESIAN, FrameId.JOINT, FrameId.FOLD_OUT, FrameId.FOLD_IN}
-)
-
 JOINT_UNIT_DEG = 0.1
 """Position unit of joint fields and of joint increments [deg]."""
 
@@ -52,7 +49,7 @@ XYZ_UNIT_MM = 0.022
 """Position unit of Cartesian fields and increments [mm]."""
 
 GRIPPER_UNIT_MM = 0.1
-"""Gripper opening unit and gripper increment unit [mm] (the project's choice, SPEC 3.2)."""
+"""Gripper opening unit and gripper increment unit [mm] (the project's choice)."""
 
 JOINT_INC_MAX = 10
 """Largest joint increment magnitude [0.1 deg per 20 ms] (50 deg/s)."""
@@ -117,7 +114,7 @@ GEN_ANGLES_MEASURED = 3
 
 
 def message_text(msg_class: MessageClass, code: int) -> str:
-    """Human-readable meaning of a (class, code) pair (SPEC 3.2 table)."""
+    """Human-readable meaning of a (class, code) pair (docs/protocol.md, Message codes)."""
     if msg_class == MessageClass.NONE:
         return ""
     table = {
@@ -131,7 +128,7 @@ def message_text(msg_class: MessageClass, code: int) -> str:
     return f"unspecified {kind} {code}"
 
 
-def status_byte(mode: Mode, msg_class: MessageClass) -> int:
+def status_byte(mode: int, msg_class: MessageClass) -> int:
     """Status byte 0 from its two bit fields."""
     return (int(msg_class) & 0xC0) | (int(mode) & 0x0F)
 
@@ -180,7 +177,7 @@ def encode_status(frame: StatusFrame) -> bytes:
     """Payload of 0x350 (8 bytes)."""
     if not 0 <= frame.msg_code <= 255:
         raise ProtocolError(f"0x350 message code {frame.msg_code} outside 0..255")
-    byte0 = (int(frame.msg_class) & 0xC0) | (frame.mode & 0x0F)
+    byte0 = status_byte(frame.mode, frame.msg_class)
     return struct.pack(">BBhhh", byte0, frame.msg_code, *_i16(frame.fields, "0x350"))
 
 

@@ -1,9 +1,12 @@
-"""DH joint rates <-> motor increments ("counts"), saturation and quantizers (SPEC 3.3).
+"""DH joint rates <-> motor increments ("counts"), saturation and quantizers.
 
-The arm takes one signed byte per joint and per 20 ms: joint increments in 0.1 deg per
-20 ms (one count = 5 deg/s, range -10..10) and gripper increments in 0.1 mm per 20 ms
-(one count = 5 mm/s, range -15..15). Joint counts are **motor** increments: the joint 2/3
-coupling of SPEC 2.2 is applied here through :mod:`manus.joint_map`, never copied.
+Units and ranges: docs/protocol.md, Increments and units of moves.
+
+The arm takes one signed byte per joint and per 20 ms: joint increments in 0.1 deg per 20 ms
+(one count = 5 deg/s, range -10..10) and gripper increments in 0.1 mm per 20 ms (one count =
+5 mm/s, range -15..15). Joint counts are **motor** increments: the joint 2/3 coupling
+(docs/protocol.md, Encoder map) is applied here through :mod:`manus.joint_map`, never
+copied.
 
 Rounding a wanted rate to one of 21 speeds is the arm's defining limitation, so the
 quantizer is a replaceable piece (:class:`Quantizer`): :class:`RoundingQuantizer` is the
@@ -51,7 +54,7 @@ def _vector6(values: np.ndarray, what: str) -> np.ndarray:
 
 
 def joint_rates_to_counts(qd_dh: np.ndarray) -> np.ndarray:
-    """Float motor counts from DH joint rates, with the joint 2/3 coupling of SPEC 2.2.
+    """Float motor counts from DH joint rates, with the joint 2/3 coupling.
 
     Args:
         qd_dh: DH joint velocities [rad/s], shape (6,).
@@ -72,8 +75,8 @@ def counts_to_joint_rates(counts: np.ndarray) -> np.ndarray:
 def saturate(counts: np.ndarray, limit: float = float(JOINT_COUNT_MAX)) -> np.ndarray:
     """Scale all joints by one factor so that the largest magnitude is at most ``limit``.
 
-    The direction of the motion in motor space is kept (SPEC 6 step 4); counts already
-    within the limit are returned unchanged (as a new array).
+    The direction of the motion in motor space is kept (docs/protocol.md, Thesis control
+    loop, step 4); counts already within the limit are returned unchanged (as a new array).
 
     Args:
         counts: float motor counts, shape (6,).

@@ -3,7 +3,7 @@
 Loopback only by default: a service is a ``client`` of a router on
 ``tcp/127.0.0.1:7447``, multicast scouting and gossip are off, and a peer or router that
 is given no listen endpoint listens on ``tcp/127.0.0.1:0``. Real deployments override
-the defaults in layers (SPEC 8, STYLE 9):
+the defaults in layers:
 
     defaults < Zenoh config file < environment < keyword arguments (command line)
 
@@ -27,6 +27,7 @@ import argparse
 import json
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -105,33 +106,38 @@ def _split(value: str) -> tuple[str, ...]:
     return tuple(part.strip() for part in value.split(",") if part.strip())
 
 
+def _lease_ms(value: str) -> int:
+    try:
+        return int(value)
+    except ValueError as exc:
+        raise ConfigError(f"MANUS_ZENOH_LEASE_MS={value!r} is not a whole number of ms") from exc
+
+
+def _flag(value: str) -> bool:
+    return value.strip().lower() in ("1", "true", "yes")
+
+
+ENVIRONMENT: dict[str, tuple[str, Callable[[str], Any]]] = {
+    "MANUS_ZENOH_CONFIG": ("config_file", str),
+    "MANUS_ZENOH_MODE": ("mode", str),
+    "MANUS_ZENOH_CONNECT": ("connect", _split),
+    "MANUS_ZENOH_LISTEN": ("listen", _split),
+    "MANUS_ZENOH_LEASE_MS": ("lease_ms", _lease_ms),
+    "MANUS_ZENOH_SCOUTING": ("scouting", _flag),
+    "MANUS_PREFIX": ("prefix", str),
+    "MANUS_ZENOH_CREDENTIALS": ("credentials_file", str),
+    "MANUS_LAB_DIR": ("lab_dir", str),
+}
+"""Environment variable -> (:class:`ZenohSettings` field, parser of its value); an empty
+variable counts as unset."""
+
+
 def settings_from_env(env: dict[str, str] | None = None, **overrides: Any) -> ZenohSettings:
     """Defaults < environment < ``overrides`` (keyword arguments that are not None)."""
     env = dict(os.environ) if env is None else env
-    values: dict[str, Any] = {}
-    if env.get("MANUS_ZENOH_CONFIG"):
-        values["config_file"] = env["MANUS_ZENOH_CONFIG"]
-    if env.get("MANUS_ZENOH_MODE"):
-        values["mode"] = env["MANUS_ZENOH_MODE"]
-    if env.get("MANUS_ZENOH_CONNECT"):
-        values["connect"] = _split(env["MANUS_ZENOH_CONNECT"])
-    if env.get("MANUS_ZENOH_LISTEN"):
-        values["listen"] = _split(env["MANUS_ZENOH_LISTEN"])
-    if env.get("MANUS_ZENOH_LEASE_MS"):
-        try:
-            values["lease_ms"] = int(env["MANUS_ZENOH_LEASE_MS"])
-        except ValueError as exc:
-            raise ConfigError(
-                f"MANUS_ZENOH_LEASE_MS={env['MANUS_ZENOH_LEASE_MS']!r} is not a whole number of ms"
-            ) from exc
-    if env.get("MANUS_ZENOH_SCOUTING"):
-        values["scouting"] = env["MANUS_ZENOH_SCOUTING"].strip().lower() in ("1", "true", "yes")
-    if env.get("MANUS_PREFIX"):
-        values["prefix"] = env["MANUS_PREFIX"]
-    if env.get("MANUS_ZENOH_CREDENTIALS"):
-        values["credentials_file"] = env["MANUS_ZENOH_CREDENTIALS"]
-    if env.get("MANUS_LAB_DIR"):
-        values["lab_dir"] = env["MANUS_LAB_DIR"]
+    values: dict[str, Any] = {
+        name: parse(env[var]) for var, (name, parse) in ENVIRONMENT.items() if env.get(var)
+    }
     for key, value in overrides.items():
         if value is not None:
             values[key] = tuple(value) if key in ("connect", "listen") else value

@@ -218,7 +218,8 @@ def quintic_coefficients(
 ) -> np.ndarray:
     """Coefficients c0..c5 (shape (6, n)) of q(t) = sum c_k t^k on [0, h] meeting the ends.
 
-    Solves the 6x6 boundary system directly (the thesis's printed eqs 2.24-2.26 have typos).
+    Solves the 6x6 boundary system directly (the thesis's printed solution has
+    typos: docs/protocol.md, Thesis interpolation).
     """
     A = np.array(
         [

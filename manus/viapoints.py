@@ -1,4 +1,4 @@
-"""Via-point files (thesis Table 4.3, SPEC 5.1) <-> :class:`schemas.planning.Path`.
+"""Via-point files (docs/protocol.md, Thesis via-point format) <-> :class:`schemas.planning.Path`.
 
 One via point per line, 14 whitespace-separated columns, in the thesis's units:
 
@@ -56,7 +56,7 @@ _MM, _DEG = 1e-3, math.pi / 180.0
 
 
 class ViaPointError(ManusError, ValueError):
-    """A via-point file or path breaks a rule of SPEC 5.1.
+    """A via-point file or path breaks a rule of the format.
 
     Attributes:
         source: file name (or the path's ``source``).

@@ -1,12 +1,12 @@
 """The demo's parts: its task, what it collects from the bus, its table and its plot.
 
-The task (thesis 5.1): fold out, the thesis path (square or circle) in real time, close
+The task: fold out, the thesis path (square or circle) in real time, close
 and open the gripper, fold in. While it runs the demo follows ``controller/feedback``,
 ``controller/result`` and the controller's goal requests (their trace mirror), and then
 reports the via-point errors (the controller's ``GoalResult.via_errors``: gripper position
 error at each via point's time, FK of the encoders) next to the thesis's figures, and
-plots planned vs executed path in the yz plane and the error over time (like thesis
-Figures 5.2 / 5.3).
+plots planned vs executed path in the yz plane and the error over time (like the
+thesis's figures: docs/protocol.md, Thesis test paths).
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ PATHS_DIR = Path(__file__).resolve().parent.parent / "paths"
 """The thesis's paths (``paths/thesis_square.txt``, ``paths/thesis_circle.txt``)."""
 
 THESIS_MEAN_MM = 5.0
-"""Mean via-point error the thesis reports for its controller [mm] (thesis 5.1)."""
+"""Mean via-point error the thesis reports for its controller [mm] (docs/protocol.md, Thesis
+test paths)."""
 
 THESIS_MAX_MM = 10.0
 """Largest via-point error the thesis reports, about [mm]."""

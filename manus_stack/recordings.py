@@ -37,7 +37,6 @@ from services.simulator.config import SimConfig
 ROOT = Path(__file__).resolve().parents[1]
 PATHS = ROOT / "paths"
 DATA = ROOT / "tests" / "data"
-SHAPES = ("square", "circle")
 RECORDINGS: dict[str, tuple[str, str]] = {
     "thesis_square": ("square", "default"),
     "thesis_circle": ("circle", "default"),

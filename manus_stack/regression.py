@@ -114,24 +114,36 @@ class CheckResult:
 def first_difference(recorded: Any, replayed: Any, path: str = "") -> tuple[str, Any, Any] | None:
     """The first (depth-first) field where two plain values differ: (path, a, b)."""
     if isinstance(recorded, dict) and isinstance(replayed, dict):
-        for key in sorted(set(recorded) | set(replayed), key=str):
-            sub = f"{path}.{key}" if path else str(key)
-            if key not in recorded or key not in replayed:
-                return sub, recorded.get(key), replayed.get(key)
-            found = first_difference(recorded[key], replayed[key], sub)
-            if found:
-                return found
-        return None
+        return _first_in_maps(recorded, replayed, path)
     if isinstance(recorded, list) and isinstance(replayed, list):
-        for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
-            found = first_difference(a, b, f"{path}[{i}]")
-            if found:
-                return found
-        if len(recorded) != len(replayed):
-            return f"{path} (length)", len(recorded), len(replayed)
-        return None
+        return _first_in_lists(recorded, replayed, path)
     if type(recorded) is not type(replayed) or recorded != replayed:
         return path, recorded, replayed
+    return None
+
+
+def _first_in_maps(
+    recorded: dict[Any, Any], replayed: dict[Any, Any], path: str
+) -> tuple[str, Any, Any] | None:
+    for key in sorted(set(recorded) | set(replayed), key=str):
+        sub = f"{path}.{key}" if path else str(key)
+        if key not in recorded or key not in replayed:
+            return sub, recorded.get(key), replayed.get(key)
+        found = first_difference(recorded[key], replayed[key], sub)
+        if found:
+            return found
+    return None
+
+
+def _first_in_lists(
+    recorded: list[Any], replayed: list[Any], path: str
+) -> tuple[str, Any, Any] | None:
+    for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
+        found = first_difference(a, b, f"{path}[{i}]")
+        if found:
+            return found
+    if len(recorded) != len(replayed):
+        return f"{path} (length)", len(recorded), len(replayed)
     return None
 
 

@@ -3,12 +3,14 @@ simulator cores on one simulated clock (no Zenoh, no threads; :mod:`manus_stack.
 
 Every core is fed through its service's wiring map, as its live shell is: the controller
 and the planner are attached to the :class:`~manus_stack.lockstep.LockStep`, the
-sequencer gets its inputs (and, with each joint state, its clock tick). The sequencer's
-queries are answered in-process, at the simulated instant they are sent, by the core
-whose wiring answers that key (``planner/plan``, ``controller/*``; ``bridge/command`` by
-the bridge core of the lock-step); its task events are published like every other
-message, so :attr:`LockStep.messages` holds the whole run. Used by the sequencer's
-scenario tests and by ``manus bench sequencer``.
+sequencer gets its inputs (and, with each joint state, its clock tick); a task is
+submitted through :meth:`SequencerCore.submit`, as live. The sequencer's queries (the
+plan requests that validate a submitted task included) are answered in-process, at the
+simulated instant they are sent, by the core whose wiring answers that key
+(``planner/plan``, ``controller/*``; ``bridge/command`` by the bridge core of the
+lock-step); its task events are published like every other message, so
+:attr:`LockStep.messages` holds the whole run. Used by the sequencer's scenario tests and
+by ``manus bench sequencer``.
 """
 
 from __future__ import annotations
@@ -26,8 +28,8 @@ from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.core import PlannerCore
 from services.planner.wiring import WIRING as PLANNER
-from services.sequencer.core import Action, Publish, SequencerCore
-from services.sequencer.validate import Validator
+from services.sequencer.actions import Action, Publish, Reply
+from services.sequencer.core import SequencerCore
 from services.sequencer.wiring import WIRING as SEQUENCER
 from services.simulator.config import SimConfig
 
@@ -48,6 +50,7 @@ class TaskLockStep:
         self.seq = SequencerCore()
         self.events: list[TaskEvent] = []
         self.requests: list[Message] = []
+        self.replies: dict[str, SubmitReply] = {}  # answers to submissions, by task id
         ls = self.ls
         ls.attach(CONTROLLER, self.controller)
         ls.attach(PLANNER, self.planner)
@@ -98,6 +101,9 @@ class TaskLockStep:
         """Carry out the sequencer's actions; the messages to publish."""
         out: list[tuple[str, Message]] = []
         for action in actions:
+            if isinstance(action, Reply):
+                self.replies[action.submission] = action.reply
+                continue
             if isinstance(action, Publish):
                 if isinstance(action.message, TaskEvent):
                     self.events.append(action.message)
@@ -108,18 +114,15 @@ class TaskLockStep:
         return out
 
     def submit(self, task: Task, task_id: str = "t") -> SubmitReply:
-        """Validate ``task`` whole (as the shell does) and start it when it passes."""
-        refused = self.seq.refuse(task)
-        if refused is not None:
-            return refused
-        v = Validator(task, self.seq.start_configuration())
-        while (request := v.next_request()) is not None:
-            v.on_reply(self.planner.plan(request))
-        if v.errors:
-            return SubmitReply(accepted=False, task_id="", errors=v.errors)
-        for suffix, msg in self.do(self.seq.start(task_id, task, self.ls.t_ns), self.ls.t_ns):
+        """Submit ``task`` as the live shell does (:meth:`SequencerCore.submit`: refused,
+        or validated whole and started); its answer."""
+        t = self.ls.t_ns
+        for suffix, msg in self.do(self.seq.submit(task, t, task_id), t):
             self.ls.publish(suffix, msg)
-        return SubmitReply(accepted=True, task_id=task_id)
+        reply = self.replies.pop(task_id, None)
+        if reply is None:  # the cores answer every query at once: never
+            raise RuntimeError(f"submission {task_id!r} got no answer")
+        return reply
 
     def control(self, action: str) -> TaskStatus:
         """Cancel, pause, resume or status, now."""

@@ -13,7 +13,6 @@ children in reverse order (the recorder last but the router), each by its pid (S
 then SIGKILL after a grace period).
 
 :class:`LocalStack` waits until every started service's liveliness token is up.
-Services whose command is not part of this installation yet are reported, not started.
 """
 
 from __future__ import annotations
@@ -73,7 +72,7 @@ class StackOptions:
         prefix: key prefix of the arm.
         can_interface: python-can interface of a real arm (empty: the simulator).
         can_channel: its channel.
-        record: start the recorder (``manus record``) when it is installed.
+        record: start the recorder (``manus record``) first.
         sim_args: extra arguments of ``manus sim``.
     """
 
@@ -96,13 +95,6 @@ class StackOptions:
         return self.run_dir / "sim.device"
 
 
-def available_commands() -> set[str]:
-    """``manus`` subcommands of this installation."""
-    from manus_stack.cli import COMMANDS
-
-    return set(COMMANDS)
-
-
 def endpoint_port(endpoint: str) -> tuple[str, int]:
     """``tcp/127.0.0.1:7447`` -> ("127.0.0.1", 7447)."""
     host, _, port = endpoint.split("/", 1)[-1].rpartition(":")
@@ -122,20 +114,12 @@ class LocalStack:
 
     Args:
         options: what to start and where.
-        out: where progress lines go (None: nowhere).
     """
 
-    def __init__(self, options: StackOptions, out: IO[str] | None = None) -> None:
+    def __init__(self, options: StackOptions) -> None:
         self.options = options
-        self.out = out
         self.children: list[Child] = []
-        self.skipped: list[str] = []
         self.device = ""
-
-    def _say(self, text: str) -> None:
-        if self.out is not None:
-            self.out.write(text + "\n")
-            self.out.flush()
 
     def _env(self) -> dict[str, str]:
         env = dict(os.environ)
@@ -195,13 +179,9 @@ class LocalStack:
             if time.monotonic() > deadline:
                 raise StackError(f"the router did not listen on {opts.endpoint} in time")
             time.sleep(0.05)
-        have = available_commands()
         if opts.record:
-            if "record" in have:
-                self._spawn("record", ["--output", str(opts.recording)])
-                self.wait_alive(deadline)
-            else:
-                self.skipped.append("record")
+            self._spawn("record", ["--output", str(opts.recording)])
+            self.wait_alive(deadline)
         if opts.can_interface:
             bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
         else:
@@ -220,10 +200,7 @@ class LocalStack:
             ("sequencer", []),
         ]
         for name, args in plan:
-            if name in have:
-                self._spawn(name, args)
-            else:
-                self.skipped.append(name)
+            self._spawn(name, args)
         self.wait_alive(deadline)
 
     def expected(self) -> set[str]:
@@ -259,8 +236,6 @@ class LocalStack:
             lines.append(f"{c.name:<10} pid {c.proc.pid:<7} log {c.log}")
         if any(c.name == "record" for c in self.children):
             lines.append(f"recording: {opts.recording}")
-        for name in self.skipped:
-            lines.append(f"{name:<10} not started: `manus {name}` is not in this installation yet")
         return lines
 
     def exited(self) -> list[Child]:

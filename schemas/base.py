@@ -21,6 +21,7 @@ import enum
 import math
 import types
 import typing
+from collections.abc import Callable
 from typing import Any, ClassVar, Self, TypeVar, get_args, get_origin
 
 import msgpack
@@ -213,54 +214,81 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
             return None
         return _convert(args[0], value, path, meta)
     if origin is list:
-        (inner,) = get_args(tp)
-        if not isinstance(value, list | tuple):
-            raise SchemaError(f"{path}: expected a list, got {type(value).__name__}")
-        length = meta.get("length") if meta else None
-        if length is not None and get_origin(inner) is not list and len(value) != length:
-            raise SchemaError(f"{path}: expected {length} values, got {len(value)}")
-        # Fast paths for numeric rows and tables (trajectories, previews); anything they
-        # do not accept goes through the item-by-item checks below, which name the item.
-        if inner is float and _finite_floats_in_range(value, meta):
-            return list(value)
-        if (
-            get_origin(inner) is list
-            and get_args(inner) == (float,)
-            and _float_table(value, meta, length)
-        ):
-            return [list(row) for row in value]
-        return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]
+        return _convert_list(tp, value, path, meta)
     if isinstance(tp, type) and issubclass(tp, Message):
         return _build(tp, value, path)
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise SchemaError(f"{path}: expected a boolean, got {value!r}")
-        return value
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise SchemaError(f"{path}: expected an integer, got {value!r}")
-        _range(path, value, meta)
-        return value
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise SchemaError(f"{path}: expected a number, got {value!r}")
-        fv = float(value)
-        if not math.isfinite(fv):
-            raise SchemaError(f"{path}: expected a finite number, got {value!r}")
-        _range(path, fv, meta)
-        return fv
-    if tp is str:
-        if not isinstance(value, str):
-            raise SchemaError(f"{path}: expected a string, got {value!r}")
-        choices = meta.get("choices") if meta else None
-        if choices and value not in choices:
-            raise SchemaError(f"{path}: {value!r} is not one of {list(choices)}")
-        return value
-    if tp is bytes:
-        if not isinstance(value, bytes | bytearray):
-            raise SchemaError(f"{path}: expected bytes, got {type(value).__name__}")
-        return bytes(value)
-    raise SchemaError(f"{path}: unsupported field type {tp!r}")  # pragma: no cover
+    scalar = _DECODERS.get(tp)
+    if scalar is None:  # pragma: no cover
+        raise SchemaError(f"{path}: unsupported field type {tp!r}")
+    return scalar(value, path, meta)
+
+
+def _convert_list(tp: Any, value: Any, path: str, meta: Any) -> list[Any]:
+    (inner,) = get_args(tp)
+    if not isinstance(value, list | tuple):
+        raise SchemaError(f"{path}: expected a list, got {type(value).__name__}")
+    length = meta.get("length") if meta else None
+    if length is not None and get_origin(inner) is not list and len(value) != length:
+        raise SchemaError(f"{path}: expected {length} values, got {len(value)}")
+    # Fast paths for numeric rows and tables (trajectories, previews); anything they
+    # do not accept goes through the item-by-item checks below, which name the item.
+    if inner is float and _finite_floats_in_range(value, meta):
+        return list(value)
+    if (
+        get_origin(inner) is list
+        and get_args(inner) == (float,)
+        and _float_table(value, meta, length)
+    ):
+        return [list(row) for row in value]
+    return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]
+
+
+def _to_bool(value: Any, path: str, meta: Any) -> bool:
+    if not isinstance(value, bool):
+        raise SchemaError(f"{path}: expected a boolean, got {value!r}")
+    return value
+
+
+def _to_int(value: Any, path: str, meta: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise SchemaError(f"{path}: expected an integer, got {value!r}")
+    _range(path, value, meta)
+    return value
+
+
+def _to_float(value: Any, path: str, meta: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SchemaError(f"{path}: expected a number, got {value!r}")
+    fv = float(value)
+    if not math.isfinite(fv):
+        raise SchemaError(f"{path}: expected a finite number, got {value!r}")
+    _range(path, fv, meta)
+    return fv
+
+
+def _to_str(value: Any, path: str, meta: Any) -> str:
+    if not isinstance(value, str):
+        raise SchemaError(f"{path}: expected a string, got {value!r}")
+    choices = meta.get("choices") if meta else None
+    if choices and value not in choices:
+        raise SchemaError(f"{path}: {value!r} is not one of {list(choices)}")
+    return value
+
+
+def _to_bytes(value: Any, path: str, meta: Any) -> bytes:
+    if not isinstance(value, bytes | bytearray):
+        raise SchemaError(f"{path}: expected bytes, got {type(value).__name__}")
+    return bytes(value)
+
+
+_DECODERS: dict[Any, Callable[[Any, str, Any], Any]] = {
+    bool: _to_bool,
+    int: _to_int,
+    float: _to_float,
+    str: _to_str,
+    bytes: _to_bytes,
+}
+"""Decoder of each scalar field type: (value, field path, field metadata) -> value."""
 
 
 def _finite_floats_in_range(values: list[Any] | tuple[Any, ...], meta: Any) -> bool:

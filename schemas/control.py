@@ -218,6 +218,7 @@ class GoalResult(Message):
     @property
     def path_via_errors(self) -> list[float]:
         """``via_errors`` without the first knot's [m]: the first via point is the arm's
-        own pose when the path was planned (SPEC 5.1), so its error says nothing about
-        tracking. Means and maxima of a path are taken over these."""
+        own pose when the path was planned (docs/protocol.md, Thesis via-point format), so
+        its error says nothing about tracking. Means and maxima of a path are taken over
+        these."""
         return self.via_errors[1:]

@@ -310,6 +310,14 @@ TASK_STATUS = _query(
     "where the current task stands (action: status)",
     _SUP,
 )
+HISTORY = _query(
+    "sequencer/history",
+    _SEQ,
+    sequencing.HistoryRequest,
+    sequencing.TaskHistory,
+    "the most recent tasks and how each ended, newest first",
+    _SUP,
+)
 EVENTS = _pub(
     "sequencer/events",
     _SEQ,
@@ -439,6 +447,7 @@ TABLE = Table(
         SUBMIT,
         TASK_CONTROL,
         TASK_STATUS,
+        HISTORY,
         EVENTS,
         ALIVE,
         WHERE,

@@ -1,10 +1,11 @@
 """Paths of Cartesian via points, plan requests and the joint trajectories that answer them.
 
-A via point travels in SI units (m, rad, s) with the thesis's meaning (SPEC 5.1): ``type``
-0 absolute (base frame), 1 relative to the first via point, 2 relative to the previous
-one; the first via point is replaced by the gripper's pose when the plan is made; only
-the first and last velocities are used; ``time`` is the arrival time since the first
-via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch) Rx(roll).
+A via point travels in SI units (m, rad, s) with the thesis's meaning (docs/protocol.md,
+Thesis via-point format): ``type`` 0 absolute (base frame), 1 relative to the first via
+point, 2 relative to the previous one; the first via point is replaced by the gripper's pose
+when the plan is made; only the first and last velocities are used; ``time`` is the arrival
+time since the first via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch)
+Rx(roll).
 
 A trajectory is piecewise Hermite in joint space: positions and velocities at each knot
 (cubic segments), plus accelerations when present (quintic segments). Its time starts at
@@ -55,7 +56,7 @@ PLAN_ERROR_REASONS = tuple(PlanErrorReason)
 
 @dataclass(frozen=True)
 class ViaPoint(Message):
-    """One via point (thesis Table 4.3) in SI units."""
+    """One via point (docs/protocol.md, Thesis via-point format) in SI units."""
 
     TYPE_NAME = "manus/ViaPoint/1"
 

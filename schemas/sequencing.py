@@ -9,25 +9,66 @@ gets every problem at once, each with its location.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from schemas.base import Message, field
-from schemas.planning import Path
+from schemas.control import ControlMode
+from schemas.planning import Interpolation, Path
 
-STEP_KINDS = ("move", "gripper", "fold_in", "fold_out", "wait", "pose")
-TASK_ACTIONS = ("cancel", "pause", "resume", "status")
-TASK_STATES = ("none", "validating", "running", "paused", "succeeded", "failed", "cancelled")
-EVENTS = (
-    "accepted",
-    "step_started",
-    "step_progress",
-    "step_finished",
-    "step_failed",
-    "paused",
-    "resumed",
-    "cancelled",
-    "succeeded",
-    "failed",
-)
+
+class StepKind(StrEnum):
+    """What a task step does."""
+
+    MOVE = "move"
+    GRIPPER = "gripper"
+    FOLD_IN = "fold_in"
+    FOLD_OUT = "fold_out"
+    WAIT = "wait"
+    POSE = "pose"
+
+
+class TaskAction(StrEnum):
+    """What a :class:`TaskControl` asks for."""
+
+    CANCEL = "cancel"
+    PAUSE = "pause"
+    RESUME = "resume"
+    STATUS = "status"
+
+
+class TaskState(StrEnum):
+    """Where a task stands (``validating``: submitted, its moves being planned)."""
+
+    NONE = "none"
+    VALIDATING = "validating"
+    RUNNING = "running"
+    PAUSED = "paused"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+
+class TaskEventKind(StrEnum):
+    """What happened to a task (:attr:`TaskEvent.event`)."""
+
+    ACCEPTED = "accepted"
+    STEP_STARTED = "step_started"
+    STEP_PROGRESS = "step_progress"
+    STEP_FINISHED = "step_finished"
+    STEP_FAILED = "step_failed"
+    PAUSED = "paused"
+    RESUMED = "resumed"
+    CANCELLED = "cancelled"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+
+
+STEP_KINDS = tuple(StepKind)
+TASK_ACTIONS = tuple(TaskAction)
+TASK_STATES = tuple(TaskState)
+EVENTS = tuple(TaskEventKind)
+FINAL_EVENTS = (TaskEventKind.SUCCEEDED, TaskEventKind.FAILED, TaskEventKind.CANCELLED)
+"""Events that end a task."""
 
 
 @dataclass(frozen=True)
@@ -36,7 +77,7 @@ class TaskStep(Message):
 
     TYPE_NAME = "manus/TaskStep/1"
 
-    kind: str = field("what the step does", choices=STEP_KINDS)
+    kind: str = field("what the step does", choices=StepKind)
     path: Path | None = field("for move: the path", default=None)
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
     duration: float = field(
@@ -48,8 +89,8 @@ class TaskStep(Message):
     where: str = field("where the step was written (file:line), for errors", default="")
     interpolation: str = field(
         "for move and pose: cubic spline or quintic segments",
-        default="cubic",
-        choices=("cubic", "quintic"),
+        default=Interpolation.CUBIC,
+        choices=Interpolation,
     )
     speed_scaling: bool = field(
         "for move: stretch time to respect joint limits instead of refusing (pose: always)",
@@ -66,7 +107,7 @@ class Task(Message):
     steps: list[TaskStep] = field("the steps, in execution order")
     name: str = field("a name for logs and events", default="")
     mode: str = field(
-        "controller mode for move steps", default="default", choices=("default", "thesis")
+        "controller mode for move steps", default=ControlMode.DEFAULT, choices=ControlMode
     )
 
 
@@ -89,7 +130,7 @@ class TaskControl(Message):
 
     TYPE_NAME = "manus/TaskControl/1"
 
-    action: str = field("what to do", choices=TASK_ACTIONS)
+    action: str = field("what to do", choices=TaskAction)
     task_id: str = field("task concerned; empty: the current one", default="")
 
 
@@ -101,7 +142,7 @@ class TaskStatus(Message):
 
     ok: bool = field("the request was carried out")
     task_id: str = field("the task ('' when none)")
-    state: str = field("task state", choices=TASK_STATES)
+    state: str = field("task state", choices=TaskState)
     step: int = field("0-based index of the current step (-1: none)")
     total: int = field("number of steps")
     progress: float = field("fraction of the task done, 0..1", minimum=0.0, maximum=1.0)
@@ -117,9 +158,44 @@ class TaskEvent(Message):
     stamp_ns: int = field("time of the event", unit="ns")
     seq: int = field("sequence number", minimum=0)
     task_id: str = field("the task")
-    event: str = field("what happened", choices=EVENTS)
+    event: str = field("what happened", choices=TaskEventKind)
     step: int = field("0-based step index (-1: the task as a whole)")
     total: int = field("number of steps")
     kind: str = field("kind of the step ('' for task events)", default="")
     progress: float = field("fraction of the step (step events) or task done", default=0.0)
     reason: str = field("why (failures, cancel), from the service that failed", default="")
+
+
+@dataclass(frozen=True)
+class TaskRecord(Message):
+    """One task as the sequencer remembers it: how it ended (or that it still runs)."""
+
+    TYPE_NAME = "manus/TaskRecord/1"
+
+    task_id: str = field("the task")
+    name: str = field("its name")
+    state: str = field("its state now (running, paused, or how it ended)", choices=TaskState)
+    steps: int = field("number of steps", minimum=0)
+    step: int = field("0-based step it is at or ended at (-1: none)")
+    reason: str = field("why it failed or was cancelled ('' otherwise)")
+    started_ns: int = field("sequencer clock when it started", unit="ns")
+    ended_ns: int = field("sequencer clock when it ended (0: not yet)", unit="ns")
+
+
+@dataclass(frozen=True)
+class HistoryRequest(Message):
+    """Ask for the most recent tasks (``sequencer/history``)."""
+
+    TYPE_NAME = "manus/HistoryRequest/1"
+
+    limit: int = field("at most this many, newest first", default=10, minimum=1, maximum=100)
+
+
+@dataclass(frozen=True)
+class TaskHistory(Message):
+    """The most recent tasks, newest first: the current one (if any), then those that
+    ended, as far back as the sequencer keeps (``SequencerConfig.history``)."""
+
+    TYPE_NAME = "manus/TaskHistory/1"
+
+    tasks: list[TaskRecord] = field("newest first", default_factory=list)

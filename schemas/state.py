@@ -119,7 +119,8 @@ class JointState(Message):
 
 @dataclass(frozen=True)
 class ArmStatus(Message):
-    """The arm's status byte and message of one cycle (SPEC 3.2), decoded."""
+    """The arm's status byte and message of one cycle (docs/protocol.md, Status byte),
+    decoded."""
 
     TYPE_NAME = "manus/ArmStatus/1"
 

@@ -152,7 +152,8 @@ def test_commands_without_ref_seq_time_out() -> None:
 @pytest.mark.parametrize(
     ("deg_s", "gripper", "expected"),
     [
-        # de1 = dq1, de2 = -dq2, de3 = dq3 - dq2: the joint 2/3 coupling of SPEC 2.2.
+        # de1 = dq1, de2 = -dq2, de3 = dq3 - dq2: the joint 2/3 coupling
+        # (docs/protocol.md, Encoder map).
         ((5.0, 10.0, -5.0, 0.0, 0.0, 20.0), 0.01, (0, 1, -2, -3, 0, 0, 4, 2)),
         ((0.0, 10.0, 10.0, 0.0, 0.0, 0.0), 0.0, (0, 0, -2, 0, 0, 0, 0, 0)),
         ((-7.6, 0.0, 0.0, 2.4, -12.6, 0.0), -0.2, (0, -2, 0, 0, 0, -3, 0, -15)),

@@ -80,21 +80,26 @@ def test_controller_shell_runs_a_goal_over_zenoh(zenoh_settings: ZenohSettings) 
             assert shell.sent["controller/result"] == 1
             assert shell.sent["controller/feedback"] > 10
 
-        try:
-            arm.query(
-                keys("controller/goal"),
-                JointVelocityCommand(
-                    stamp_ns=0,
-                    seq=0,
-                    source="x",
-                    ref_seq=-1,
-                    velocity=[0.0] * 6,
-                    gripper_velocity=0.0,
-                ),
-                GoalAck,
-                timeout=2.0,
-            )
-        except QueryError as exc:
-            assert "controller/goal" in str(exc)
-        else:
-            raise AssertionError("a malformed goal must get an error reply")
+        _assert_malformed_goal_refused(arm)
+
+
+def _assert_malformed_goal_refused(arm: Node) -> None:
+    """A request that is not a TrajectoryGoal gets an error reply naming the queryable."""
+    try:
+        arm.query(
+            arm.keys("controller/goal"),
+            JointVelocityCommand(
+                stamp_ns=0,
+                seq=0,
+                source="x",
+                ref_seq=-1,
+                velocity=[0.0] * 6,
+                gripper_velocity=0.0,
+            ),
+            GoalAck,
+            timeout=2.0,
+        )
+    except QueryError as exc:
+        assert "controller/goal" in str(exc)
+    else:
+        raise AssertionError("a malformed goal must get an error reply")

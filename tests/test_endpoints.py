@@ -247,9 +247,15 @@ def _bridge_state(phase: str) -> BridgeState:
     )
 
 
-def test_the_architecture_key_table_is_the_endpoint_table() -> None:
+def test_the_files_derived_from_the_table_are_current() -> None:
+    """The supervisor document, the key table of docs/architecture.md and the routers'
+    access control (``manus schemas --update`` rewrites them)."""
+    from manus_stack.derived import derived, stale
+
+    assert len([p for p, _ in derived() if p.exists()]) == 4
+    assert stale() == [], "run: manus schemas --update"
     text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
-    assert ep.markdown_table() in text, "docs/architecture.md: paste ep.markdown_table()"
+    assert ep.markdown_table() in text
 
 
 def test_channel_types_come_from_the_table() -> None:

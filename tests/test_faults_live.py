@@ -124,8 +124,9 @@ def test_bridge_killed_outright_the_arm_latches_until_a_new_bridge_stops_it(
     stack: FaultStack,
 ) -> None:
     """SIGKILL leaves no chance to send anything: the arm repeats its last command
-    (SPEC 3: a latched command acts until the next one). The mitigation shown: a bridge
-    started again (compose's ``restart: on-failure``) sends 0x370 at its first sync."""
+    (docs/protocol.md, The 60 ms cycle: a latched command acts until the next one). The
+    mitigation shown: a bridge started again (compose's ``restart: on-failure``) sends 0x370
+    at its first sync."""
     _start_square(stack)
     bridge = stack.child("bridge")
     os.kill(bridge.proc.pid, signal.SIGKILL)

@@ -23,7 +23,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -220,15 +220,12 @@ def _moves(probe: Path, since_ns: int) -> list[tuple[int, bool]]:
     return [(t, zero) for t, fid, zero in _tx(probe, since_ns) if fid == 0x374]
 
 
-def test_cut_link_between_the_computers(net: Net) -> None:
-    t0 = time.monotonic()
-    prefix = "netns"
-    lab = _lab(net.run_dir)
+EVERYTHING = {"can_bridge", "controller", "planner", "sequencer"}
 
-    def env(who: str) -> dict[str, str]:
-        return _env(who, prefix, lab)
 
-    base_env = env("supervisor")  # manus status, manus run
+def _start_stack(net: Net, env: Callable[[str], dict[str, str]], probe: Path) -> None:
+    """The two computers' processes, each with its own credentials; ``probe`` records the
+    frames the bridge sends."""
     net.run_dir.joinpath("sim.json").write_text(json.dumps({"start_pose": "unfolded"}))
     device = net.run_dir / "sim.device"
     cli = ["-m", "manus_stack.cli"]
@@ -242,7 +239,6 @@ def test_cut_link_between_the_computers(net: Net) -> None:
     net.spawn(net.arm, "bridge", [*cli, "bridge", "--device-file", str(device),
                                   "--wait-device", "20"], env("can_bridge"))  # fmt: skip
     net.spawn(net.arm, "controller", [*cli, "controller"], env("controller"))
-    probe = net.run_dir / "probe.txt"
     probe.touch()
     net.spawn(
         net.arm, "probe", ["-m", "tests.netns_helper", "probe", str(probe)], env("controller")
@@ -252,12 +248,12 @@ def test_cut_link_between_the_computers(net: Net) -> None:
               env("router-base"))  # fmt: skip
     net.spawn(net.base, "planner", [*cli, "planner"], env("planner"))
     net.spawn(net.base, "sequencer", [*cli, "sequencer"], env("sequencer"))
-    everything = {"can_bridge", "controller", "planner", "sequencer"}
-    _wait_status(net, net.base, base_env, everything, 40.0)
-    up_s = time.monotonic() - t0
 
-    # ---- a task, cut mid-path
-    run_log = net.run_dir / "run1.log"
+
+def _run_and_cut(net: Net, base_env: dict[str, str], probe: Path, run_log: Path) -> tuple[int, int]:
+    """``manus run`` the square on the base computer; once the arm has moved for 1.5 s, cut
+    the arm computer's link. Returns the run's exit status and the time of the cut [ns]."""
+    cli = ["-m", "manus_stack.cli"]
     with run_log.open("wb") as out:
         run = subprocess.Popen(
             ["ip", "netns", "exec", net.base, sys.executable, *cli, "run", "--plain",
@@ -275,11 +271,30 @@ def test_cut_link_between_the_computers(net: Net) -> None:
             cut = time.time_ns()
             done = _ip("-n", net.arm, "link", "set", net.veth_arm, "down")
             assert done.returncode == 0, done.stderr
-            code = run.wait(timeout=15.0)
+            return run.wait(timeout=15.0), cut
         finally:
             if run.poll() is None:
                 os.kill(run.pid, signal.SIGKILL)
                 run.wait()
+
+
+def test_cut_link_between_the_computers(net: Net) -> None:
+    t0 = time.monotonic()
+    lab = _lab(net.run_dir)
+
+    def env(who: str) -> dict[str, str]:
+        return _env(who, "netns", lab)
+
+    base_env = env("supervisor")  # manus status, manus run
+    cli = ["-m", "manus_stack.cli"]
+    probe = net.run_dir / "probe.txt"
+    _start_stack(net, env, probe)
+    _wait_status(net, net.base, base_env, EVERYTHING, 40.0)
+    up_s = time.monotonic() - t0
+
+    # ---- a task, cut mid-path
+    run_log = net.run_dir / "run1.log"
+    code, cut = _run_and_cut(net, base_env, probe, run_log)
     time.sleep(1.0)
     moves = _moves(probe, cut)
     first_zero = next(t for t, zero in moves if zero)
@@ -296,7 +311,7 @@ def test_cut_link_between_the_computers(net: Net) -> None:
     done = _ip("-n", net.arm, "link", "set", net.veth_arm, "up")
     assert done.returncode == 0, done.stderr
     back = time.time_ns()
-    _wait_status(net, net.base, base_env, everything, 30.0)
+    _wait_status(net, net.base, base_env, EVERYTHING, 30.0)
     reconnect_s = (time.time_ns() - back) / 1e9
     assert all(zero for _, zero in _moves(probe, back)), "resumed by itself"
     task = net.run_dir / "short.toml"

@@ -1,4 +1,5 @@
-"""The encoder <-> DH joint map of SPEC 2.2, both ways, for positions and increments."""
+"""The encoder <-> DH joint map (docs/protocol.md, Encoder map), both ways, for positions and
+increments."""
 
 from __future__ import annotations
 

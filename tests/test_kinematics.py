@@ -13,7 +13,6 @@ from manus.config import DEFAULT_ARM, DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.errors import KinematicsError
 from manus.kinematics import (
     branch_of,
-    chain,
     fk,
     fk_batch,
     gripper_position,
@@ -33,7 +32,7 @@ UNFOLDED = np.radians(UNFOLDED_Q_DEG)
 
 
 def test_unfolded_pose_matches_spec() -> None:
-    # SPEC 4: the unfolded pose puts the gripper at about (208, 105, 200) mm.
+    # docs/protocol.md, Kinematics: the unfolded pose puts the gripper at about (208, 105, 200) mm.
     p = fk(UNFOLDED, DEFAULT_ARM)[:3, 3] * 1000
     assert p == pytest.approx([207.846, 105.0, 200.0], abs=1e-3)
 
@@ -102,20 +101,20 @@ def test_jacobian_equals_finite_differences(q: np.ndarray) -> None:
 
 
 @given(configs)
-def test_scalar_chain_and_closed_form_equal_the_frames_and_the_jacobian(q: np.ndarray) -> None:
-    # The controller's scalar twins of joint_frames / jacobian / fk, other arm lengths too.
+def test_closed_forms_equal_the_frames_and_the_jacobian(q: np.ndarray) -> None:
+    # The controller's scalar twins of jacobian / fk, checked against the frames of the
+    # DH product (joint axes z_i and origins p_i), other arm lengths too.
     arm = ArmConfig(l1=0.09, l2=0.41, l3=0.33, l4=0.15)
     for cfg in (DEFAULT_ARM, arm):
         frames = joint_frames(q, cfg)
-        c = chain(q.tolist(), cfg)
-        assert np.array(c.origins) == pytest.approx(np.array([T[:3, 3] for T in frames]), abs=1e-12)
-        assert np.array(c.axes) == pytest.approx(
-            np.array([T[:3, 2] for T in frames[:6]]), abs=1e-12
-        )
-        assert c.position == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
-        assert c.jacobian() == pytest.approx(jacobian(q, cfg), abs=1e-12)
-        closed = np.array(jacobian_columns(q, cfg)).T
-        assert closed == pytest.approx(jacobian(q, cfg), abs=1e-12)
+        axes = np.array([T[:3, 2] for T in frames[:6]])
+        origins = np.array([T[:3, 3] for T in frames])
+        closed = np.array(jacobian_columns(q, cfg))  # (6 joints, 6 rows)
+        assert closed[:, 3:] == pytest.approx(axes, abs=1e-12)
+        linear = np.cross(axes, origins[-1] - origins[:6])
+        assert closed[:, :3] == pytest.approx(linear, abs=1e-12)
+        assert pytest.approx(jacobian(q, cfg), abs=1e-12) == closed.T
+        assert gripper_position(q, cfg) == pytest.approx(origins[-1], abs=1e-12)
         assert gripper_position(q, cfg) == pytest.approx(fk(q, cfg)[:3, 3], abs=1e-12)
 
 

@@ -1,4 +1,4 @@
-"""Rate <-> count conversion, saturation and quantizers of manus.quantize (SPEC 3.3)."""
+"""Rate <-> count conversion, saturation and quantizers of manus.quantize."""
 
 from __future__ import annotations
 

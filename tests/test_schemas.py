@@ -39,19 +39,22 @@ def _value(tp: Any, meta: Any) -> Any:
         return [_value(args[0], meta) for _ in range(n)]
     if isinstance(tp, type) and issubclass(tp, Message):
         return example(tp)
-    if tp is bool:
-        return True
-    if tp is int:
-        return int(meta.get("minimum") or 0) if meta else 0
-    if tp is float:
-        lo = meta.get("minimum") if meta else None
-        return float(lo) if lo is not None else 0.5
-    if tp is str:
-        choices = meta.get("choices") if meta else None
-        return choices[0] if choices else "text"
-    if tp is bytes:
-        return b"\x01\x02"
-    raise AssertionError(tp)
+    return _SCALAR_EXAMPLES[tp](meta or {})
+
+
+def _float_example(meta: Any) -> float:
+    lo = meta.get("minimum")
+    return float(lo) if lo is not None else 0.5
+
+
+_SCALAR_EXAMPLES: dict[Any, Any] = {
+    bool: lambda meta: True,
+    int: lambda meta: int(meta.get("minimum") or 0),
+    float: _float_example,
+    str: lambda meta: (meta.get("choices") or ["text"])[0],
+    bytes: lambda meta: b"\x01\x02",
+}
+"""A valid example of each scalar field type, from the field's metadata."""
 
 
 @pytest.mark.parametrize("cls", TYPES, ids=lambda t: t.TYPE_NAME)

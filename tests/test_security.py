@@ -343,4 +343,4 @@ def test_no_impostors_through_the_tls_link_as_deployed(lab: Lab) -> None:
 def test_the_deployed_policy_is_generated_from_the_endpoint_table() -> None:
     from manus_stack.policy import main
 
-    assert main(["--check"]) == 0, "run: python -m manus_stack.policy"
+    assert main(["--check"]) == 0, "run: manus schemas --update"

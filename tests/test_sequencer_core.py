@@ -56,7 +56,7 @@ def bridge_state(phase: str, seq: int = 1, detail: str = "") -> BridgeState:
 
 def validate(task: Task, start: list[float] | None = UNFOLDED) -> Validator:
     planner = PlannerCore()
-    v = Validator(task, start)
+    v = Validator(task, start, DEFAULT_ARM)
     while (request := v.next_request()) is not None:
         v.on_reply(planner.plan(request))
     return v
@@ -205,7 +205,7 @@ def test_unreachable_step_3_rejects_the_task_and_names_the_rest() -> None:
 def test_validation_plans_each_move_from_where_the_last_left_the_arm() -> None:
     task = task_from_args([SQUARE, "40", CIRCLE])
     planner = PlannerCore()
-    v = Validator(task, UNFOLDED)
+    v = Validator(task, UNFOLDED, DEFAULT_ARM)
     starts = []
     while (request := v.next_request()) is not None:
         starts.append(request.start)
@@ -223,7 +223,7 @@ def test_validation_static_problems_and_no_planner() -> None:
         TaskStep(kind="pose", pose="home", duration=2.0, where="w:4"),
         TaskStep(kind="move", where="w:5"),
     ])  # fmt: skip
-    v = Validator(task, UNFOLDED)
+    v = Validator(task, UNFOLDED, DEFAULT_ARM)
     request = v.next_request()
     assert request is not None and request.speed_scaling  # a pose may stretch
     v.on_reply(None, "planner/plan: no reply within 5 s")
@@ -238,10 +238,10 @@ def test_validation_static_problems_and_no_planner() -> None:
 
 
 def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
-    path = pose_path("folded", 5.0)
+    path = pose_path("folded", 5.0, DEFAULT_ARM)
     assert len(path.via_points) == 2 and path.via_points[1].type == 0
     start = [0.3, *UNFOLDED[1:]]
-    reply = PlannerCore().plan(PlanRequest(path=pose_path("home", 4.0), start=start,
+    reply = PlannerCore().plan(PlanRequest(path=pose_path("home", 4.0, DEFAULT_ARM), start=start,
                                            speed_scaling=True))  # fmt: skip
     assert reply.ok and reply.trajectory is not None
     end = fk(reply.trajectory.positions[-1], DEFAULT_ARM)[:3, 3]
@@ -251,14 +251,14 @@ def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
 def test_remainder_path_keeps_the_unreached_knots_and_their_pace() -> None:
     task = task_from_args([SQUARE])
     traj = validate(task).plans[0]
-    rest = remainder_path(traj, 5.0, source="sq", lead=0.5)
+    rest = remainder_path(traj, 5.0, source="sq", lead=0.5, cfg=DEFAULT_ARM)
     assert rest is not None
     times = [v.time for v in rest.via_points]
     later = [t for t in traj.times if t > 5.0]
     assert times == pytest.approx([0.0, *(t - 5.0 + 0.5 for t in later)])
     got = [x for v in rest.via_points[1:] for x in v.xyz]
     assert got == pytest.approx([x for row in traj.via_xyz[-len(later) :] for x in row])
-    assert remainder_path(traj, traj.times[-1], source="sq") is None
+    assert remainder_path(traj, traj.times[-1], source="sq", cfg=DEFAULT_ARM) is None
 
 
 # -- the step state machine -------------------------------------------------------------------

@@ -4,6 +4,7 @@ loopback router; the bridge and the controller are test fakes (tests/sequencer_f
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -288,3 +289,32 @@ def test_ctrl_c_in_manus_run_cancels_the_task(stack: Stack, router_endpoint: str
     assert "cancelled" in out.splitlines()[-1]
     assert stack.client.control("status").state == "cancelled"
     assert stack.controller.cancels == [stack.controller.goals[0].goal_id]
+
+
+def test_history_lists_the_recent_tasks_newest_first(
+    stack: Stack, router_endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``sequencer/history`` (a supervisor query added through the endpoint table, the
+    sequencer's wiring map and one core method) over Zenoh and ``manus task history``."""
+    assert stack.client.history().tasks == []
+    stack.controller.refuse = "another goal is active"
+    failed = stack.client.submit(task_from_args([SQUARE], name="first"))
+    stack.events(failed.task_id)
+    stack.controller.refuse = ""
+    done = stack.client.submit(task_from_args([SQUARE, "40"], name="second"))
+    stack.events(done.task_id)
+    tasks = stack.client.history().tasks
+    assert [(t.task_id, t.name, t.state) for t in tasks] == [
+        (done.task_id, "second", "succeeded"),
+        (failed.task_id, "first", "failed"),
+    ]
+    assert tasks[1].reason.endswith("controller refused the goal: another goal is active")
+    assert tasks[0].steps == 2 and 0 < tasks[0].started_ns <= tasks[0].ended_ns
+    assert [t.task_id for t in stack.client.history(limit=1).tasks] == [done.task_id]
+    from manus_stack.cli import main
+
+    prefix = stack.client_node.settings.prefix
+    args = ["task", "history", "--limit", "5", "--connect", router_endpoint, "--prefix", prefix]
+    assert main(args) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert [t["task_id"] for t in printed["tasks"]] == [done.task_id, failed.task_id]

@@ -41,7 +41,8 @@ def test_first_motion_waits_60_ms_then_follows_the_transient_exactly() -> None:
         assert float(core.state.motor_deg[1]) - e0 == pytest.approx(
             _lag_position(u, 0.02 * k), abs=1e-9
         )
-        if k == 3:  # ~95 % of the speed 60 ms after the motion started (thesis Figure 5.1)
+        # ~95 % of the speed 60 ms after the motion started (docs/protocol.md, Thesis step response)
+        if k == 3:
             assert 0.95 * u <= float(core.state.speed_deg_s[1]) < u
     # The encoder reports the motor angle quantised to 0.1 deg at each snapshot.
     report = next(c for c in pc.cycles if c.t_ns == t_active + 120 * MS)
@@ -83,7 +84,7 @@ def test_a_joint_2_command_moves_motor_2_only_while_dh_q3_changes() -> None:
     de2 = (after[1] - before[1]) * 0.1
     assert de2 > 5.0
     dq = np.degrees(np.array(core.truth().q_true) - q0)
-    # q2 = -e2 and q3 = e3 - e2 + 90 (SPEC 2.2): both DH angles move by -de2.
+    # q2 = -e2 and q3 = e3 - e2 + 90 (docs/protocol.md, Encoder map): both DH angles move by -de2.
     assert dq[1] == pytest.approx(-de2, abs=0.1)
     assert dq[2] == pytest.approx(-de2, abs=0.1)
     assert np.allclose(dq[[0, 3, 4, 5]], 0.0)
@@ -110,7 +111,7 @@ def test_reported_dh_angles_follow_the_joint_map() -> None:
 
 def test_joints_4_to_6_report_stale_values_until_240_ms_after_their_first_command() -> None:
     _core, pc = _ready()
-    stale = (1793, -368, 826)  # thesis Table 4.1 [0.1 deg]
+    stale = (1793, -368, 826)  # docs/protocol.md, Thesis stale encoders [0.1 deg]
     assert pc.cycles[-1].fields[3:] == stale
     pc.run_cycles(6, joint_move(2))  # joint 1 alone does not end it
     assert pc.cycles[-1].fields[3:] == stale

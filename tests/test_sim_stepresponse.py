@@ -1,4 +1,4 @@
-"""The step-response experiment of thesis Figure 5.1, and the command that plots it."""
+"""The step-response experiment (docs/protocol.md, Thesis step response) and its command."""
 
 from __future__ import annotations
 

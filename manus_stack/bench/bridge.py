@@ -31,6 +31,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -113,6 +114,108 @@ def _sim_stats(err: str) -> dict[str, Any]:
     return {}
 
 
+@dataclass
+class _Window:
+    """What one measuring window saw: health before and after, samples [ns], CPU [s]."""
+
+    h0: dict[str, Any]
+    h1: dict[str, Any]
+    replies_ns: list[int]
+    states_ns: list[int]
+    delivery_ns: list[int]
+    cpu_thread_s: float
+    cpu_process_s: float
+    wall_s: float
+
+
+def _start_sim(device_file: Path) -> subprocess.Popen[str]:
+    """``manus sim`` in its own process, writing its pty device path to ``device_file``."""
+    argv = [sys.executable, "-m", "manus_stack.cli", "sim", "--device-file", str(device_file)]
+    return subprocess.Popen(
+        [*argv, "--no-zenoh"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
+
+
+def _measure(
+    shell: BridgeShell,
+    controller: _Controller,
+    samples: tuple[list[tuple[int, int]], list[tuple[int, int]]],
+    n: int,
+    deadline: float,
+) -> _Window:
+    """Wait for ``running`` (until the monotonic ``deadline``), then measure ``n`` cycles.
+
+    ``samples``: the (sync, reply) and (0x360, state) time pairs the shell appends to.
+    """
+    replies, states = samples
+    while shell.core.phase != "running":
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"bridge not running: {shell.core.phase} {shell.core.detail}")
+        time.sleep(0.05)
+    thread = shell.thread
+    assert thread is not None and thread.ident is not None
+    clock = time.pthread_getcpuclockid(thread.ident)
+    with shell.lock:
+        h0 = dict(vars(shell.core.health))
+    i_rep, i_st, i_del = len(replies), len(states), len(controller.delivery_ns)
+    cpu_thread0, cpu_proc0, wall0 = (
+        time.clock_gettime(clock),
+        time.process_time(),
+        time.monotonic(),
+    )
+    limit = wall0 + n * CYCLE_S * 2 + 30.0
+    while shell.core.health.cycles - h0["cycles"] < n and time.monotonic() < limit:
+        time.sleep(0.2)
+    cpu_thread = time.clock_gettime(clock) - cpu_thread0
+    cpu_proc = time.process_time() - cpu_proc0
+    wall = time.monotonic() - wall0
+    with shell.lock:
+        h1 = dict(vars(shell.core.health))
+    return _Window(
+        h0,
+        h1,
+        [t - s for s, t in replies[i_rep:]],
+        [t - r for r, t in states[i_st:]],
+        controller.delivery_ns[i_del:],
+        cpu_thread,
+        cpu_proc,
+        wall,
+    )
+
+
+_HEALTH = ("resyncs", "stale_commands", "dropped_frames", "duplicate_frames", "late_frames",
+           "garbled_frames", "buffered_syncs")  # fmt: skip
+_SIM = ("late_max_ms", "late_mean_ms", "late_over_5ms", "outside_window", "extra_replies")
+
+
+def _figures(
+    w: _Window, replies_sent: int, sim_stats: dict[str, Any], load_before: tuple[float, ...]
+) -> dict[str, Any]:
+    """The bench's JSON figures (see the module docstring)."""
+    done = w.h1["cycles"] - w.h0["cycles"]
+    late = sum(1 for x in w.replies_ns if x >= 20_000_000)
+    not_latched = replies_sent - int(sim_stats.get("replies_latched", 0))
+    return {
+        "cycles": done,
+        "wall_s": round(w.wall_s, 1),
+        "missed_windows": max(late, not_latched),
+        "missed_windows_bridge_clock": late,
+        "replies_not_latched_by_sim": not_latched,
+        "reply_latency_ms": _ms(w.replies_ns),
+        "state_latency_ms": _ms(w.states_ns),
+        "state_delivery_ms": _ms(w.delivery_ns),
+        "cpu_ms_per_cycle": {
+            "bridge_thread": round(w.cpu_thread_s * 1e3 / max(done, 1), 3),
+            "process": round(w.cpu_process_s * 1e3 / max(done, 1), 3),
+        },
+        "jitter_ms": round(w.h1["jitter_ms"], 3),
+        "bridge": {k: w.h1[k] - w.h0[k] for k in _HEALTH},
+        "sim": {k: sim_stats.get(k) for k in _SIM},
+        "load_avg_1min": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
+        "cpus": os.cpu_count(),
+    }
+
+
 def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
     """Run the bench; ``cycles`` overrides the default count (5000, quick 200)."""
     n = cycles or (200 if quick else 5000)
@@ -123,22 +226,8 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
     router = open_session(router_settings(endpoint))
     tmp = tempfile.TemporaryDirectory(prefix="manus-bench-bridge-")
     device_file = Path(tmp.name) / "device"
-    sim = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "manus_stack.cli",
-            "sim",
-            "--device-file",
-            str(device_file),
-            "--no-zenoh",
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    sim = _start_sim(device_file)
     replies: list[tuple[int, int]] = []
-    replies_sent = 0
     states: list[tuple[int, int]] = []
     try:
         deadline = time.monotonic() + 30.0
@@ -158,34 +247,7 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
         )
         try:
             shell.start()
-            while shell.core.phase != "running":
-                if time.monotonic() > deadline:
-                    raise RuntimeError(
-                        f"bridge not running: {shell.core.phase} {shell.core.detail}"
-                    )
-                time.sleep(0.05)
-            thread = shell.thread
-            assert thread is not None and thread.ident is not None
-            clock = time.pthread_getcpuclockid(thread.ident)
-            with shell.lock:
-                h0 = dict(vars(shell.core.health))
-            i_rep, i_st, i_del = len(replies), len(states), len(controller.delivery_ns)
-            cpu_thread0, cpu_proc0, wall0 = (
-                time.clock_gettime(clock),
-                time.process_time(),
-                time.monotonic(),
-            )
-            limit = wall0 + n * CYCLE_S * 2 + 30.0
-            while shell.core.health.cycles - h0["cycles"] < n and time.monotonic() < limit:
-                time.sleep(0.2)
-            cpu_thread = time.clock_gettime(clock) - cpu_thread0
-            cpu_proc = time.process_time() - cpu_proc0
-            wall = time.monotonic() - wall0
-            with shell.lock:
-                h1 = dict(vars(shell.core.health))
-            rep = [t - s for s, t in replies[i_rep:]]
-            st = [t - r for r, t in states[i_st:]]
-            delivery = controller.delivery_ns[i_del:]
+            window = _measure(shell, controller, (replies, states), n, deadline)
         finally:
             shell.stop(timeout=3.0)
             replies_sent = shell.core.health.replies
@@ -199,46 +261,4 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
         router.close()
         tmp.cleanup()
         sys.setswitchinterval(switch_s)
-    done = h1["cycles"] - h0["cycles"]
-    late = sum(1 for x in rep if x >= 20_000_000)
-    not_latched = replies_sent - int(sim_stats.get("replies_latched", 0))
-    delta = {
-        k: h1[k] - h0[k]
-        for k in (
-            "resyncs",
-            "stale_commands",
-            "dropped_frames",
-            "duplicate_frames",
-            "late_frames",
-            "garbled_frames",
-            "buffered_syncs",
-        )
-    }
-    return {
-        "cycles": done,
-        "wall_s": round(wall, 1),
-        "missed_windows": max(late, not_latched),
-        "missed_windows_bridge_clock": late,
-        "replies_not_latched_by_sim": not_latched,
-        "reply_latency_ms": _ms(rep),
-        "state_latency_ms": _ms(st),
-        "state_delivery_ms": _ms(delivery),
-        "cpu_ms_per_cycle": {
-            "bridge_thread": round(cpu_thread * 1e3 / max(done, 1), 3),
-            "process": round(cpu_proc * 1e3 / max(done, 1), 3),
-        },
-        "jitter_ms": round(h1["jitter_ms"], 3),
-        "bridge": delta,
-        "sim": {
-            k: sim_stats.get(k)
-            for k in (
-                "late_max_ms",
-                "late_mean_ms",
-                "late_over_5ms",
-                "outside_window",
-                "extra_replies",
-            )
-        },
-        "load_avg_1min": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
-        "cpus": os.cpu_count(),
-    }
+    return _figures(window, replies_sent, sim_stats, load_before)

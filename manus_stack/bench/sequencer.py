@@ -34,7 +34,7 @@ def _validate(task: Task, runs: int) -> dict[str, Any]:
     times = []
     for _ in range(runs):
         t0 = time.perf_counter()
-        v = Validator(task, start)
+        v = Validator(task, start, DEFAULT_ARM)
         while (request := v.next_request()) is not None:
             v.on_reply(planner.plan(request))
         times.append(time.perf_counter() - t0)

@@ -18,11 +18,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-import threading
 import time
 from pathlib import Path
-
-import zenoh
 
 from manus.config import load_arm_config
 from manus.node import Node, QueryError, wait_for_signal
@@ -67,10 +64,9 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     options = stack_options(args)
     task = demo_task(args.shape)
-    stack = LocalStack(options, out=sys.stdout)
+    stack = LocalStack(options)
     collected = Collected()
     recording = options.recording
-    own_writer: _LocalRecorder | None = None
     final: TaskEvent | None = None
     task_id = ""
     try:
@@ -80,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {line}")
         settings = client_settings(options.endpoint, prefix=options.prefix)
         with Node("demo", settings, liveliness=False) as node:
-            if "record" in stack.skipped:
-                own_writer = _LocalRecorder(node, recording, options.prefix)
             collected.listen(node)
             client = TaskClient(node)
             phase = client.wait_for_arm(args.start_timeout)
@@ -103,8 +97,6 @@ def run(args: argparse.Namespace) -> int:
                     client.control("cancel", task_id)
                 client.follow(task_id, view.show, timeout=10.0)
             time.sleep(0.3)  # the last results and feedback reach the recorder too
-            if own_writer is not None:
-                own_writer.close()
     except StackError as exc:
         print(f"demo: {exc}", file=sys.stderr)
         return 1
@@ -113,26 +105,6 @@ def run(args: argparse.Namespace) -> int:
         if codes:
             print("demo: stopped " + ", ".join(f"{k} {v}" for k, v in codes.items()), flush=True)
     return _report(args.shape, collected, task_id, final, recording, options.run_dir)
-
-
-class _LocalRecorder:
-    """Records ``<prefix>/**`` from this process (when ``manus record`` is not installed)."""
-
-    def __init__(self, node: Node, path: Path, prefix: str) -> None:
-        from services.recorder.writer import RecordingWriter
-
-        self._writer = RecordingWriter(path, prefix=prefix, source="manus demo")
-        self._lock = threading.Lock()
-        node.subscribe_raw(node.keys.all, self._on_sample)
-
-    def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
-        with self._lock:
-            if not self._writer.closed:
-                self._writer.write_payload(str(sample.key_expr), sample.payload.to_bytes(), rx_ns)
-
-    def close(self) -> None:
-        with self._lock:
-            self._writer.close()
 
 
 def _overview(recording: Path, out: Path, title: str) -> None:

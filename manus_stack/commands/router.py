@@ -1,4 +1,4 @@
-"""``manus router``: a Zenoh router in a Python process (no ``zenohd`` needed; SPEC 8.1).
+"""``manus router``: a Zenoh router in a Python process (no ``zenohd`` needed).
 
 Listens on ``--listen`` (default ``tcp/127.0.0.1:7447``, loopback only), scouting off,
 until SIGINT/SIGTERM. Prints ``router: listening on ENDPOINT`` on stderr when ready.

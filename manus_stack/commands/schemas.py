@@ -2,15 +2,17 @@
 
 One ``<type>.schema.json`` per message type, ``index.json`` (key suffix -> file) and
 ``supervisor.schema.json`` (the sequencer's API in one document). Prints the files.
-``--check`` instead compares ``schemas/supervisor.schema.json`` with the code (exit 1 when
-it is out of date).
+``--update`` rewrites the repository's files derived from the endpoint table (the
+supervisor document, the key table of docs/architecture.md, the routers' access control:
+:mod:`manus_stack.derived`); ``--check`` exits 1 when one of them is out of date.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from schemas.export import SUPERVISOR_FILE, dumps, supervisor_document, write_schemas
+from manus_stack.derived import stale
+from schemas.export import write_schemas
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,24 +20,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group(required=True)
     group.add_argument("--out", metavar="DIR", help="directory to write the schemas into")
     group.add_argument("--check", action="store_true",
-                       help=f"check that {SUPERVISOR_FILE.name} is current")  # fmt: skip
+                       help="check the files derived from the endpoint table")  # fmt: skip
     group.add_argument("--update", action="store_true",
-                       help=f"rewrite the checked-in {SUPERVISOR_FILE.name}")  # fmt: skip
+                       help="rewrite the files derived from the endpoint table")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
     """Write, check or update."""
-    text = dumps(supervisor_document())
     if args.check:
-        current = SUPERVISOR_FILE.read_text(encoding="utf-8") if SUPERVISOR_FILE.exists() else ""
-        if current != text:
-            print(f"{SUPERVISOR_FILE} is out of date: run `manus schemas --update`")
-            return 1
-        print(f"{SUPERVISOR_FILE} is current")
-        return 0
+        old = stale()
+        for path in old:
+            print(f"{path} is out of date: run `manus schemas --update`")
+        if not old:
+            print("the files derived from the endpoint table are current")
+        return 1 if old else 0
     if args.update:
-        SUPERVISOR_FILE.write_text(text, encoding="utf-8")
-        print(SUPERVISOR_FILE)
+        for path in stale(update=True):
+            print(path)
         return 0
     for path in write_schemas(args.out):
         print(path)

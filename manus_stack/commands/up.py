@@ -75,7 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Bring the stack up, wait, bring it down."""
     stop = wait_for_signal()
-    stack = LocalStack(stack_options(args), out=sys.stdout)
+    stack = LocalStack(stack_options(args))
     try:
         stack.start(timeout=args.start_timeout)
         for line in stack.describe():

@@ -1,6 +1,6 @@
 """The bridge's settings: one frozen, validated dataclass with units in the names.
 
-Layers (STYLE 9): defaults < JSON file (``manus bridge --config``) < command line. The
+Layers: defaults < JSON file (``manus bridge --config``) < command line. The
 protocol's own constants (60 ms cycle, 20 ms slots and reply window) live in
 :mod:`manus.protocol` and are not settings.
 """
@@ -39,8 +39,9 @@ class BridgeConfig:
             belong to that cycle; frames may be up to one cycle minus this late (< 10) [ms].
         clean_cycles_to_resume: clean cycles after a fault before commands reach the
             arm again [cycles].
-        init_moves: the start-up moves of motors 4-6, one per sync (thesis 4.2.1: four
-            tiny moves in alternating directions, net zero) [counts = 0.1 deg per 20 ms].
+        init_moves: the start-up moves of motors 4-6, one per sync (docs/protocol.md, Thesis
+            start-up moves: four tiny moves in alternating directions, net zero) [counts =
+            0.1 deg per 20 ms].
         power_up_timeout_ms: with no "absolute angles measured" message this long after
             the first cycle, assume the arm is ready (a bridge restarted after the arm) [ms].
         silence_timeout_ms: no frame from the arm for this long is reported as silence

@@ -6,8 +6,8 @@ Phases (:data:`schemas.state.BRIDGE_PHASES`) and the reply to each current 0x37F
   session), then nothing until "absolute angles measured" (or ``power_up_timeout_ms`` of
   cycles without it, or the arm already reports a move mode).
 - ``entering_joint_mode``: zero 0x374 until a 0x350 after it reports joint mode.
-- ``initialising``: the ``init_moves`` of motors 4-6 (thesis 4.2.1), one per clean sync,
-  then zeros; then ``running``. Joint states are valid from then on.
+- ``initialising``: the ``init_moves`` of motors 4-6 (docs/protocol.md, Start-up), one per
+  clean sync, then zeros; then ``running``. Joint states are valid from then on.
 - ``running``: the newest fresh velocity command, else zeros (the core decides).
 - ``resync``: zeros until ``clean_cycles_to_resume`` clean cycles.
 - ``folding_out`` / ``folding_in``: 0x375 / 0x376 at every clean sync (zeros at a faulty
@@ -178,30 +178,10 @@ class PhaseMachine:
         if self._shutdown_stage:
             return self._shutdown_reply()
         self._power_up_timeout(sync_ns)
-        phase = self.phase
-        if phase in ("opening", "waiting_power_up"):
-            if self._leftover_stop_sent:
-                return None
-            self._leftover_stop_sent = True
-            return _stop()
-        if phase == "entering_joint_mode":
-            self._zero_sent_ns = sync_ns
-            return _zeros()
-        if phase == "initialising":
-            return self._init_reply(clean)
-        if phase == "running":
+        if self.phase == "running":
             return command() if clean else _zeros()
-        if phase == "resync":
-            self._clean_run = self._clean_run + 1 if clean else 0
-            if self._clean_run >= self.config.clean_cycles_to_resume:
-                self._set("running", f"in step again after {self._clean_run} clean cycles")
-            return _zeros()
-        if phase in ("folding_out", "folding_in"):
-            return self._fold_reply(sync_ns, clean)
-        if phase == "estopped" and not self._estop_zero_sent:
-            self._estop_zero_sent = True
-            return _zeros()
-        return _stop()  # stopped, arm_error, estopped
+        reply = _PHASE_REPLIES.get(self.phase, PhaseMachine._stop_reply)
+        return reply(self, sync_ns, clean)
 
     def on_estop(self, msg: EStop) -> None:
         """Latch or release the e-stop."""
@@ -215,33 +195,14 @@ class PhaseMachine:
 
     def on_arm_command(self, req: ArmCommand, rx_ns: int) -> tuple[bool, str]:
         """``stop``, ``fold_in`` / ``fold_out`` or ``clear``: (accepted, what happens)."""
-        phase, who = self.phase, req.source or "?"
-        if self._shutdown_stage or phase == "shutdown":
+        who = req.source or "?"
+        if self._shutdown_stage or self.phase == "shutdown":
             return False, "the bridge is shutting down"
         if req.action == "stop":
-            if phase in ("estopped", "arm_error", "stopped"):
-                return True, f"already stopped ({phase})"
-            self._fold = None
-            self._set("stopped", f"stop requested by {who}")
-            return True, "0x370 at every sync until clear"
+            return self._request_stop(who)
         if req.action in ("fold_in", "fold_out"):
-            if self.estop:
-                return False, "e-stop latched: release it first"
-            if phase == "arm_error":
-                return False, f"arm error ({self.detail}): clear it first"
-            if phase in START_UP:
-                return False, f"the bridge is not ready yet (phase {phase})"
-            self._fold = _Fold(req.action, rx_ns)
-            self._set(f"folding_{req.action[5:]}", f"{req.action} requested by {who}")
-            return True, f"{req.action} held until the arm reports completion"
-        if self.estop:
-            return False, "e-stop latched: publish EStop(engaged=false) to release it"
-        if phase in ("folding_in", "folding_out"):
-            return False, f"{phase} in progress: send stop first"
-        if phase in ("stopped", "arm_error"):
-            self._rejoin(f"cleared by {who}")
-            return True, f"re-entering joint mode (phase {self.phase})"
-        return True, f"nothing to clear (phase {phase})"
+            return self._request_fold(req.action, rx_ns, who)
+        return self._request_clear(who)
 
     def on_tick(self, now_ns: int, last_frame_ns: int | None) -> None:
         """Timeouts: silence of the arm (``last_frame_ns``: its last frame), endless folds."""
@@ -278,6 +239,63 @@ class PhaseMachine:
 
     # -- internals ------------------------------------------------------------------------
 
+    def _request_stop(self, who: str) -> tuple[bool, str]:
+        if self.phase in ("estopped", "arm_error", "stopped"):
+            return True, f"already stopped ({self.phase})"
+        self._fold = None
+        self._set("stopped", f"stop requested by {who}")
+        return True, "0x370 at every sync until clear"
+
+    def _request_fold(self, action: str, rx_ns: int, who: str) -> tuple[bool, str]:
+        if self.estop:
+            return False, "e-stop latched: release it first"
+        if self.phase == "arm_error":
+            return False, f"arm error ({self.detail}): clear it first"
+        if self.phase in START_UP:
+            return False, f"the bridge is not ready yet (phase {self.phase})"
+        self._fold = _Fold(action, rx_ns)
+        self._set(f"folding_{action[5:]}", f"{action} requested by {who}")
+        return True, f"{action} held until the arm reports completion"
+
+    def _request_clear(self, who: str) -> tuple[bool, str]:
+        phase = self.phase
+        if self.estop:
+            return False, "e-stop latched: publish EStop(engaged=false) to release it"
+        if phase in ("folding_in", "folding_out"):
+            return False, f"{phase} in progress: send stop first"
+        if phase in ("stopped", "arm_error"):
+            self._rejoin(f"cleared by {who}")
+            return True, f"re-entering joint mode (phase {self.phase})"
+        return True, f"nothing to clear (phase {phase})"
+
+    # Replies to a sync by phase (``running`` is answered in :meth:`on_sync`); each takes
+    # the sync's arrival time [ns] and whether its cycle was clean.
+
+    def _power_up_reply(self, sync_ns: int, clean: bool) -> Reply | None:
+        if self._leftover_stop_sent:
+            return None
+        self._leftover_stop_sent = True
+        return _stop()
+
+    def _joint_mode_reply(self, sync_ns: int, clean: bool) -> Reply:
+        self._zero_sent_ns = sync_ns
+        return _zeros()
+
+    def _resync_reply(self, sync_ns: int, clean: bool) -> Reply:
+        self._clean_run = self._clean_run + 1 if clean else 0
+        if self._clean_run >= self.config.clean_cycles_to_resume:
+            self._set("running", f"in step again after {self._clean_run} clean cycles")
+        return _zeros()
+
+    def _estop_reply(self, sync_ns: int, clean: bool) -> Reply:
+        if not self._estop_zero_sent:
+            self._estop_zero_sent = True
+            return _zeros()
+        return _stop()
+
+    def _stop_reply(self, sync_ns: int, clean: bool) -> Reply:
+        return _stop()  # stopped, arm_error
+
     def _general(self, code: int) -> None:
         if code == GEN_ANGLES_MEASURED:
             self.powered = True
@@ -308,7 +326,7 @@ class PhaseMachine:
                 "ms: assuming the arm is up; zero 0x374",
             )
 
-    def _init_reply(self, clean: bool) -> Reply:
+    def _init_reply(self, sync_ns: int, clean: bool) -> Reply:
         moves = self.config.init_moves
         if not clean or self._init_step > len(moves):
             return _zeros()
@@ -355,3 +373,16 @@ class PhaseMachine:
 
     def _note(self, detail: str) -> None:
         self.detail, self.changed = detail, True
+
+
+_PHASE_REPLIES: dict[str, Callable[[PhaseMachine, int, bool], Reply | None]] = {
+    "opening": PhaseMachine._power_up_reply,
+    "waiting_power_up": PhaseMachine._power_up_reply,
+    "entering_joint_mode": PhaseMachine._joint_mode_reply,
+    "initialising": PhaseMachine._init_reply,
+    "resync": PhaseMachine._resync_reply,
+    "folding_out": PhaseMachine._fold_reply,
+    "folding_in": PhaseMachine._fold_reply,
+    "estopped": PhaseMachine._estop_reply,
+}
+"""What a sync is answered with in each phase but ``running`` (others: 0x370)."""

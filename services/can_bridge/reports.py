@@ -1,8 +1,10 @@
-"""From the arm's frames to SI messages: joint state and arm status (SPEC 2.2, 3.2).
+"""From the arm's frames to SI messages: joint state and arm status.
+
+Frames and units: docs/protocol.md, Frames from the arm; Encoder map.
 
 Joint fields are motor angles in 0.1 deg; the joint map (:mod:`manus.joint_map`) turns
 them into DH angles [rad]. The gripper field is the opening in 0.1 mm (the project's
-choice, SPEC 3.2), published in metres.
+choice), published in metres.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Belt play: the joint side lags its motor through a dead band (SPEC 2, worst on joints 4-6).
+"""Belt play: the joint side lags its motor through a dead band (worst on joints 4-6).
 
 The encoders sit on the motors, so the play is invisible to the readings; with its
 widths known (a calibration), the controller can still aim the joint side rather than

@@ -158,11 +158,6 @@ class ControllerConfig:
         return round(self.snapshot_age_ms * MS)
 
     @functools.cached_property
-    def command_delay_ns(self) -> int:
-        """Snapshot to the start of the command's action [ns]."""
-        return round(self.command_delay_ms * MS)
-
-    @functools.cached_property
     def max_stamp_gap_ns(self) -> int:
         """Largest stamp difference of consecutive joint states [ns]."""
         return round(self.max_stamp_gap_ms * MS)

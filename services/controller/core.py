@@ -1,6 +1,6 @@
 """The controller's deterministic core: joint states and goals in, velocity commands out.
 
-Contract (docs/architecture.md, Time; the team brief's contract 4):
+Contract (docs/architecture.md, Time; Freshness and safety rules):
 
 - Every valid joint state is answered with exactly one ``cmd/joint_velocity`` command
   (``ref_seq`` = the state's ``seq``, ``counts`` already quantized): the active goal's

@@ -1,7 +1,8 @@
 """The arm's drives as the controller models them: motor angles, speeds and the commands in flight.
 
-The arm integrates motor increments through a first-order speed lag (SPEC 3.1: the new
-speed is reached after a ~60 ms transient) and reports motor angles rounded to 0.1 deg.
+The arm integrates motor increments through a first-order speed lag (docs/protocol.md, The
+60 ms cycle: the new speed is reached after a ~60 ms transient) and reports motor angles
+rounded to 0.1 deg.
 :class:`DriveEstimator` keeps, per motor, an estimate of the true angle and speed at the
 last snapshot: it predicts the motion from the increments the bridge reports as applied
 (``JointState.applied``) and intersects the interval of positions consistent with every

@@ -1,4 +1,4 @@
-"""The gripper loop: drive the opening to a target with gripper increments (SPEC 6).
+"""The gripper loop: drive the opening to a target with gripper increments.
 
 Each cycle the opening expected when the command takes effect is predicted from the
 increment in flight (the same delay as the joints), and the increment that closes the

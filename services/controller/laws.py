@@ -5,7 +5,7 @@
   flight during [s, s+60)), with :func:`cartesian_rounding` and, at the end,
   :func:`hold_pulses`.
 - :func:`thesis_law`: qdot = qdot_ref + K (q_ref - q), uniform saturation, rounding
-  (thesis 4.2.3.4 with its sign corrected).
+  (docs/protocol.md, Thesis control loop, with its sign corrected).
 
 Motor angles in rad, DH angles in rad, counts in 0.1 deg per 20 ms; six values each.
 """
@@ -47,8 +47,9 @@ def rounding_gains(
     shape (6, 6).
 
     J is the geometric Jacobian with its rotation rows weighted by ``rounding_rotation_m``
-    [m/rad], M the motor-to-DH map of SPEC 2.2 (dq2 = -de2, dq3 = de3 - de2), so column j
-    is the gripper's (position [m], weighted rotation [m]) change per radian of motor j.
+    [m/rad], M the motor-to-DH map (docs/protocol.md, Encoder map: dq2 = -de2,
+    dq3 = de3 - de2), so column j is the gripper's (position [m], weighted rotation [m])
+    change per radian of motor j.
     Built on plain floats from the closed-form Jacobian (NumPy's 6x6 calls cost more here).
     """
     p, w = scale, config.rounding_rotation_m * scale

@@ -1,15 +1,15 @@
 """The planner's deterministic core: a path of via points -> a joint trajectory.
 
-Steps (SPEC 5, thesis 4.2.3.1):
+Steps (docs/protocol.md, Thesis planning steps):
 
 1. validate the path (the via-point file rules, :func:`manus.viapoints.validate_path`);
 2. take the start configuration (the request's, else the newest valid joint state),
    check it, and replace via point 0 by its gripper pose (:mod:`.resolve`);
 3. solve every via point on the start's IK branch (:mod:`.knots`);
 4. turn the first and last Cartesian velocities into joint velocities (Jacobian);
-5. interpolate: clamped cubic spline (thesis eqs 2.27-2.38), or quintic segments with
-   the same knot velocities, continuous accelerations and zero acceleration at both
-   ends (:mod:`.spline`);
+5. interpolate: clamped cubic spline (docs/protocol.md, Thesis interpolation), or quintic
+   segments with the same knot velocities, continuous accelerations and zero acceleration at
+   both ends (:mod:`.spline`);
 6. check joint limits, the wrist singularity and the IK branch along the whole curve,
    then joint speeds and accelerations, stretching time if asked (:mod:`.checks`);
 7. reply with the knots (piecewise Hermite), their Cartesian positions and a preview.

@@ -25,7 +25,7 @@ from services.planner.errors import PlanningError
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """FILE, ``--start-joints``, ``--quintic``, ``--speed-scaling``, ``--preview``."""
-    parser.add_argument("file", help="via-point file (SPEC 5.1: 14 columns, mm, deg, s)")
+    parser.add_argument("file", help="via-point file (14 columns, mm, deg, s)")
     parser.add_argument(
         "--start-joints",
         nargs=6,

@@ -1,9 +1,9 @@
 """Absolute gripper poses of a path's via points, and its boundary joint velocities.
 
 Via point 0 stands for the start: it becomes the gripper pose of the start configuration
-(FK). The others resolve by type (SPEC 5.1): 0 absolute, 1 added to via point 0's
-resolved pose, 2 added to the previous via point's resolved pose. Positions add as
-vectors, angles component-wise in (yaw, pitch, roll), as the thesis does.
+(FK). The others resolve by type (docs/protocol.md, Thesis via-point format): 0 absolute, 1
+added to via point 0's resolved pose, 2 added to the previous via point's resolved pose.
+Positions add as vectors, angles component-wise in (yaw, pitch, roll), as the thesis does.
 """
 
 from __future__ import annotations

@@ -1,12 +1,14 @@
-"""Joint-space interpolation: clamped cubic splines and quintic segments (thesis 2.1).
+"""Joint-space interpolation: clamped cubic splines and quintic segments.
 
-Knot velocities come from the thesis's tridiagonal system (eqs 2.27-2.38): imposing
+The thesis's method: docs/protocol.md, Thesis interpolation.
+
+Knot velocities come from the thesis's tridiagonal system: imposing
 acceleration continuity at every interior knot j of a cubic Hermite curve gives
 
     2/h[j-1] v[j-1] + (4/h[j-1] + 4/h[j]) v[j] + 2/h[j] v[j+1]
         = 6 (q[j+1] - q[j]) / h[j]^2 + 6 (q[j] - q[j-1]) / h[j-1]^2
 
-with v[0] and v[n-1] given (moved to the right-hand side: the thesis's eq 2.37 prints
+with v[0] and v[n-1] given (moved to the right-hand side: the thesis prints
 t1 - t2 where t1 - t0 is meant). The result is the clamped cubic spline. The matrix is
 strictly diagonally dominant, so the Thomas algorithm needs no pivoting.
 
@@ -28,7 +30,7 @@ import numpy as np
 def clamped_cubic_velocities(
     times: np.ndarray, q: np.ndarray, v_first: np.ndarray, v_last: np.ndarray
 ) -> np.ndarray:
-    """Knot velocities of the clamped cubic spline through ``q`` (thesis eqs 2.27-2.38).
+    """Knot velocities of the clamped cubic spline through ``q``.
 
     Args:
         times: knot times [s], shape (n,), strictly increasing, n >= 2.

@@ -1,6 +1,6 @@
 """Exports of a recording: JSON-encoded MCAP for Foxglove, candump ``.log`` for CAN tools.
 
-Foxglove decodes JSON with JSON Schema but not MessagePack (SPEC 8.1), so
+Foxglove decodes JSON with JSON Schema but not MessagePack, so
 :func:`export_json` rewrites every channel with the ``json`` message encoding and the same
 JSON Schema; ``bytes`` fields become base64 strings, as the schemas say
 (``contentEncoding: base64``). Times, sequences and channel names are kept.

@@ -1,4 +1,6 @@
-"""``manus plot``: what a run did, from its recording (thesis Figures 5.2 and 5.3).
+"""``manus plot``: what a run did, from its recording.
+
+Like the thesis's figures of its test paths (docs/protocol.md, Thesis test paths).
 
 Four panels:
 
@@ -29,6 +31,7 @@ import numpy as np
 from manus.config import ArmConfig
 from manus.kinematics import fk_batch
 from schemas import endpoints as ep
+from schemas.base import Message
 from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
@@ -85,6 +88,45 @@ def _preview(traj: Trajectory) -> np.ndarray:
     return np.asarray(traj.via_xyz, dtype=float).reshape(-1, 3)
 
 
+@dataclass
+class _Series:
+    """The recording's messages sorted into the plotted series, in log order."""
+
+    goals: list[Trajectory] = field(default_factory=list)
+    plans: list[Trajectory] = field(default_factory=list)
+    fb_t: list[float] = field(default_factory=list)
+    fb_ref: list[list[float]] = field(default_factory=list)
+    fb_act: list[list[float]] = field(default_factory=list)
+    fb_xyz: list[list[float]] = field(default_factory=list)
+    js_t: list[float] = field(default_factory=list)
+    js_q: list[list[float]] = field(default_factory=list)
+    js_applied: list[list[int]] = field(default_factory=list)
+    truth: list[list[float]] = field(default_factory=list)
+    results: list[GoalResult] = field(default_factory=list)
+
+    def add(self, t: float, msg: Message) -> None:
+        """One message logged at ``t`` [s since the recording's start]."""
+        if isinstance(msg, JointState):
+            if msg.valid:
+                self.js_t.append(t)
+                self.js_q.append(msg.position)
+                self.js_applied.append(msg.applied[1:7])
+        elif isinstance(msg, ControllerFeedback):
+            if msg.goal_id:
+                self.fb_t.append(t)
+                self.fb_ref.append(msg.reference)
+                self.fb_act.append(msg.actual)
+                self.fb_xyz.append(msg.actual_xyz)
+        elif isinstance(msg, GoalResult):
+            self.results.append(msg)
+        elif isinstance(msg, SimTruth):
+            self.truth.append(msg.xyz)
+        elif isinstance(msg, TrajectoryGoal):
+            self.goals.append(msg.trajectory)
+        elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
+            self.plans.append(msg.trajectory)
+
+
 def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
     """Extract the plotted series from a recording (``arm``: the recorded arm's geometry,
     for the paths of recordings without controller feedback).
@@ -94,66 +136,46 @@ def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
             controller feedback (nothing to plot).
     """
     rec = Recording(path)
-    data = PlotData()
     t0 = rec.info.start_ns
-    goals: list[Trajectory] = []
-    plans: list[Trajectory] = []
-    fb_t: list[float] = []
-    fb_ref: list[list[float]] = []
-    fb_act: list[list[float]] = []
-    fb_xyz: list[list[float]] = []
-    js_t: list[float] = []
-    js_q: list[list[float]] = []
-    js_applied: list[list[int]] = []
-    truth: list[list[float]] = []
+    series = _Series()
     for r, msg in rec.decoded(_SUFFIXES):
-        t = (r.log_ns - t0) / 1e9
-        if isinstance(msg, JointState):
-            if msg.valid:
-                js_t.append(t)
-                js_q.append(msg.position)
-                js_applied.append(msg.applied[1:7])
-        elif isinstance(msg, ControllerFeedback):
-            if msg.goal_id:
-                fb_t.append(t)
-                fb_ref.append(msg.reference)
-                fb_act.append(msg.actual)
-                fb_xyz.append(msg.actual_xyz)
-        elif isinstance(msg, GoalResult):
-            data.results.append(msg)
-        elif isinstance(msg, SimTruth):
-            truth.append(msg.xyz)
-        elif isinstance(msg, TrajectoryGoal):
-            goals.append(msg.trajectory)
-        elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
-            plans.append(msg.trajectory)
-    if not js_t and not fb_t:
+        series.add((r.log_ns - t0) / 1e9, msg)
+    if not series.js_t and not series.fb_t:
         raise RecordingError(
             f"{path}: nothing to plot: no valid state/joints and no controller/feedback"
         )
-    data.t_fb = np.asarray(fb_t)
-    data.reference = np.asarray(fb_ref, dtype=float).reshape(-1, 6)
-    data.actual = np.asarray(fb_act, dtype=float).reshape(-1, 6)
-    data.t_js = np.asarray(js_t)
-    data.q_js = np.asarray(js_q, dtype=float).reshape(-1, 6)
-    data.applied = np.asarray(js_applied, dtype=float).reshape(-1, 6)
-    data.truth = np.asarray(truth, dtype=float).reshape(-1, 3)
-    chosen = goals or plans
+    data = PlotData(
+        results=series.results,
+        t_fb=np.asarray(series.fb_t),
+        reference=np.asarray(series.fb_ref, dtype=float).reshape(-1, 6),
+        actual=np.asarray(series.fb_act, dtype=float).reshape(-1, 6),
+        t_js=np.asarray(series.js_t),
+        q_js=np.asarray(series.js_q, dtype=float).reshape(-1, 6),
+        applied=np.asarray(series.js_applied, dtype=float).reshape(-1, 6),
+        truth=np.asarray(series.truth, dtype=float).reshape(-1, 3),
+    )
+    _paths(data, series, arm)
+    return data
+
+
+def _paths(data: PlotData, series: _Series, arm: ArmConfig) -> None:
+    """The planned path (goal previews, else plan replies, else the FK of the reference)
+    and the executed one (feedback, else the FK of the joint states)."""
+    chosen = series.goals or series.plans
     if chosen:
         data.planned = [_preview(tr) for tr in chosen]
-        data.planned_source = "goal" if goals else "plan"
+        data.planned_source = "goal" if series.goals else "plan"
         vias = [np.asarray(tr.via_xyz, dtype=float).reshape(-1, 3) for tr in chosen]
         data.via_xyz = np.vstack(vias)
     elif len(data.reference):
         data.planned = [fk_batch(data.reference, arm)[:, :3, 3]]
         data.planned_source = "reference"
-    if fb_xyz:
-        data.executed = np.asarray(fb_xyz, dtype=float)
+    if series.fb_xyz:
+        data.executed = np.asarray(series.fb_xyz, dtype=float)
         data.executed_source = "feedback"
     elif len(data.q_js):
         data.executed = fk_batch(data.q_js, arm)[:, :3, 3]
         data.executed_source = "joint_states"
-    return data
 
 
 @dataclass(frozen=True)

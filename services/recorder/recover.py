@@ -62,6 +62,63 @@ def _complete_prefix(data: bytes) -> int:
     return pos
 
 
+class _Copier:
+    """Copies records to ``writer``, renumbering schemas and channels, counting messages."""
+
+    def __init__(self, writer: Writer) -> None:
+        self.writer = writer
+        self.schemas: dict[int, int] = {}  # old id -> new id
+        self.channels: dict[int, int] = {}
+        self.messages = self.chunks = self.bad_chunks = self.orphans = 0
+        self.end_ns = 0
+
+    def take(self, record: object) -> None:
+        """One record of the source (a chunk's records one by one, not the chunk)."""
+        writer = self.writer
+        if isinstance(record, Schema):
+            if record.id not in self.schemas:
+                self.schemas[record.id] = writer.register_schema(
+                    record.name, record.encoding, record.data
+                )
+        elif isinstance(record, Channel):
+            if record.id not in self.channels:
+                sid = self.schemas.get(record.schema_id, 0)
+                self.channels[record.id] = writer.register_channel(
+                    record.topic, record.message_encoding, sid, dict(record.metadata)
+                )
+        elif isinstance(record, Message):
+            cid = self.channels.get(record.channel_id)
+            if cid is None:
+                self.orphans += 1
+                return
+            writer.add_message(
+                cid, record.log_time, record.data, record.publish_time, record.sequence
+            )
+            self.messages += 1
+            self.end_ns = max(self.end_ns, record.log_time)
+        elif isinstance(record, Metadata):
+            writer.add_metadata(record.name, dict(record.metadata))
+
+    def take_all(self, reader: StreamReader) -> None:
+        """Every record up to the first that does not read; chunks whose CRC fails are
+        counted and skipped."""
+        try:
+            for record in reader.records:
+                if not isinstance(record, Chunk):
+                    self.take(record)
+                    continue
+                try:
+                    inner = breakup_chunk(record, validate_crc=True)
+                except (McapError, ValueError, EOFError, struct.error):
+                    self.bad_chunks += 1
+                    continue
+                self.chunks += 1
+                for rec in inner:
+                    self.take(rec)
+        except (McapError, ValueError, EOFError, struct.error):
+            pass  # the end of the complete records (or a damaged one): keep what came before
+
+
 def recover(src: str | Path, dst: str | Path) -> RecoverStats:
     """Write the complete part of the recording ``src`` to ``dst`` (a valid MCAP file).
 
@@ -78,10 +135,6 @@ def recover(src: str | Path, dst: str | Path) -> RecoverStats:
     except RecordingError as exc:
         raise RecordingError(f"{src}: {exc}") from exc
     reader = StreamReader(io.BytesIO(data[:end]), emit_chunks=True)
-    schemas: dict[int, int] = {}  # old id -> new id
-    channels: dict[int, int] = {}
-    messages = chunks = bad_chunks = orphans = 0
-    end_ns = 0
     try:
         out = open(dst, "wb")  # noqa: SIM115 (closed below)
     except OSError as exc:
@@ -89,47 +142,8 @@ def recover(src: str | Path, dst: str | Path) -> RecoverStats:
     with out:
         writer = Writer(out, compression=CompressionType.ZSTD)
         writer.start(library=LIBRARY + " (recovered)")
-
-        def take(record: object) -> None:
-            nonlocal messages, orphans, end_ns
-            if isinstance(record, Schema):
-                if record.id not in schemas:
-                    schemas[record.id] = writer.register_schema(
-                        record.name, record.encoding, record.data
-                    )
-            elif isinstance(record, Channel):
-                if record.id not in channels:
-                    sid = schemas.get(record.schema_id, 0)
-                    channels[record.id] = writer.register_channel(
-                        record.topic, record.message_encoding, sid, dict(record.metadata)
-                    )
-            elif isinstance(record, Message):
-                cid = channels.get(record.channel_id)
-                if cid is None:
-                    orphans += 1
-                    return
-                writer.add_message(
-                    cid, record.log_time, record.data, record.publish_time, record.sequence
-                )
-                messages += 1
-                end_ns = max(end_ns, record.log_time)
-            elif isinstance(record, Metadata):
-                writer.add_metadata(record.name, dict(record.metadata))
-
-        try:
-            for record in reader.records:
-                if isinstance(record, Chunk):
-                    try:
-                        inner = breakup_chunk(record, validate_crc=True)
-                    except (McapError, ValueError, EOFError, struct.error):
-                        bad_chunks += 1
-                        continue
-                    chunks += 1
-                    for rec in inner:
-                        take(rec)
-                else:
-                    take(record)
-        except (McapError, ValueError, EOFError, struct.error):
-            pass  # the end of the complete records (or a damaged one): keep what came before
+        copier = _Copier(writer)
+        copier.take_all(reader)
         writer.finish()  # type: ignore[no-untyped-call]
-    return RecoverStats(messages, chunks, bad_chunks, orphans, len(data) - end, end_ns)
+    c = copier
+    return RecoverStats(c.messages, c.chunks, c.bad_chunks, c.orphans, len(data) - end, c.end_ns)

@@ -14,11 +14,18 @@ from collections.abc import Callable, Iterable
 
 from manus.node import Node
 from schemas import endpoints as ep
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus
+from schemas.sequencing import (
+    FINAL_EVENTS,
+    HistoryRequest,
+    SubmitReply,
+    Task,
+    TaskAction,
+    TaskControl,
+    TaskEvent,
+    TaskHistory,
+    TaskStatus,
+)
 from schemas.state import BridgeState, JointState
-
-FINAL_EVENTS = ("succeeded", "failed", "cancelled")
-"""Events that end a task."""
 
 
 class TaskClient:
@@ -83,8 +90,13 @@ class TaskClient:
     def control(self, action: str, task_id: str = "", timeout: float = 5.0) -> TaskStatus:
         """Cancel, pause, resume (or status of) a task."""
         request = TaskControl(action=action, task_id=task_id)
-        key = ep.TASK_STATUS if action == "status" else ep.TASK_CONTROL
+        key = ep.TASK_STATUS if action == TaskAction.STATUS else ep.TASK_CONTROL
         return self.node.query(self.node.keys(key), request, TaskStatus, timeout=timeout)
+
+    def history(self, limit: int = 10, timeout: float = 5.0) -> TaskHistory:
+        """The most recent tasks, newest first (``sequencer/history``)."""
+        request = HistoryRequest(limit=limit)
+        return self.node.query(self.node.keys(ep.HISTORY), request, TaskHistory, timeout=timeout)
 
     def follow(
         self,

@@ -32,6 +32,7 @@ class SequencerConfig:
             the newest echo is older than this (docs/deployment.md, Faults).
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
+        history: how many ended tasks ``sequencer/history`` remembers.
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -43,6 +44,7 @@ class SequencerConfig:
     progress_step: float = 0.02
     heartbeat_timeout_s: float = 0.1
     link_timeout_s: float = 0.5
+    history: int = 100
 
     def __post_init__(self) -> None:
         for name in ("result_margin_s", "gripper_timeout_s", "fold_timeout_s", "cancel_timeout_s"):
@@ -54,6 +56,8 @@ class SequencerConfig:
                 f"sequencer heartbeat_timeout_s = {self.heartbeat_timeout_s!r} s is outside "
                 "0..10 s (0: no deadman)"
             )
+        if not 1 <= self.history <= 10_000:
+            raise ConfigError(f"sequencer history = {self.history!r} is outside 1..10000")
         if not 0.1 <= self.link_timeout_s <= 3600.0:
             raise ConfigError(
                 f"sequencer link_timeout_s = {self.link_timeout_s!r} s is outside 0.1..3600 s"

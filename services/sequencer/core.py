@@ -1,13 +1,23 @@
-"""The sequencer's deterministic core: one task at a time, a step state machine.
+"""The sequencer's deterministic core: one task at a time, from its submission to its end.
 
 Inputs are method calls carrying messages and the time they arrived (``now_ns``); outputs
-are :data:`Action` values: :class:`Query` (a request the shell sends with
-``Node.query``; it feeds the answer back through :meth:`SequencerCore.on_reply` with the
-query's ``token``) and :class:`Publish` (a message to publish: the task events, and while
-a task runs one deadman :class:`~schemas.control.Heartbeat` per joint state). No Zenoh,
-no threads, no clock: the same inputs give the same outputs.
+are :data:`~services.sequencer.actions.Action` values: :class:`Query` (a request the
+shell sends with ``Node.query``; it feeds the answer back through
+:meth:`SequencerCore.on_reply` with the query's ``token``), :class:`Publish` (a message to
+publish: the task events, and while a task runs one deadman
+:class:`~schemas.control.Heartbeat` per joint state) and :class:`Reply` (the answer to a
+submitted task, for its submitter). No Zenoh, no threads, no clock: the same inputs give
+the same outputs.
 
-Steps (SPEC 7, thesis 4.2.2):
+**Submission** (:meth:`SequencerCore.submit`): a task is refused at once (a task running
+or paused, another being validated, required services missing, no joint state, the
+bridge not running) or validated whole (state ``validating``, :mod:`validate`): every
+move is planned by the planner (``planner/plan`` queries, from where the previous steps
+leave the arm) before anything moves. The :class:`Reply` ends it: every problem found, or
+accepted, and then the task starts at once (after checking again what may have changed
+meanwhile).
+
+Steps (docs/protocol.md, Thesis task form), one class per kind in :mod:`services.sequencer.steps`:
 
 - **move / pose**: plan from the newest joint state (``planner/plan`` with an explicit
   ``start``), send the trajectory (``controller/goal``), wait for its ``GoalResult``.
@@ -36,54 +46,69 @@ not confirm a cancel or pause within ``cancel_timeout_s`` gets the bridge's ``st
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.commands import ArmCommand, ArmCommandReply, EStop
-from schemas.control import (
-    CancelGoal,
-    ControllerFeedback,
-    GoalAck,
-    GoalResult,
-    GripperGoal,
-    Heartbeat,
-    TrajectoryGoal,
+from schemas.commands import EStop
+from schemas.control import ControllerFeedback, GoalResult, Heartbeat
+from schemas.planning import PlanReply
+from schemas.sequencing import (
+    SubmitReply,
+    Task,
+    TaskAction,
+    TaskControl,
+    TaskEvent,
+    TaskEventKind,
+    TaskHistory,
+    TaskRecord,
+    TaskState,
+    TaskStatus,
 )
-from schemas.planning import Path, PlanReply, Trajectory
-from schemas.sequencing import SubmitReply, Task, TaskControl, TaskEvent, TaskStatus, TaskStep
-from schemas.state import BridgeState, JointState
+from schemas.state import BridgePhase, BridgeState, JointState
+from services.sequencer.actions import (
+    EVENTS_SUFFIX,
+    HEARTBEAT_SUFFIX,
+    Action,
+    Publish,
+    Query,
+    Reply,
+)
 from services.sequencer.config import SequencerConfig
-from services.sequencer.poses import remainder_path
-from services.sequencer.validate import plan_request, step_label
+from services.sequencer.steps import BY_REQUEST, NS, STEP_TYPES, Phase, Step
+from services.sequencer.validate import Validator, step_label
 
-NS = 1_000_000_000
-EVENTS_SUFFIX = ep.EVENTS
-HEARTBEAT_SUFFIX = ep.HEARTBEAT
-"""Key suffix of the deadman heartbeat (``schemas.control.Heartbeat``)."""
-ACTIVE_STATES = ("running", "paused")
+__all__ = [  # the actions are defined in services.sequencer.actions
+    "EVENTS_SUFFIX",
+    "HEARTBEAT_SUFFIX",
+    "Action",
+    "Publish",
+    "Query",
+    "Reply",
+    "SequencerCore",
+]
 
-
-@dataclass(frozen=True)
-class Query:
-    """Send ``request`` to the queryable ``<prefix>/<suffix>``; answer with ``token``."""
-
-    token: int
-    suffix: str
-    request: Message
-    reply_type: type[Message]
+ACTIVE_STATES = (TaskState.RUNNING, TaskState.PAUSED)
 
 
-@dataclass(frozen=True)
-class Publish:
-    """Publish ``message`` on ``<prefix>/<suffix>``."""
-
-    suffix: str
-    message: Message
+def refusal(why: str) -> SubmitReply:
+    """A refused submission."""
+    return SubmitReply(accepted=False, task_id="", errors=[why])
 
 
-Action = Query | Publish
+def answer(task_id: str, reply: SubmitReply) -> Reply:
+    """The answer to submission ``task_id``."""
+    return Reply(ep.SUBMIT, reply, submission=task_id)
+
+
+@dataclass
+class Submission:
+    """A submitted task being validated."""
+
+    task_id: str
+    task: Task
+    validator: Validator
+    token: int | None = None  # of the plan query waiting for its answer
 
 
 class SequencerCore:
@@ -100,36 +125,28 @@ class SequencerCore:
         self.alive: set[str] = set()
         self.task: Task | None = None
         self.task_id = ""
-        self.state = "none"
+        self.state = TaskState.NONE
         self.step = -1
         self.reason = ""
+        self.now = 0
+        self._submission: Submission | None = None
         self._seq = 0
         self._token = 0
         self._goals = 0
-        self._now = 0
         self._heartbeats = 0
         self._js_rx: int | None = None  # receive time of the newest joint state [ns]
+        self._started_ns = 0
+        self._history: list[TaskRecord] = []  # ended tasks, oldest first
         self._reset_step()
 
     def _reset_step(self) -> None:
-        self._phase = (
-            ""  # planning, acking, active, folding, waiting, pausing, cancelling, stopping
-        )
-        self._await: int | None = None
-        self._goal_id = ""
-        self._traj: Trajectory | None = None
-        self._t = 0.0  # trajectory time of the newest feedback of the running goal [s]
-        self._started = False
-        self._resume: tuple[Trajectory, float] | None = None
-        self._base = 0.0  # step progress reached before a resume
-        self._progress = 0.0
+        self._current: Step | None = None  # the running step (None: not begun)
+        self._await: int | None = None  # token of the query the step waits for
+        self._deadline: int | None = None  # the step fails (or stops) if nothing by then [ns]
+        self.step_progress = 0.0
         self._reported = -1.0
-        self._deadline: int | None = None
-        self._wait_left = 0.0
-        self._seen_fold = False
-        self._grip0: float | None = None
-        self._pause_requested = False
-        self._cancel_requested = False
+        self.pause_requested = False
+        self.cancel_requested = False
 
     # -- queries about the task ------------------------------------------------------------
 
@@ -137,6 +154,24 @@ class SequencerCore:
     def busy(self) -> bool:
         """A task is running or paused."""
         return self.state in ACTIVE_STATES
+
+    @property
+    def validating(self) -> str:
+        """Id of the submitted task being validated ('' when none)."""
+        return self._submission.task_id if self._submission is not None else ""
+
+    @property
+    def _phase(self) -> Phase:  # the name the live tests poll
+        return self.phase
+
+    @property
+    def phase(self) -> Phase:
+        """What the current step is doing (:class:`~services.sequencer.steps.Phase`)."""
+        if self.state == TaskState.PAUSED:
+            return Phase.PAUSED
+        if self.state != TaskState.RUNNING or self._current is None:
+            return Phase.IDLE
+        return self._current.phase
 
     def missing_services(self) -> list[str]:
         """Required services whose liveliness tokens are not up (sorted)."""
@@ -149,15 +184,20 @@ class SequencerCore:
         return list(self.latest.position)
 
     def status(self, ok: bool = True, message: str = "") -> TaskStatus:
-        """Where the current (or last) task stands."""
+        """Where the current (or last) task stands; a task being validated first."""
+        sub = self._submission
+        if sub is not None:
+            return TaskStatus(ok=ok, task_id=sub.task_id, state=TaskState.VALIDATING, step=-1,
+                              total=len(sub.task.steps), progress=0.0,
+                              message=message or "planning its moves")  # fmt: skip
         total = len(self.task.steps) if self.task is not None else 0
-        if self.state == "succeeded":
+        if self.state == TaskState.SUCCEEDED:
             progress = 1.0
         elif total and self.step >= 0:
-            progress = min(1.0, (self.step + self._progress) / total)
+            progress = min(1.0, (self.step + self.step_progress) / total)
         else:
             progress = 0.0
-        detail = message or self.reason or self._phase
+        detail = message or self.reason or self.phase
         return TaskStatus(
             ok=ok,
             task_id=self.task_id,
@@ -171,82 +211,162 @@ class SequencerCore:
     # -- task life ---------------------------------------------------------------------------
 
     def refuse(self, task: Task) -> SubmitReply | None:
-        """Why ``task`` cannot start now (busy, services missing), or None."""
+        """Why ``task`` cannot start now (busy, services missing, no arm), or None."""
         if self.busy:
-            return SubmitReply(
-                accepted=False,
-                task_id="",
-                errors=[f"busy: task {self.task_id} is {self.state}; cancel it first"],
+            return refusal(f"busy: task {self.task_id} is {self.state}; cancel it first")
+        if self._submission is not None:
+            return refusal(
+                f"busy: task {self._submission.task_id} is being validated; submit again once "
+                "it is accepted or refused"
             )
         missing = self.missing_services()
         if missing:
-            return SubmitReply(
-                accepted=False,
-                task_id="",
-                errors=[f"required service(s) not running: {', '.join(missing)}"],
-            )
-        if self.start_configuration() is None and self.bridge_phase == "running":
-            return SubmitReply(
-                accepted=False,
-                task_id="",
-                errors=["no valid joint state from the arm yet; try again in a moment"],
-            )
-        if self.bridge_phase != "running":
+            return refusal(f"required service(s) not running: {', '.join(missing)}")
+        if self.start_configuration() is None and self.bridge_phase == BridgePhase.RUNNING:
+            return refusal("no valid joint state from the arm yet; try again in a moment")
+        if self.bridge_phase != BridgePhase.RUNNING:
             seen = self.bridge_phase or "no state/bridge received yet"
-            return SubmitReply(
-                accepted=False,
-                task_id="",
-                errors=[f"the bridge is not running ({seen}); a task starts only in phase running"],
+            return refusal(
+                f"the bridge is not running ({seen}); a task starts only in phase running"
             )
         return None
 
+    def submit(self, task: Task, now_ns: int, task_id: str) -> list[Action]:
+        """A task submitted (``sequencer/submit``): refused at once, or validated (queries
+        to the planner) and then started; a :class:`Reply` for ``task_id`` ends it.
+
+        Args:
+            task: the task.
+            now_ns: time of the submission [ns].
+            task_id: the id it gets if accepted (the caller makes it unique).
+        """
+        self.now = now_ns
+        refused = self.refuse(task)
+        if refused is not None:
+            return [answer(task_id, refused)]
+        validator = Validator(task, self.start_configuration(), self.config.arm)
+        self._submission = Submission(task_id, task, validator)
+        return self._validate()
+
+    def withdraw(self, task_id: str, now_ns: int, reason: str) -> list[Action]:
+        """Give up validating submission ``task_id`` (its submitter stopped waiting): its
+        :class:`Reply` refuses it with ``reason``; late plan answers are ignored."""
+        self.now = now_ns
+        sub = self._submission
+        if sub is None or sub.task_id != task_id:
+            return []
+        self._submission = None
+        return [answer(task_id, refusal(reason))]
+
+    def _validate(self) -> list[Action]:
+        """Ask for the next plan of the submission, or answer it (and start the task)."""
+        sub = self._submission
+        assert sub is not None
+        request = sub.validator.next_request()
+        if request is not None:
+            query = self.query(ep.PLAN, request, PlanReply)
+            sub.token = query.token
+            return [query]
+        self._submission = None
+        errors = sub.validator.errors
+        if errors:
+            return [answer(sub.task_id, SubmitReply(accepted=False, task_id="", errors=errors))]
+        refused = self.refuse(sub.task)  # things may have changed while planning
+        if refused is not None:
+            return [answer(sub.task_id, refused)]
+        accepted = SubmitReply(accepted=True, task_id=sub.task_id)
+        return [*self.start(sub.task_id, sub.task, self.now), answer(sub.task_id, accepted)]
+
+    def history(self, limit: int) -> TaskHistory:
+        """The ``limit`` most recent tasks, newest first (``sequencer/history``)."""
+        records = list(reversed(self._history))
+        if self.busy:
+            records.insert(0, self._record(0))
+        return TaskHistory(tasks=records[:limit])
+
+    def _record(self, ended_ns: int) -> TaskRecord:
+        assert self.task is not None
+        return TaskRecord(
+            task_id=self.task_id,
+            name=self.task.name,
+            state=self.state,
+            steps=len(self.task.steps),
+            step=self.step,
+            reason=self.reason,
+            started_ns=self._started_ns,
+            ended_ns=ended_ns,
+        )
+
+    def _end(self) -> None:
+        """The task has just ended: remember it (at most ``config.history``)."""
+        self._history.append(self._record(self.now))
+        del self._history[: -self.config.history]
+
     def start(self, task_id: str, task: Task, now_ns: int) -> list[Action]:
-        """Start a validated task (the caller checked :meth:`refuse` and validated it)."""
-        self._now = now_ns
-        self.task, self.task_id, self.state, self.reason = task, task_id, "running", ""
+        """Start a validated task (:meth:`submit` does it; a caller of its own checked
+        :meth:`refuse` and validated the task)."""
+        self.now = now_ns
+        self._started_ns = now_ns
+        self.task, self.task_id, self.state, self.reason = task, task_id, TaskState.RUNNING, ""
         self.step = 0
         self._goals = 0
         self._reset_step()
-        out = [self._event("accepted", step=-1, progress=0.0)]
+        out = [self._event(TaskEventKind.ACCEPTED, step=-1, progress=0.0)]
         return out + self._start_step()
 
     def control(self, req: TaskControl, now_ns: int) -> tuple[TaskStatus, list[Action]]:
         """Cancel, pause, resume or status (``sequencer/control``)."""
-        self._now = now_ns
-        if req.action == "status":
+        self.now = now_ns
+        if req.action == TaskAction.STATUS:
             return self.status(), []
-        if req.task_id and req.task_id != self.task_id:
-            return self.status(False, f"no task {req.task_id!r} (current: {self.task_id!r})"), []
-        if not self.busy:
-            return self.status(False, f"no task to {req.action} (state {self.state})"), []
-        if req.action == "cancel":
+        refused = self._why_not(req)
+        if refused:
+            return self.status(False, refused), []
+        if req.action == TaskAction.CANCEL:
             out = self._cancel()
             return self.status(True, "cancelling" if self.busy else ""), out
-        if req.action == "pause":
-            if self.state == "paused" or self._pause_requested or self._phase == "pausing":
-                return self.status(False, "already paused or pausing"), []
-            if self._cancel_requested or self._phase in ("cancelling", "stopping"):
-                return self.status(False, "the task is being cancelled"), []
+        if req.action == TaskAction.PAUSE:
             out = self._pause()
-            note = "pausing after the fold" if self._phase == "folding" else ""
+            note = "pausing after the fold" if self.phase == Phase.FOLDING else ""
             return self.status(True, note), out
-        # resume
-        if self.state != "paused":
-            if self._pause_requested:
-                self._pause_requested = False
-                return self.status(True, "pause withdrawn"), []
-            return self.status(False, "the task is not paused"), []
-        self.state = "running"
-        out = [self._event("resumed", step=self.step, progress=self._task_progress())]
-        out += self._continue()
+        if self.state != TaskState.PAUSED:  # resume before the pause took effect
+            self.pause_requested = False
+            return self.status(True, "pause withdrawn"), []
+        self.state = TaskState.RUNNING
+        out = [self._event(TaskEventKind.RESUMED, step=self.step, progress=self._task_progress())]
+        if self._current is None:  # paused before the step began
+            out += self._start_step()
+        else:
+            out += self._current.resume()
         return self.status(), out
+
+    def _why_not(self, req: TaskControl) -> str:
+        """Why the cancel, pause or resume ``req`` cannot be done now ('' if it can)."""
+        action = req.action
+        pausing = (
+            self.state == TaskState.PAUSED or self.pause_requested or self.phase == Phase.PAUSING
+        )
+        cancelling = self.cancel_requested or self.phase in (Phase.CANCELLING, Phase.STOPPING)
+        not_paused = self.state != TaskState.PAUSED and not self.pause_requested
+        checks = (
+            (self._submission is not None, f"nothing to {action} before the task starts"),
+            (
+                bool(req.task_id) and req.task_id != self.task_id,
+                f"no task {req.task_id!r} (current: {self.task_id!r})",
+            ),
+            (not self.busy, f"no task to {action} (state {self.state})"),
+            (action == TaskAction.PAUSE and pausing, "already paused or pausing"),
+            (action == TaskAction.PAUSE and cancelling, "the task is being cancelled"),
+            (action == TaskAction.RESUME and not_paused, "the task is not paused"),
+        )
+        return next((why for failed, why in checks if failed), "")
 
     # -- inputs ------------------------------------------------------------------------------
 
     def on_joint_state(self, js: JointState, now_ns: int) -> list[Action]:
         """Newest joint state: the start of the next plan; while a task runs, answered
         with a :class:`Heartbeat` echoing it (the controller's deadman)."""
-        self._now = now_ns
+        self.now = now_ns
         self._js_rx = now_ns
         if js.valid:
             self.latest = js
@@ -266,398 +386,230 @@ class SequencerCore:
 
     def on_bridge_state(self, bs: BridgeState, now_ns: int) -> list[Action]:
         """Bridge phase: fold progress, arm errors, e-stop."""
-        self._now = now_ns
+        self.now = now_ns
         self.bridge_phase = bs.phase
         if not self.busy:
             return []
-        if self._phase == "folding":
-            kind = self._kind()
-            if bs.phase == f"folding_{kind.removeprefix('fold_')}":
-                self._seen_fold = True
-            elif self._seen_fold and bs.phase == "running":
-                return self._step_done()
-        if bs.phase in ("arm_error", "estopped") and self._phase not in ("stopping",):
-            return self._fail(f"can_bridge: phase {bs.phase}: {bs.detail}")
+        if self.state == TaskState.RUNNING and self._current is not None:
+            out = self._current.on_bridge_state(bs)
+            if out is not None:
+                return out
+        if (
+            bs.phase in (BridgePhase.ARM_ERROR, BridgePhase.ESTOPPED)
+            and self.phase != Phase.STOPPING
+        ):
+            return self.fail(f"can_bridge: phase {bs.phase}: {bs.detail}")
         return []
 
     def on_feedback(self, fb: ControllerFeedback, now_ns: int) -> list[Action]:
         """Controller feedback: progress of the running goal, the pause point."""
-        self._now = now_ns
-        if not self.busy or not self._goal_id:
+        self.now = now_ns
+        if not self.busy or self._current is None:
             return []
-        kind = self._kind()
-        if kind in ("move", "pose") and fb.goal_id == self._goal_id and self._traj is not None:
-            self._t = fb.t
-            frac = min(1.0, max(0.0, fb.t / max(self._traj.times[-1], 1e-9)))
-            return self._report(self._base + (1.0 - self._base) * frac)
-        if kind == "gripper" and fb.gripper_goal_id == self._goal_id:
-            if self._grip0 is None:
-                self._grip0 = fb.gripper
-            span = abs(fb.gripper_target - self._grip0)
-            done = 1.0 if span < 1e-6 else 1.0 - abs(fb.gripper_target - fb.gripper) / span
-            return self._report(min(1.0, max(0.0, done)))
-        return []
+        return self._current.on_feedback(fb)
 
     def on_result(self, res: GoalResult, now_ns: int) -> list[Action]:
         """The one result of a goal."""
-        self._now = now_ns
-        if not self.busy or not self._goal_id or res.goal_id != self._goal_id:
+        self.now = now_ns
+        if not self.busy or self._current is None:
             return []
-        self._goal_id = ""
-        phase = self._phase
-        if phase == "cancelling":
-            return self._cancelled("cancelled by request")
-        if res.status == "succeeded":
-            return self._step_done()
-        if res.status == "cancelled" and phase == "pausing":
-            if self._kind() in ("move", "pose") and self._traj is not None:
-                self._resume = (self._traj, self._t)
-                self._base = self._progress
-            return self._paused()
-        return self._fail(f"controller: goal {res.status}: {res.reason}")
+        return self._current.on_result(res)
 
     def on_estop(self, msg: EStop, now_ns: int) -> list[Action]:
         """An e-stop on the bus (the bridge latches it itself): the task fails at once."""
-        self._now = now_ns
+        self.now = now_ns
         if msg.engaged and self.busy:
             why = f": {msg.reason}" if msg.reason else ""
-            return self._fail(f"e-stop engaged by {msg.source or 'someone'}{why}")
+            return self.fail(f"e-stop engaged by {msg.source or 'someone'}{why}")
         return []
 
     def on_liveliness(self, service: str, alive: bool, now_ns: int) -> list[Action]:
         """A service's liveliness token appeared or vanished."""
-        self._now = now_ns
+        self.now = now_ns
         if alive:
             self.alive.add(service)
             return []
         self.alive.discard(service)
         if self.busy and service in self.config.required_services:
-            return self._fail(f"{service} is gone (its liveliness token vanished)")
+            return self.fail(f"{service} is gone (its liveliness token vanished)")
         return []
 
     def on_tick(self, now_ns: int) -> list[Action]:
         """Time passes (call at least every 100 ms): waits and timeouts."""
-        self._now = now_ns
-        if self.state == "running" and self._phase == "waiting" and self._deadline is not None:
-            step = self._step()
-            left = (self._deadline - now_ns) / NS
-            if left <= 0.0:
-                self._deadline = None
-                return self._step_done()
-            return self._report(1.0 - left / step.duration if step.duration > 0 else 1.0)
+        self.now = now_ns
+        if self.state == TaskState.RUNNING and self._current is not None:
+            out = self._current.on_tick()
+            if out is not None:
+                return out
         return self._check_link() + self._check_deadline()
+
+    def on_reply(self, token: int, reply: Message | None, error: str, now_ns: int) -> list[Action]:
+        """The answer to the :class:`Query` with ``token`` (None and ``error``: no answer)."""
+        self.now = now_ns
+        sub = self._submission
+        if sub is not None and token == sub.token:
+            sub.token = None
+            if isinstance(reply, PlanReply):
+                sub.validator.on_reply(reply)
+            else:
+                sub.validator.on_reply(None, error or f"bad reply {type(reply).__name__}")
+            return self._validate()
+        if token != self._await or not self.busy or self._current is None:
+            return []
+        self._await = None
+        return self._current.on_reply(reply, error)
 
     def _check_link(self) -> list[Action]:
         """Fail the task when joint states stop while a controller goal is active."""
-        if self.state != "running" or self._phase not in ("acking", "active", "pausing"):
+        if self.state != TaskState.RUNNING or self._current is None:
             return []
-        if self._js_rx is None:
+        if not self._current.needs_joint_states or self._js_rx is None:
             return []
-        silent = self._now - self._js_rx
+        silent = self.now - self._js_rx
         if silent <= self.config.link_timeout_s * NS:
             return []
-        return self._fail(
+        return self.fail(
             f"no joint states from the arm for {silent / 1e6:.0f} ms (more than link_timeout_s "
             f"{self.config.link_timeout_s:g} s): the link to the arm computer is down; the "
             "controller stops the arm itself when it loses the supervisor's heartbeat"
         )
 
-    def on_reply(self, token: int, reply: Message | None, error: str, now_ns: int) -> list[Action]:
-        """The answer to the :class:`Query` with ``token`` (None and ``error``: no answer)."""
-        self._now = now_ns
-        if token != self._await or not self.busy:
+    def _check_deadline(self) -> list[Action]:
+        if not self.busy or self._deadline is None or self.now < self._deadline:
             return []
-        self._await = None
-        phase = self._phase
-        if phase == "planning":
-            return self._on_plan(reply, error)
-        if phase == "acking":
-            return self._on_ack(reply, error)
-        if phase == "folding":
-            if not isinstance(reply, ArmCommandReply):
-                return self._fail(f"can_bridge: {error or 'no answer to the fold'}")
-            if not reply.ok:
-                return self._fail(f"can_bridge refused {self._kind()}: {reply.message}")
-            # Done only after a state/bridge in folding_* and then running: a state
-            # published before the bridge took the command may still be on its way.
-            return []
-        if phase == "stopping":
-            # stop answered: clear, so the arm is back in joint mode and ready.
-            if isinstance(reply, ArmCommandReply) and reply.ok and reply.phase == "stopped":
-                return [
-                    self._query(
-                        ep.BRIDGE_COMMAND,
-                        ArmCommand(action="clear", source="sequencer"),
-                        ArmCommandReply,
-                        wait=True,
-                        phase="clearing",
-                    )
-                ]
-            return self._cancelled("cancelled by request; fold stopped")
-        if phase == "clearing":
-            return self._cancelled("cancelled by request; fold stopped")
-        return []
+        self._deadline = None
+        return self._current.on_deadline() if self._current is not None else []
 
     # -- steps -------------------------------------------------------------------------------
-
-    def _kind(self) -> str:
-        return self._step().kind
-
-    def _step(self) -> TaskStep:
-        assert self.task is not None
-        return self.task.steps[self.step]
 
     def _start_step(self) -> list[Action]:
         assert self.task is not None
         if self.step >= len(self.task.steps):
-            self.state = "succeeded"
+            self.state = TaskState.SUCCEEDED
             self.step = len(self.task.steps) - 1
-            self._progress = 1.0
-            return [self._event("succeeded", step=-1, progress=1.0)]
-        if self._pause_requested:
-            return self._paused()
-        self._started = True
-        out: list[Action] = [self._event("step_started", progress=0.0)]
-        return out + self._begin()
-
-    def _begin(self, path: Path | None = None) -> list[Action]:
-        """Do the current step (again, after a pause: the rest ``path`` of a move)."""
-        step = self._step()
-        if step.kind in ("move", "pose"):
-            start = self.start_configuration()
-            if start is None:
-                return self._fail("no valid joint state from the arm (is the bridge running?)")
-            request = plan_request(step, start, path)
-            if path is not None:  # the rest of a paused path starts from rest: let it stretch
-                request = dataclasses.replace(request, speed_scaling=True)
-            return [self._query(ep.PLAN, request, PlanReply, wait=True, phase="planning")]
-        if step.kind == "gripper":
-            self._goals += 1
-            self._goal_id = f"{self.task_id}.{self.step + 1}.{self._goals}"
-            self._grip0 = None
-            goal = GripperGoal(
-                goal_id=self._goal_id, opening=step.opening, timeout=self.config.gripper_timeout_s
-            )
-            self._deadline = self._now + int((self.config.gripper_timeout_s + 5.0) * NS)
-            return [self._query(ep.GRIPPER_GOAL, goal, GoalAck, wait=True, phase="acking")]
-        if step.kind == "wait":
-            left = self._wait_left if self._wait_left > 0.0 else step.duration
-            self._wait_left = 0.0
-            self._deadline = self._now + int(left * NS)
-            self._phase = "waiting"
-            return []
-        # fold_in / fold_out
-        self._seen_fold = False
-        self._deadline = self._now + int(self.config.fold_timeout_s * NS)
-        cmd = ArmCommand(action=step.kind, source="sequencer")
-        return [self._query(ep.BRIDGE_COMMAND, cmd, ArmCommandReply, wait=True, phase="folding")]
-
-    def _on_plan(self, reply: Message | None, error: str) -> list[Action]:
-        if not isinstance(reply, PlanReply):
-            return self._fail(f"planner: {error or 'bad reply'}")
-        if not reply.ok or reply.trajectory is None:
-            why = reply.error.message if reply.error is not None else "no trajectory"
-            return self._fail(f"planner refused: {why}")
-        if self._cancel_requested:
-            return self._cancelled("cancelled by request")
-        self._traj = reply.trajectory
-        self._resume = None
-        if self._pause_requested:
-            return self._paused()
-        self._goals += 1
-        self._goal_id = f"{self.task_id}.{self.step + 1}.{self._goals}"
-        self._t = 0.0
-        assert self.task is not None
-        goal = TrajectoryGoal(
-            goal_id=self._goal_id,
-            trajectory=reply.trajectory,
-            mode=self.task.mode,
-            heartbeat_timeout=self.config.heartbeat_timeout_s,
-        )
-        span = reply.trajectory.times[-1] + goal.goal_time_tolerance + self.config.result_margin_s
-        self._deadline = self._now + int(span * NS)
-        return [self._query(ep.GOAL, goal, GoalAck, wait=True, phase="acking")]
-
-    def _on_ack(self, reply: Message | None, error: str) -> list[Action]:
-        if not isinstance(reply, GoalAck):
-            self._goal_id = ""
-            return self._fail(f"controller: {error or 'bad reply'}")
-        if not reply.accepted:
-            self._goal_id = ""
-            return self._fail(f"controller refused the goal: {reply.reason}")
-        self._phase = "active"
-        if self._cancel_requested:
-            return self._cancel()
-        if self._pause_requested:
-            self._pause_requested = False
-            return self._pause()
-        return []
-
-    def _step_done(self) -> list[Action]:
-        self._progress = 1.0
-        out: list[Action] = [self._event("step_finished", progress=1.0)]
-        pause = self._pause_requested
-        cancel = self._cancel_requested
-        self.step += 1
-        self._reset_step()
-        if cancel:
-            return out + self._cancelled("cancelled by request")
-        self._pause_requested = pause
-        return out + self._start_step()
-
-    def _continue(self) -> list[Action]:
-        """Resume the current step where the pause left it."""
-        if not self._started:
-            return self._start_step()
-        step = self._step()
-        if step.kind in ("move", "pose") and self._resume is not None:
-            traj, t = self._resume  # cleared once the rest is planned
-            rest = remainder_path(traj, t, source=step.where or step.kind, cfg=self.config.arm)
-            if rest is None:
-                return self._step_done()
-            return self._begin(rest)
-        return self._begin()
-
-    # -- pause / cancel / failure --------------------------------------------------------------
+            self.step_progress = 1.0
+            self._end()
+            return [self._event(TaskEventKind.SUCCEEDED, step=-1, progress=1.0)]
+        if self.pause_requested:
+            return self.paused()
+        spec = self.task.steps[self.step]
+        self._current = STEP_TYPES[spec.kind](spec, self)
+        out: list[Action] = [self._event(TaskEventKind.STEP_STARTED, progress=0.0)]
+        return out + self._current.begin()
 
     def _pause(self) -> list[Action]:
-        if self._phase == "active" and self._goal_id:
-            self._phase = "pausing"
-            self._deadline = self._now + int(self.config.cancel_timeout_s * NS)
-            return [self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck)]
-        if self._phase == "waiting" and self._deadline is not None:
-            self._wait_left = max(0.0, (self._deadline - self._now) / NS)
-            self._deadline = None
-            return self._paused()
-        self._pause_requested = True  # planning, acking, folding: at their end
-        return []
-
-    def _paused(self) -> list[Action]:
-        self._pause_requested = False
-        self.state = "paused"
-        self._phase = "paused"
-        self._deadline = None
-        return [self._event("paused", progress=self._task_progress(), step=self.step)]
-
-    def _cancel(self) -> list[Action]:
-        self._cancel_requested = True
-        if self.state == "paused":
-            return self._cancelled("cancelled by request")
-        if self._phase == "active" and self._goal_id:
-            self._phase = "cancelling"
-            self._deadline = self._now + int(self.config.cancel_timeout_s * NS)
-            return [self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck)]
-        if self._phase == "pausing":
-            self._phase = "cancelling"
+        out = self._current.pause() if self._current is not None else None
+        if out is None:  # planning, acking, folding: at their end
+            self.pause_requested = True
             return []
-        if self._phase == "folding":
-            stop = ArmCommand(action="stop", source="sequencer")
-            return [
-                self._query(ep.BRIDGE_COMMAND, stop, ArmCommandReply, wait=True, phase="stopping")
-            ]
-        if self._phase in ("planning", "acking"):
-            return []  # at the reply (an accepted goal is then cancelled)
-        return self._cancelled("cancelled by request")
-
-    def _cancelled(self, reason: str) -> list[Action]:
-        self.state = "cancelled"
-        self.reason = reason
-        self._phase = ""
-        self._await = None
-        self._deadline = None
-        return [
-            self._event("cancelled", step=self.step, progress=self._task_progress(), reason=reason)
-        ]
-
-    def _fail(self, reason: str) -> list[Action]:
-        out: list[Action] = []
-        if self._goal_id and self._phase in ("acking", "active", "pausing", "cancelling"):
-            out.append(self._query(ep.CANCEL, CancelGoal(goal_id=self._goal_id), GoalAck))
-        if self._phase == "folding":
-            out.append(
-                self._query(
-                    ep.BRIDGE_COMMAND,
-                    ArmCommand(action="stop", source="sequencer"),
-                    ArmCommandReply,
-                )
-            )
-        label = step_label(self._step(), self.step)
-        full = f"{label}: {reason}"
-        out.append(self._event("step_failed", reason=full))
-        self.state = "failed"
-        self.reason = full
-        self._phase = ""
-        self._goal_id = ""
-        self._await = None
-        self._deadline = None
-        out.append(
-            self._event("failed", step=self.step, progress=self._task_progress(), reason=full)
-        )
         return out
 
-    def _check_deadline(self) -> list[Action]:
-        if not self.busy or self._deadline is None or self._now < self._deadline:
-            return []
-        self._deadline = None
-        phase = self._phase
-        if phase in ("pausing", "cancelling"):
-            goal_id, self._goal_id = self._goal_id, ""
-            stop = self._query(
-                ep.BRIDGE_COMMAND, ArmCommand(action="stop", source="sequencer"), ArmCommandReply
-            )
-            what = "pause" if phase == "pausing" else "cancel"
-            msg = (
-                f"controller did not confirm the {what} of goal {goal_id} within "
-                f"{self.config.cancel_timeout_s:g} s; arm stopped by the bridge"
-            )
-            if phase == "cancelling":
-                return [stop, *self._cancelled(msg)]
-            return [stop, *self._fail(msg)]
-        if phase == "folding":
-            return self._fail(f"the fold did not complete within {self.config.fold_timeout_s:g} s")
-        if phase in ("acking", "active"):
-            return self._fail("no result from the controller in time (goal deadline passed)")
-        return []
+    def _cancel(self) -> list[Action]:
+        self.cancel_requested = True
+        if self.state == TaskState.PAUSED or self._current is None:
+            return self.cancelled(BY_REQUEST)
+        return self._current.cancel()
 
-    # -- outputs -------------------------------------------------------------------------------
+    # -- the running step's calls (services.sequencer.steps.StepContext) ----------------------
 
-    def _query(
-        self,
-        suffix: str,
-        request: Message,
-        reply_type: type[Message],
-        *,
-        wait: bool = False,
-        phase: str = "",
+    def new_goal_id(self) -> str:
+        """A controller goal id for the current step: ``<task>.<step, 1-based>.<n>``."""
+        self._goals += 1
+        return f"{self.task_id}.{self.step + 1}.{self._goals}"
+
+    def query(
+        self, suffix: str, request: Message, reply_type: type[Message], *, wait: bool = False
     ) -> Query:
+        """A query; with ``wait`` its answer goes to the running step."""
         self._token += 1
         if wait:
             self._await = self._token
-            self._phase = phase
         return Query(self._token, suffix, request, reply_type)
+
+    def set_deadline(self, after_s: float) -> None:
+        """The step's deadline: ``after_s`` [s] from now (its ``on_deadline`` then)."""
+        self._deadline = self.now + int(after_s * NS)
+
+    def report(self, progress: float) -> list[Action]:
+        """The step's progress (an event when it moved by ``progress_step``)."""
+        self.step_progress = progress
+        if abs(progress - self._reported) < self.config.progress_step and progress < 1.0:
+            return []
+        self._reported = progress
+        return [self._event(TaskEventKind.STEP_PROGRESS, progress=progress)]
+
+    def step_done(self) -> list[Action]:
+        """The step succeeded: the next one (or a pause or cancel asked meanwhile)."""
+        self.step_progress = 1.0
+        out: list[Action] = [self._event(TaskEventKind.STEP_FINISHED, progress=1.0)]
+        pause = self.pause_requested
+        cancel = self.cancel_requested
+        self.step += 1
+        self._reset_step()
+        if cancel:
+            return out + self.cancelled(BY_REQUEST)
+        self.pause_requested = pause
+        return out + self._start_step()
+
+    def paused(self) -> list[Action]:
+        """The arm stopped for a pause."""
+        self.pause_requested = False
+        self.state = TaskState.PAUSED
+        self._deadline = None
+        progress = self._task_progress()
+        return [self._event(TaskEventKind.PAUSED, progress=progress, step=self.step)]
+
+    def cancelled(self, reason: str) -> list[Action]:
+        """The task ends cancelled."""
+        self.state = TaskState.CANCELLED
+        self.reason = reason
+        self._await = None
+        self._deadline = None
+        self._end()
+        progress = self._task_progress()
+        return [self._event(TaskEventKind.CANCELLED, step=self.step, progress=progress,
+                            reason=reason)]  # fmt: skip
+
+    def fail(self, reason: str) -> list[Action]:
+        """The task fails (what the running step started is stopped)."""
+        out: list[Action] = []
+        if self.state == TaskState.RUNNING and self._current is not None:
+            out += self._current.cleanup()
+        assert self.task is not None
+        full = f"{step_label(self.task.steps[self.step], self.step)}: {reason}"
+        out.append(self._event(TaskEventKind.STEP_FAILED, reason=full))
+        self.state = TaskState.FAILED
+        self.reason = full
+        self._await = None
+        self._deadline = None
+        self._end()
+        progress = self._task_progress()
+        out.append(self._event(TaskEventKind.FAILED, step=self.step, progress=progress,
+                               reason=full))  # fmt: skip
+        return out
+
+    # -- outputs -------------------------------------------------------------------------------
 
     def _task_progress(self) -> float:
         total = len(self.task.steps) if self.task is not None else 0
         if not total:
             return 0.0
-        return min(1.0, max(0.0, (max(self.step, 0) + self._progress) / total))
-
-    def _report(self, progress: float) -> list[Action]:
-        self._progress = progress
-        if abs(progress - self._reported) < self.config.progress_step and progress < 1.0:
-            return []
-        self._reported = progress
-        return [self._event("step_progress", progress=progress)]
+        return min(1.0, max(0.0, (max(self.step, 0) + self.step_progress) / total))
 
     def _event(
-        self, event: str, *, step: int | None = None, progress: float = 0.0, reason: str = ""
+        self,
+        event: TaskEventKind,
+        *,
+        step: int | None = None,
+        progress: float = 0.0,
+        reason: str = "",
     ) -> Publish:
         total = len(self.task.steps) if self.task is not None else 0
         index = self.step if step is None else step
         kind = self.task.steps[index].kind if self.task is not None and 0 <= index < total else ""
         self._seq += 1
         msg = TaskEvent(
-            stamp_ns=self._now,
+            stamp_ns=self.now,
             seq=self._seq,
             task_id=self.task_id,
             event=event,

@@ -34,8 +34,8 @@ RESUME_LEAD_S = 0.6
 starts from rest (the planner stretches more if the joint limits need it)."""
 
 
-def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig | None) -> ViaPoint:
-    T = fk(np.asarray(q, dtype=float), cfg or ArmConfig())
+def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig) -> ViaPoint:
+    T = fk(np.asarray(q, dtype=float), cfg)
     return ViaPoint(
         xyz=[float(v) for v in T[:3, 3]],
         velocity=[0.0, 0.0, 0.0],
@@ -48,7 +48,7 @@ def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig | None) -> V
 
 
 def _start_placeholder() -> ViaPoint:
-    # The planner replaces the first via point by the start pose (SPEC 5.1).
+    # The planner replaces the first via point by the start pose.
     zero = [0.0, 0.0, 0.0]
     return ViaPoint(xyz=zero, velocity=zero, ypr=zero, angular_velocity=zero, time=0.0, type=2)
 
@@ -56,7 +56,7 @@ def _start_placeholder() -> ViaPoint:
 def pose_path(
     name: str,
     duration: float,
-    cfg: ArmConfig | None = None,
+    cfg: ArmConfig,
     *,
     start: Sequence[float] | None = None,
 ) -> Path:
@@ -70,7 +70,7 @@ def pose_path(
     Args:
         name: a key of :data:`POSES`.
         duration: arrival time of the pose [s] (> 0).
-        cfg: arm geometry (default: the thesis arm).
+        cfg: arm geometry.
         start: the configuration the move starts from (DH [rad]), if known.
 
     Raises:
@@ -95,7 +95,7 @@ def remainder_path(
     *,
     source: str,
     lead: float = RESUME_LEAD_S,
-    cfg: ArmConfig | None = None,
+    cfg: ArmConfig,
 ) -> Path | None:
     """The via points of ``trajectory`` not yet reached at trajectory time ``t`` [s], as
     absolute via points (the FK of each planned knot), timed as planned from ``t`` plus

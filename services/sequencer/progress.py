@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from typing import TextIO
 
-from schemas.sequencing import Task, TaskEvent
+from schemas.sequencing import StepKind, Task, TaskEvent
+from schemas.sequencing import TaskEventKind as Ev
 
 BAR_WIDTH = 24
 
@@ -25,13 +26,13 @@ def describe(task: Task, index: int) -> str:
     if not 0 <= index < len(task.steps):
         return ""
     step = task.steps[index]
-    if step.kind == "move":
+    if step.kind == StepKind.MOVE:
         what = step.path.source if step.path is not None and step.path.source else step.where
-    elif step.kind == "gripper":
+    elif step.kind == StepKind.GRIPPER:
         what = f"{step.opening * 1e3:g} mm"
-    elif step.kind == "wait":
+    elif step.kind == StepKind.WAIT:
         what = f"{step.duration:g} s"
-    elif step.kind == "pose":
+    elif step.kind == StepKind.POSE:
         what = step.pose
     else:
         what = ""
@@ -61,16 +62,16 @@ class ProgressView:
         total = max(event.total, 1)
         if event.step >= 0:
             self._step = event.step
-            self._step_progress = event.progress if event.event != "step_started" else 0.0
-            if event.event in ("step_started", "step_progress", "step_finished"):
+            self._step_progress = event.progress if event.event != Ev.STEP_STARTED else 0.0
+            if event.event in (Ev.STEP_STARTED, Ev.STEP_PROGRESS, Ev.STEP_FINISHED):
                 self._task_progress = (event.step + self._step_progress) / total
-        elif event.event == "succeeded":
+        elif event.event == Ev.SUCCEEDED:
             self._task_progress = 1.0
-        if event.event in ("paused", "cancelled", "failed", "resumed"):
+        if event.event in (Ev.PAUSED, Ev.CANCELLED, Ev.FAILED, Ev.RESUMED):
             self._task_progress = event.progress
         if self.live:
             self._redraw(event)
-        elif event.event != "step_progress":
+        elif event.event != Ev.STEP_PROGRESS:
             self._line(event)
 
     def _label(self, step: int, total: int) -> str:
@@ -86,7 +87,7 @@ class ProgressView:
         total = max(event.total, 1)
         if self._drawn:
             self.stream.write("\x1b[2A")  # back to the first bar; notable events scroll above
-        if event.event not in ("step_progress", "step_started", "accepted"):
+        if event.event not in (Ev.STEP_PROGRESS, Ev.STEP_STARTED, Ev.ACCEPTED):
             why = f": {event.reason}" if event.reason else ""
             head = self._label(event.step, total) if event.step >= 0 else "task"
             self.stream.write(f"\x1b[2K\r{head}: {event.event}{why}\n")

@@ -18,7 +18,7 @@ import sys
 
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import settings_from_env
-from schemas.sequencing import Task, TaskStep
+from schemas.sequencing import StepKind, Task, TaskAction, TaskEventKind, TaskStep
 from services.sequencer.client import TaskClient
 from services.sequencer.config import REQUIRED_SERVICES
 from services.sequencer.progress import ProgressView
@@ -91,9 +91,9 @@ def with_folds(task: Task, fold_out: bool, fold_in: bool) -> Task:
     """``task`` with a fold_out step first and/or a fold_in step last."""
     steps = list(task.steps)
     if fold_out:
-        steps.insert(0, TaskStep(kind="fold_out", where="--fold-out"))
+        steps.insert(0, TaskStep(kind=StepKind.FOLD_OUT, where="--fold-out"))
     if fold_in:
-        steps.append(TaskStep(kind="fold_in", where="--fold-in"))
+        steps.append(TaskStep(kind=StepKind.FOLD_IN, where="--fold-in"))
     return Task(steps=steps, name=task.name, mode=task.mode)
 
 
@@ -138,10 +138,10 @@ def run(args: argparse.Namespace) -> int:
             why = "interrupted" if stop.is_set() else f"no end within {args.timeout:g} s"
             _err(f"manus run: {why}: cancelling task {reply.task_id}")
             with contextlib.suppress(QueryError):
-                client.control("cancel", reply.task_id)
+                client.control(TaskAction.CANCEL, reply.task_id)
             client.follow(reply.task_id, view.show, timeout=10.0)
             return 130 if stop.is_set() else 1
-        if final.event != "succeeded":
+        if final.event != TaskEventKind.SUCCEEDED:
             _err(f"manus run: task {final.event}: {final.reason}")
             return 1
         _out(f"task {reply.task_id}: succeeded")

@@ -4,12 +4,13 @@ Its wiring map (:data:`services.sequencer.wiring.WIRING`): the queryables task c
 and status (TaskControl -> TaskStatus: cancel, pause, resume, status); the task events
 and, while a task runs, the deadman heartbeat (one per joint state) out; joint states,
 bridge states, controller feedback and results and e-stops in. Besides: task submission
-(Task -> SubmitReply: validates the whole task, asking the planner for every move, before
-anything moves) and the liveliness tokens.
+(Task -> SubmitReply: the core validates the whole task, asking the planner for every
+move, before anything moves; the handler waits for the core's :class:`Reply`) and the
+liveliness tokens.
 
-The core's queries run one at a time, in order, on a worker thread (never under the node
-lock, so the callbacks that carry results keep flowing); a ticker feeds the core the
-time every 50 ms (waits, timeouts).
+The core's queries (the validation's plan requests included) run one at a time, in order,
+on a worker thread (never under the node lock, so the callbacks that carry results keep
+flowing); a ticker feeds the core the time every 50 ms (waits, timeouts).
 """
 
 from __future__ import annotations
@@ -18,21 +19,17 @@ import logging
 import queue
 import threading
 import uuid
+from concurrent.futures import Future
 
 import zenoh
 
 from manus.node import Node, QueryError, now_ns
 from manus.session import ZenohSettings
 from schemas import endpoints as ep
-from schemas.planning import PlanReply
-from schemas.sequencing import SubmitReply, Task, TaskControl
+from schemas.sequencing import SubmitReply, Task, TaskAction, TaskControl
+from services.sequencer.actions import Action, Query, Reply
 from services.sequencer.config import SequencerConfig
-from services.sequencer.core import (
-    Action,
-    Query,
-    SequencerCore,
-)
-from services.sequencer.validate import Validator
+from services.sequencer.core import SequencerCore
 from services.sequencer.wiring import WIRING
 
 log = logging.getLogger("manus.sequencer")
@@ -48,7 +45,8 @@ class SequencerShell:
         settings: how to reach the bus (its prefix roots the keys).
         config: sequencer settings.
         session: an open session to share (not closed by :meth:`close`).
-        query_timeout: how long to wait for each service's answer [s].
+        query_timeout: how long to wait for each service's answer [s] (a submission: for
+            each of its steps, and once more).
     """
 
     def __init__(
@@ -65,6 +63,7 @@ class SequencerShell:
         self.submitted = 0
         self.refused = 0
         self._queries: queue.Queue[Query | None] = queue.Queue()
+        self._answers: dict[str, Future[SubmitReply]] = {}  # submissions waiting
         self._stop = threading.Event()
         self._publish = WIRING.attach(self.node, self.core, self._do)
         self.node.watch_liveliness(self._on_alive)
@@ -80,41 +79,42 @@ class SequencerShell:
     def _on_alive(self, service: str, alive: bool) -> None:
         self._do(self.core.on_liveliness(service, alive, now_ns()))
 
-    # -- submit: validate the whole task, then start it --------------------------------------
+    # -- submit: the core validates the whole task, then starts it -------------------------
 
     def _on_submit(self, task: Task) -> SubmitReply:
+        task_id = uuid.uuid4().hex[:8]
+        reply = self._submit(task, task_id)
         with self.node.lock:
-            refused = self.core.refuse(task)
-            start = self.core.start_configuration()
-        if refused is not None:
-            return self._refuse(refused)
-        validator = Validator(task, start)
-        while (request := validator.next_request()) is not None:
-            try:
-                reply = self.node.query(
-                    self.node.keys(ep.PLAN), request, PlanReply, timeout=self.query_timeout
-                )
-            except QueryError as exc:
-                validator.on_reply(None, str(exc))
+            if reply.accepted:
+                self.submitted += 1
             else:
-                validator.on_reply(reply)
-        if validator.errors:
-            return self._refuse(SubmitReply(accepted=False, task_id="", errors=validator.errors))
-        with self.node.lock:
-            refused = self.core.refuse(task)  # things may have changed while planning
-            if refused is not None:
-                return self._refuse(refused)
-            task_id = uuid.uuid4().hex[:8]
-            self.submitted += 1
+                self.refused += 1
+        if reply.accepted:
             log.info("task %s (%s): %d steps", task_id, task.name, len(task.steps))
-            self._do(self.core.start(task_id, task, now_ns()))
-        return SubmitReply(accepted=True, task_id=task_id)
-
-    def _refuse(self, reply: SubmitReply) -> SubmitReply:
-        with self.node.lock:
-            self.refused += 1
-        log.info("refused a task: %s", "; ".join(reply.errors))
+        else:
+            log.info("refused a task: %s", "; ".join(reply.errors))
         return reply
+
+    def _submit(self, task: Task, task_id: str) -> SubmitReply:
+        """Hand ``task`` to the core and wait for its :class:`Reply` (the query worker
+        carries the plan requests meanwhile); withdrawn when it takes longer than
+        ``query_timeout`` per step, plus one."""
+        answer: Future[SubmitReply] = Future()
+        bound = self.query_timeout * (len(task.steps) + 1)
+        try:
+            with self.node.lock:
+                self._answers[task_id] = answer
+                self._do(self.core.submit(task, now_ns(), task_id))
+            try:
+                return answer.result(timeout=bound)
+            except TimeoutError:
+                why = f"validation did not finish within {bound:g} s (is the planner overloaded?)"
+                with self.node.lock:
+                    self._do(self.core.withdraw(task_id, now_ns(), why))
+                return answer.result(timeout=0)  # withdrawn, or answered just before
+        finally:
+            with self.node.lock:
+                self._answers.pop(task_id, None)
 
     # -- outputs -----------------------------------------------------------------------------
 
@@ -123,6 +123,10 @@ class SequencerShell:
         for action in actions:
             if isinstance(action, Query):
                 self._queries.put(action)
+            elif isinstance(action, Reply):
+                answer = self._answers.pop(action.submission, None)
+                if answer is not None:
+                    answer.set_result(action.reply)
 
     def _work(self) -> None:
         while True:
@@ -149,8 +153,11 @@ class SequencerShell:
     def close(self) -> None:
         """Stop the threads and leave the bus (a running task's goal is cancelled first)."""
         with self.node.lock:
+            if self.core.validating:
+                why = "the sequencer is shutting down"
+                self._do(self.core.withdraw(self.core.validating, now_ns(), why))
             if self.core.busy:
-                _, actions = self.core.control(TaskControl(action="cancel"), now_ns())
+                _, actions = self.core.control(TaskControl(action=TaskAction.CANCEL), now_ns())
                 self._do(actions)
         self._stop.set()
         self._queries.put(None)

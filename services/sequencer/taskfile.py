@@ -1,6 +1,6 @@
 """Task scripts -> :class:`schemas.sequencing.Task`: the thesis form and TOML task files.
 
-**Thesis form** (SPEC 7, thesis 4.2.2): via-point files and gripper openings [mm],
+**Thesis form** (docs/protocol.md, Thesis task form): via-point files and gripper openings [mm],
 alternating, in execution order, as on the thesis's command line::
 
     manus run paths/thesis_square.txt 40 paths/thesis_circle.txt 0
@@ -49,7 +49,7 @@ from typing import Any
 from manus.errors import ManusError
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
-from schemas.sequencing import Task, TaskStep
+from schemas.sequencing import StepKind, Task, TaskStep
 from services.sequencer.poses import POSES
 
 MAX_OPENING_MM = 90.0
@@ -61,14 +61,14 @@ MAX_WAIT_S = 3600.0
 DEFAULT_POSE_DURATION_S = 4.0
 """Shortest time of a move to a named pose unless the step says otherwise [s]."""
 
-KINDS = ("move", "gripper", "fold_in", "fold_out", "wait", "pose")
-OPTIONS = {
-    "move": ("interpolation", "speed_scaling"),
-    "pose": ("interpolation", "duration"),
-    "gripper": (),
-    "fold_in": (),
-    "fold_out": (),
-    "wait": (),
+KINDS = tuple(StepKind)
+OPTIONS: dict[str, tuple[str, ...]] = {
+    StepKind.MOVE: ("interpolation", "speed_scaling"),
+    StepKind.POSE: ("interpolation", "duration"),
+    StepKind.GRIPPER: (),
+    StepKind.FOLD_IN: (),
+    StepKind.FOLD_OUT: (),
+    StepKind.WAIT: (),
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -102,14 +102,14 @@ def task_from_args(words: Sequence[str], *, name: str = "", mode: str = "default
             problem = _opening_problem(opening_mm)
             if problem:
                 errors.append(f"{where}: step {i}: {problem}")
-            steps.append(TaskStep(kind="gripper", opening=opening_mm * 1e-3, where=where))
+            steps.append(TaskStep(kind=StepKind.GRIPPER, opening=opening_mm * 1e-3, where=where))
             continue
         try:
             path = load_path(word)
         except ViaPointError as exc:
             errors.append(f"{where}: step {i}: {exc}")
             continue
-        steps.append(TaskStep(kind="move", path=path, where=word))
+        steps.append(TaskStep(kind=StepKind.MOVE, path=path, where=word))
     if errors:
         raise TaskFileError(errors)
     return Task(steps=steps, name=name or " ".join(words), mode=mode)
@@ -226,13 +226,13 @@ class _StepContext:
         value = raw[kind]
         where = self.where(kind)
         step: TaskStep | None
-        if kind == "move":
+        if kind == StepKind.MOVE:
             step = self._move(value, where, errors, options)
-        elif kind == "gripper":
+        elif kind == StepKind.GRIPPER:
             step = self._gripper(value, where, errors)
-        elif kind == "wait":
+        elif kind == StepKind.WAIT:
             step = self._wait(value, where, errors)
-        elif kind == "pose":
+        elif kind == StepKind.POSE:
             step = self._pose(value, where, errors, options)
         else:
             step = TaskStep(kind=kind, where=where)
@@ -302,7 +302,7 @@ class _StepContext:
         except ViaPointError as exc:
             self.error(errors, "move", "move", str(exc))
             return None
-        return TaskStep(kind="move", path=path, where=where, **(options or {}))
+        return TaskStep(kind=StepKind.MOVE, path=path, where=where, **(options or {}))
 
     def _inline(self, rows: list[Any]) -> Any:
         start = _key_line(self.lines, "move", self.first, self.last)
@@ -342,13 +342,13 @@ class _StepContext:
         if problem:
             self.error(errors, "gripper", "gripper", problem)
             return None
-        return TaskStep(kind="gripper", opening=float(value) * 1e-3, where=where)
+        return TaskStep(kind=StepKind.GRIPPER, opening=float(value) * 1e-3, where=where)
 
     def _wait(self, value: Any, where: str, errors: list[str]) -> TaskStep | None:
         if not _is_number(value) or not 0.0 <= float(value) <= MAX_WAIT_S:
             self.error(errors, "wait", "wait", f"wait {value!r} s is outside 0..{MAX_WAIT_S:g} s")
             return None
-        return TaskStep(kind="wait", duration=float(value), where=where)
+        return TaskStep(kind=StepKind.WAIT, duration=float(value), where=where)
 
     def _pose(
         self, value: Any, where: str, errors: list[str], options: dict[str, Any] | None
@@ -360,7 +360,7 @@ class _StepContext:
             return None
         opts = dict(options or {})
         duration = opts.pop("duration", DEFAULT_POSE_DURATION_S)
-        return TaskStep(kind="pose", pose=value, duration=duration, where=where, **opts)
+        return TaskStep(kind=StepKind.POSE, pose=value, duration=duration, where=where, **opts)
 
 
 def _is_number(value: Any) -> bool:

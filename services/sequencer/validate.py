@@ -1,35 +1,24 @@
-"""Whole-task validation before anything moves (deterministic; the shell asks the planner).
+"""Whole-task validation before anything moves (deterministic; the core asks the planner).
 
 Every step is checked on its own (openings in range, known pose names, via points that
-obey SPEC 5.1), and every move is planned from where the previous steps leave the arm:
-the arm's current configuration at first, the fold poses after a fold, the last knot of
-the previous plan after a move. The :class:`Validator` hands out one
-:class:`~schemas.planning.PlanRequest` at a time (with an explicit ``start``) and takes
-the planner's reply; when it has none left, :attr:`Validator.errors` lists every problem
-in step order, each as ``<where>: step N (kind): <problem>``.
+obey the via-point rules: each kind's :meth:`~services.sequencer.steps.Step.problems`),
+and every move is planned from where the previous steps leave the arm: the arm's current
+configuration at first, the fold poses after a fold, the last knot of the previous plan
+after a move. The :class:`Validator` hands out one :class:`~schemas.planning.PlanRequest`
+at a time (with an explicit ``start``) and takes the planner's reply; when it has none
+left, :attr:`Validator.errors` lists every problem in step order, each as
+``<where>: step N (kind): <problem>``. :meth:`SequencerCore.submit
+<services.sequencer.core.SequencerCore.submit>` drives it.
 """
 
 from __future__ import annotations
 
 import math
 
-from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG
-from manus.viapoints import ViaPointError, validate_path
-from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
-from schemas.sequencing import Task, TaskStep
-from services.sequencer.poses import POSES, pose_path
-
-MAX_OPENING_M = 0.090
-"""Largest gripper opening [m]."""
-
-MAX_WAIT_S = 3600.0
-"""Longest wait [s]."""
-
-FOLD_END = {
-    "fold_out": [math.radians(v) for v in UNFOLDED_Q_DEG],
-    "fold_in": [math.radians(v) for v in FOLDED_Q_DEG],
-}
-"""Where a fold leaves the arm (DH joint angles [rad])."""
+from manus.config import ArmConfig
+from schemas.planning import PlanReply, PlanRequest, Trajectory
+from schemas.sequencing import StepKind, Task, TaskStep
+from services.sequencer.steps import FOLD_END, STEP_TYPES
 
 
 def step_label(step: TaskStep, index: int) -> str:
@@ -38,78 +27,22 @@ def step_label(step: TaskStep, index: int) -> str:
     return f"{head}step {index + 1} ({step.kind})"
 
 
-def step_path(step: TaskStep, start: list[float] | None = None) -> Path | None:
-    """The path a move or pose step follows from ``start`` (None for other kinds or a bad
-    pose name)."""
-    if step.kind == "move":
-        return step.path
-    if step.kind == "pose" and step.pose in POSES and step.duration > 0.0:
-        return pose_path(step.pose, step.duration, start=start)
-    return None
-
-
-def plan_request(
-    step: TaskStep, start: list[float] | None, path: Path | None = None
-) -> PlanRequest:
-    """The request that plans ``step`` (or ``path`` instead of its own) from ``start``.
-
-    A pose step always asks for speed scaling: its duration is a shortest time.
-    """
-    chosen = path if path is not None else step_path(step, start)
-    assert chosen is not None, "only move and pose steps are planned"
-    return PlanRequest(
-        path=chosen,
-        start=start,
-        interpolation=step.interpolation,
-        speed_scaling=step.speed_scaling or step.kind == "pose",
-        preview_dt=0.0,
-    )
-
-
-def static_problems(step: TaskStep) -> list[str]:
-    """What is wrong with ``step`` by itself (no planning)."""
-    kind = step.kind
-    if kind == "move":
-        if step.path is None:
-            return ["a move step needs a path"]
-        try:
-            validate_path(step.path)
-        except ViaPointError as exc:
-            return [str(exc)]
-        return []
-    if kind == "gripper":
-        if not 0.0 <= step.opening <= MAX_OPENING_M:
-            mm, top = step.opening * 1e3, MAX_OPENING_M * 1e3
-            return [f"gripper opening {mm:g} mm is outside 0..{top:g} mm"]
-        return []
-    if kind == "wait":
-        if not 0.0 <= step.duration <= MAX_WAIT_S:
-            return [f"wait {step.duration:g} s is outside 0..{MAX_WAIT_S:g} s"]
-        return []
-    if kind == "pose":
-        problems = []
-        if step.pose not in POSES:
-            problems.append(f"unknown pose {step.pose!r} (known: {', '.join(POSES)})")
-        if not 0.0 < step.duration <= MAX_WAIT_S:
-            problems.append(f"pose duration {step.duration:g} s is outside (0, {MAX_WAIT_S:g}] s")
-        return problems
-    return []
-
-
 class Validator:
     """Checks a whole task; plans its moves one request at a time.
 
     Args:
         task: the task.
         start: the arm's configuration now (DH [rad]); None: unknown (no joint state).
+        arm: the arm's geometry (named poses become via points by its kinematics).
 
     Use: ``while (req := v.next_request()) is not None: v.on_reply(ask(req))``, with
     ``on_reply(None, error)`` when the planner could not be asked; then :attr:`errors`.
     :attr:`plans` holds each planned step's trajectory (index -> Trajectory).
     """
 
-    def __init__(self, task: Task, start: list[float] | None) -> None:
+    def __init__(self, task: Task, start: list[float] | None, arm: ArmConfig) -> None:
         self.task = task
+        self.arm = arm
         self._problems: list[list[str]] = [[] for _ in task.steps]
         self.plans: dict[int, Trajectory] = {}
         self._q: list[float] | None = list(start) if start is not None else None
@@ -122,7 +55,7 @@ class Validator:
         else:
             self._top = []
         for i, step in enumerate(task.steps):
-            self._problems[i].extend(static_problems(step))
+            self._problems[i].extend(STEP_TYPES[step.kind].problems(step))
 
     @property
     def errors(self) -> list[str]:
@@ -141,10 +74,12 @@ class Validator:
             i = self._cursor
             step = steps[i]
             self._cursor += 1
-            if step.kind in FOLD_END:
-                self._q = list(FOLD_END[step.kind])
+            kind = STEP_TYPES[step.kind]
+            end = kind.leaves_arm_at(step)
+            if end is not None:
+                self._q = end
                 continue
-            if step.kind not in ("move", "pose"):
+            if not kind.planned:
                 continue
             if self._problems[i]:
                 self._q, self._unknown = None, f"step {i + 1} is invalid"
@@ -156,7 +91,7 @@ class Validator:
                 self._problems[i].append(f"not planned: its start is unknown ({self._unknown})")
                 continue
             self._asked = i
-            return plan_request(step, self._q)
+            return kind.plan(step, self._q, self.arm)
         return None
 
     def on_reply(self, reply: PlanReply | None, error: str = "") -> None:
@@ -172,7 +107,7 @@ class Validator:
             message = reply.error.message if reply.error is not None else "no trajectory"
             reason = reply.error.reason if reply.error is not None else "invalid"
             self._problems[i].append(f"planner refused ({reason}): {message}")
-            if self._q is not None and _near(self._q, FOLD_END["fold_in"]):
+            if self._q is not None and _near(self._q, FOLD_END[StepKind.FOLD_IN]):
                 self._problems[i].append(
                     "the arm is folded there: unfold it first (a fold_out step; "
                     "`manus run --fold-out ...` for the thesis form)"

@@ -4,8 +4,9 @@ Drives the live shell (:mod:`.shell`) and the lock-step harness
 (``manus_stack.task_lockstep``). The core's outputs are :data:`~.core.Action` values:
 :class:`~.core.Publish` ones are its publications (task events, the deadman heartbeat);
 :class:`~.core.Query` ones are requests to other services, carried by the shell's worker
-(live) or answered by the owning core (lock-step). Liveliness changes come from the
-node's token watch.
+(live) or answered by the owning core (lock-step); :class:`~.actions.Reply` ones (a
+``Publish`` subclass) answer a submission, to its submitter only, not published.
+Liveliness changes come from the node's token watch.
 """
 
 from __future__ import annotations
@@ -15,12 +16,18 @@ from collections.abc import Iterable
 from manus.wiring import Answer, Input, Wiring
 from schemas import endpoints as ep
 from schemas.base import Message
-from services.sequencer.core import Action, Publish, SequencerCore
+from services.sequencer.actions import Action, Publish, Reply
+from services.sequencer.core import SequencerCore
 
 
 def publications(actions: Iterable[Action]) -> list[tuple[str, Message]]:
-    """The :class:`Publish` actions among ``actions``, as (key suffix, message)."""
-    return [(a.suffix, a.message) for a in actions if isinstance(a, Publish)]
+    """The :class:`Publish` actions among ``actions`` (a :class:`Reply` is not one: it
+    goes to one submitter), as (key suffix, message)."""
+    return [
+        (a.suffix, a.message)
+        for a in actions
+        if isinstance(a, Publish) and not isinstance(a, Reply)
+    ]
 
 
 WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
@@ -36,7 +43,10 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
     answers=(
         Answer(ep.TASK_CONTROL, lambda core, req, t: core.control(req, t)),
         Answer(ep.TASK_STATUS, lambda core, req, t: (core.status(), [])),
+        Answer(ep.HISTORY, lambda core, req, t: (core.history(req.limit), [])),
     ),
 )
-"""The sequencer's wiring map (``sequencer/submit`` is the shell's: it waits for the
-planner's answers, see :meth:`.shell.SequencerShell._on_submit`)."""
+"""The sequencer's wiring map. ``sequencer/submit`` is not among its answers: the core
+answers a submission later (:meth:`SequencerCore.submit` -> plan queries -> a
+:class:`~.actions.Reply`); the shell's handler waits for that reply
+(:meth:`.shell.SequencerShell._on_submit`) and the lock-step harness collects it."""

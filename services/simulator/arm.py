@@ -2,7 +2,7 @@
 
 State lives in motor (encoder) space [deg], because that is what the drives integrate and
 what the encoders measure; DH angles come from :mod:`manus.joint_map` (joint 3's DH angle
-moves with motor 2, SPEC 2.2). Per step:
+moves with motor 2: docs/protocol.md, Encoder map). Per step:
 
 1. target motor speeds (already multiplied by each joint's gain error) through the
    first-order lag (:func:`~services.simulator.drives.lag_step`), or, in a fold procedure,
@@ -89,10 +89,6 @@ class Intent:
     checks: bool = True
 
 
-HOLD = Intent(np.zeros(6))
-"""Ask nothing: the motors coast down to rest through the lag."""
-
-
 class StepResult(NamedTuple):
     """The outcome of one step.
 
@@ -132,10 +128,6 @@ class ArmModel:
         """At rest in the configured start pose, every belt's slack centred."""
         e = dh_to_motor_deg(np.asarray(self.config.start_q_deg, dtype=float))
         return ArmState(e, np.zeros(6), e.copy(), self.config.start_gripper_mm, 0.0)
-
-    def q_motor_deg(self, state: ArmState) -> np.ndarray:
-        """DH angles the (unquantised) motor angles stand for [deg], shape (6,)."""
-        return motor_to_dh_deg(state.motor_deg)
 
     def q_true_deg(self, state: ArmState) -> np.ndarray:
         """True DH joint angles [deg]: belt outputs; joint 1 moves (1 + scale error) times

@@ -1,6 +1,6 @@
 """The simulator's configuration: every model number in one frozen, validated dataclass.
 
-Layers (STYLE 9): defaults < JSON file (``--config`` or ``$MANUS_SIM_CONFIG``) < command
+Layers: defaults < JSON file (``--config`` or ``$MANUS_SIM_CONFIG``) < command
 line (``--seed``). File keys are the field names below (units in the names); ``arm`` takes
 :meth:`manus.config.ArmConfig.from_mapping` keys (mm, deg) and ``faults`` the families of
 :class:`services.simulator.faults.FaultConfig`. Unknown keys are an error.
@@ -72,7 +72,8 @@ class SimConfig:
         joint1_scale_error: joint 1 turns (1 + this) times its motor's motion from the
             power-up pose (where the absolute angles are right) [-].
         stale_encoders_deg: what the joint 4-6 fields report until ``stale_duration_ms``
-            after the first command moving joints 4-6 (thesis Table 4.1) [deg].
+            after the first command moving joints 4-6 (docs/protocol.md, Thesis stale
+            encoders) [deg].
         stale_duration_ms: see ``stale_encoders_deg`` [ms].
         gripper_ready_ms: time of the general message "gripper ready" [ms].
         angles_measured_ms: time of "absolute angles measured"; no motion command is

@@ -1,6 +1,7 @@
 """The arm's command execution: from the latched reply to mode, fold and drive intents.
 
-What the Manus electronics do with the one reply latched per cycle (SPEC 3.3):
+What the Manus electronics do with the one reply latched per cycle (docs/protocol.md, Replies
+from the PC):
 
 - 0x374 / 0x371: joint (mode 4) or Cartesian (mode 1) move, repeated until replaced;
   position fields become meaningful from the first one on.

@@ -4,7 +4,7 @@
     manus sim --device-file /tmp/manus.dev     # ... and writes the device path there
     manus sim --can-interface slcan-pty --can-channel /tmp/manus-can   # ... plus a symlink
     manus sim --can-interface virtual --can-channel manus   # any python-can interface
-    manus sim --step-response fig51.png        # thesis Figure 5.1 in lock-step, then exit
+    manus sim --step-response fig51.png        # the thesis's step response, then exit
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
@@ -94,7 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--step-response",
         metavar="PNG",
-        help="write the joint 2 step-response plot (thesis Figure 5.1) and exit",
+        help="write the joint 2 step-response plot (the thesis's experiment) and exit",
     )
 
 

@@ -1,8 +1,8 @@
 """The arm's message channel: one (class, code) in each cycle's 0x350 status frame.
 
-Priority (SPEC 3.2 bits 7-6): a latched error, else a warning that held during the
-cycle (the lowest code if several), else the oldest pending general message (each
-general message is reported once: "gripper ready", "absolute angles measured", "arm
+Priority (docs/protocol.md, Status byte: bits 7-6): a latched error, else a warning that
+held during the cycle (the lowest code if several), else the oldest pending general message
+(each general message is reported once: "gripper ready", "absolute angles measured", "arm
 folded", "arm unfolded"), else none.
 """
 

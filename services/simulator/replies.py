@@ -1,10 +1,11 @@
 """What the arm makes of a frame from the PC: a reply it can latch, or a reason to ignore it.
 
-SPEC 3.3: 0x370 stop, 0x375 fold out and 0x376 fold in carry no data (DLC 0); 0x371
-Cartesian and 0x374 joint moves carry eight signed bytes. An increment beyond its range is
-clamped to the range and reported as warning 7 ("unspecified warning 7: increment out of
-range, clamped" - the real arm's reaction is undocumented). A DLC-0 frame with the id of
-0x350 or 0x360 is an acknowledgement some PC programs send: accepted and ignored.
+docs/protocol.md, Replies from the PC: 0x370 stop, 0x375 fold out and 0x376 fold in carry no
+data (DLC 0); 0x371 Cartesian and 0x374 joint moves carry eight signed bytes. An increment
+beyond its range is clamped to the range and reported as warning 7 ("unspecified warning 7:
+increment out of range, clamped" - the real arm's reaction is undocumented). A DLC-0 frame
+with the id of 0x350 or 0x360 is an acknowledgement some PC programs send: accepted and
+ignored.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ class Reply:
 
 
 def clamp_move(cmd: MoveCommand) -> tuple[MoveCommand, bool]:
-    """``cmd`` with every increment clamped to its SPEC 3.3 range, and whether any was."""
+    """``cmd`` with every increment clamped to its range, and whether any was."""
     values = (cmd.lift, *cmd.axes, cmd.gripper)
     limits = move_limits(cmd.frame_id)
     clamped = tuple(max(-lim, min(lim, v)) for v, lim in zip(values, limits, strict=True))

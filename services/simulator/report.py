@@ -6,7 +6,7 @@ simulator's model of the 80C552 (docs/architecture.md, Time). Fields by situatio
 - no move mode yet (no 0x374/0x371 since power-up): garbage (seeded noise or 0x7FFF);
 - Cartesian mode: X, Y, Z [0.022 mm] and yaw, pitch, roll [0.1 deg] of the motor angles;
 - otherwise: motor angles [0.1 deg], joints 4-6 replaced by their stale power-up values
-  until they have been moved (thesis Table 4.1);
+  until they have been moved (docs/protocol.md, Thesis stale encoders);
 - gripper opening [0.1 mm] (garbage too before a move mode).
 """
 

@@ -1,11 +1,12 @@
-"""Thesis Figure 5.1 again: joint 2's response to each of the ten speed commands.
+"""The thesis's step response again: joint 2's response to each of the ten speed commands.
 
 For each speed n = 1..10 counts (0.1 deg per 20 ms each, 5..50 deg/s) a fresh simulator
 starts with the arm fully stretched and horizontal (DH q = (0, 0, 90, 0, 0, 0)); a
 scripted PC waits for "absolute angles measured", enters joint mode with a zero 0x374,
 then sends the constant joint-2 command n at every sync. t = 0 is the tick at which the
 command becomes active (as in the thesis: the joint stays still for 60 ms, the first-motion
-delay, then reaches its speed through the ~60 ms transient). Joint 2's motor angle change
+delay, then reaches its speed through the ~60 ms transient; docs/protocol.md, Thesis step
+response). Joint 2's motor angle change
 is sampled as the encoder reports it (0x350, once per 60 ms) and as the truth (every 5 ms).
 """
 
@@ -109,7 +110,7 @@ def plot_step_response(path: str | Path, config: SimConfig | None = None) -> Pat
     ax.set_xlabel("time since the step [ms]")
     ax.set_ylabel("joint 2 angle change [deg]")
     ax.set_title(
-        "Step response of joint 2 (simulated; cf. thesis Figure 5.1)\n"
+        "Step response of joint 2 (simulated; cf. the thesis's figure)\n"
         "solid: true angle; dots and dashed steps: encoder, every 60 ms"
     )
     ax.grid(True, alpha=0.3)

@@ -1,4 +1,4 @@
-"""Where the arm may go: joint limits, the fully stretched elbow, the forbidden work area.
+"""Where the arm may go: the fully stretched elbow and the forbidden work area.
 
 Pure functions in DH joint angles [deg] and gripper positions [mm]. Each "violation" is a
 non-negative depth into a forbidden region (0 = allowed); the arm refuses a motion that
@@ -40,11 +40,3 @@ def area_violation(xyz_mm: np.ndarray, floor_z_mm: float, base_radius_mm: float)
     below = floor_z_mm - float(xyz_mm[2])
     inside = base_radius_mm - math.hypot(float(xyz_mm[0]), float(xyz_mm[1]))
     return max(0.0, below, inside)
-
-
-def limit_excess(q_deg: np.ndarray, lower_deg: np.ndarray, upper_deg: np.ndarray) -> np.ndarray:
-    """Signed excess of each joint beyond its limits [deg], shape (6,).
-
-    Positive above the upper limit, negative below the lower one, 0 inside.
-    """
-    return np.asarray(np.maximum(q_deg - upper_deg, 0.0) + np.minimum(q_deg - lower_deg, 0.0))
