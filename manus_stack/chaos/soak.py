@@ -34,7 +34,7 @@ from manus_stack.chaos.watch import Watcher, digest
 from manus_stack.up import Child, LocalStack, StackOptions, port_in_use
 from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
-from schemas.sequencing import SubmitReply, TaskControl, TaskStatus
+from schemas.sequencing import SubmitReply, TaskControl, TaskEvent, TaskStatus
 from schemas.simfault import SimFault, SimFaultReply
 from services.recorder.reading import Recording, decode
 from services.recorder.recover import recover
@@ -103,7 +103,7 @@ class Soak:
             prefix="chaos",
             sim_args=["--truth-log", str(self.truth_log)],
         )
-        self.stack = LocalStack(self.options, out=None)
+        self.stack = LocalStack(self.options)
         self.watcher: Watcher | None = None
         self.lives: list[Life] = []
         self.done: list[Done] = []
@@ -394,16 +394,8 @@ class Soak:
             if fault.stops and not (early and early[0].event != "succeeded"):
                 self._judge_stop(done, truth, fault_sim, sim, violated, stops, row)
             row["final"] = [f"{e.event}: {e.reason}" for e in finals]
-            if fault.event and len(finals) != 1:
-                violated(done, f"{len(finals)} final events (one expected)")
-            elif not fault.event and len(finals) > 1:
-                violated(done, f"{len(finals)} final events (at most one expected)")
-            for e in finals[:1] if not early else []:
-                want = fault.outcome
-                if want is not Outcome.ANY and e.event != want.value:
-                    violated(done, f"task {e.event} ({e.reason!r}), expected {want.value}")
-                elif e.event == "failed" and not judge.names_fault(e.reason, fault.reason):
-                    violated(done, f"the reason {e.reason!r} names none of {list(fault.reason)}")
+            for what in self._judge_final(fault, finals, bool(early)):
+                violated(done, what)
         rec = self._completeness()
         injected = [d for d in self.done if d.fault_ns]
         kinds = sorted({d.round.fault.name for d in injected})
@@ -429,6 +421,22 @@ class Soak:
             "run_dir": str(self.run_dir),
             "load_avg_1min": round(os.getloadavg()[0], 2),
         }
+
+    @staticmethod
+    def _judge_final(fault: FaultKind, finals: list[TaskEvent], early: bool) -> list[str]:
+        """What is wrong with the task's final events (one, naming the fault)."""
+        wrong = []
+        if fault.event and len(finals) != 1:
+            wrong.append(f"{len(finals)} final events (one expected)")
+        elif not fault.event and len(finals) > 1:
+            wrong.append(f"{len(finals)} final events (at most one expected)")
+        for e in finals[:1] if not early else []:
+            want = fault.outcome
+            if want is not Outcome.ANY and e.event != want.value:
+                wrong.append(f"task {e.event} ({e.reason!r}), expected {want.value}")
+            elif e.event == "failed" and not judge.names_fault(e.reason, fault.reason):
+                wrong.append(f"the reason {e.reason!r} names none of {list(fault.reason)}")
+        return wrong
 
     def _judge_stop(
         self,
