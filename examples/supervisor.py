@@ -8,14 +8,19 @@ positions in metres). It
 2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
    the reply is a SubmitReply: a task id, or every validation error),
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
-   pause it after a while and resume it (``<prefix>/sequencer/control``).
+   pause it after a while and resume it (``<prefix>/sequencer/control``),
+4. watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
+   vanishes, the sequencer died and no final event will come, so it stops waiting;
+5. with ``--scene FILE``, first replaces the scene every plan is checked against
+   (``<prefix>/planner/scene``: a SceneUpdate with the file's YAML text; the reply is a
+   SceneReply: the new version, or the error naming line and field).
 
     python examples/supervisor.py --connect tcp/127.0.0.1:7447 paths/thesis_square.txt 40
     python examples/supervisor.py --pause-after 3 --resume-after 2 paths/thesis_square.txt
 
-Exit status: 0 when the task succeeded, 1 when it failed or was cancelled, 2 when it was
-refused. Via-point files are read here (14 columns in mm, deg, s; docs/protocol.md, Thesis
-via-point format) and sent in SI units.
+Exit status: 0 when the task succeeded, 1 when it failed or was cancelled or the
+sequencer vanished (named), 2 when it was refused. Via-point files are read here (14
+columns in mm, deg, s; docs/protocol.md, Thesis via-point format) and sent in SI units.
 """
 
 from __future__ import annotations
@@ -79,6 +84,7 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--resume-after", type=float, default=1.0, metavar="S",
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
+    parser.add_argument("--scene", metavar="FILE", help="replace the scene first (YAML)")
     return parser.parse_args()
 
 
@@ -91,6 +97,10 @@ def open_session(endpoint: str) -> zenoh.Session:
     return zenoh.open(config)
 
 
+GONE: dict[str, Any] = {"event": "sequencer_gone"}
+"""Put in the event queue when the sequencer's liveliness token vanishes."""
+
+
 class Sequencer:
     """The sequencer's API under ``prefix``: liveliness, queries, and its task events."""
 
@@ -101,6 +111,12 @@ class Sequencer:
         session.declare_subscriber(
             f"{prefix}/sequencer/events",
             lambda s: self.events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
+        )
+        # The sequencer's token vanishing (a DELETE sample) means it died: no final event
+        # will come for the task it ran.
+        session.liveliness().declare_subscriber(
+            f"{prefix}/alive/sequencer",
+            lambda s: self.events.put(GONE) if s.kind == zenoh.SampleKind.DELETE else None,
         )
 
     def alive(self) -> set[str]:
@@ -145,6 +161,10 @@ def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
             event = seq.events.get(timeout=0.1)
         except queue.Empty:
             continue
+        if event is GONE:
+            print(f"sequencer gone: its liveliness token {seq.prefix}/alive/sequencer vanished "
+                  f"while task {task_id} ran; its outcome is unknown", flush=True)  # fmt: skip
+            return 1
         if event["task_id"] != task_id or event["event"] == "step_progress":
             continue
         reason = f": {event['reason']}" if event["reason"] else ""
@@ -157,12 +177,26 @@ def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
     return 1
 
 
+def replace_scene(seq: Sequencer, file: str) -> bool:
+    """``planner/scene``: replace the scene every plan is checked against; accepted?"""
+    with open(file, encoding="utf-8") as f:
+        update = {"text": f.read(), "source": file, "base_version": -1}
+    scene = seq.ask("planner/scene", update)
+    if not scene["accepted"]:
+        print(f"scene refused: {scene['error']}", flush=True)
+        return False
+    print(f"scene: version {scene['version']}", flush=True)
+    return True
+
+
 def main() -> int:
     args = parse_args()
     session = open_session(args.connect)
     try:
         seq = Sequencer(session, args.prefix)
         print(f"alive: {', '.join(sorted(seq.alive())) or 'nothing'}", flush=True)
+        if args.scene and not replace_scene(seq, args.scene):
+            return 2
         submitted = seq.ask("sequencer/submit", task_from_words(args.task))
         if not submitted["accepted"]:
             print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)

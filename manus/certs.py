@@ -35,7 +35,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from manus.errors import ConfigError
 
-ARM_USERS = ("controller", "can_bridge", "simulator", "router-base")
+ARM_USERS = ("controller", "can_bridge", "guardian", "simulator", "router-base")
 """Zenoh users of the arm computer's router (``router-base``: the base router's link)."""
 
 BASE_USERS = ("planner", "sequencer", "recorder", "supervisor")

@@ -5,7 +5,9 @@ A :class:`Node` owns one session (from :mod:`manus.session`), declares a livelin
 ``<prefix>/where/<name>/<host>/<pid>``, that says on which computer and process it runs
 (``manus status``); it turns payloads into typed messages. A
 payload that fails to decode is counted per key and logged (at most once a second per
-key), never raised into the core: one bad publisher must not take a service down.
+key), never raised into the core: one bad publisher must not take a service down. A
+service's node also answers ``<prefix>/health/<name>`` with those counts
+(``schemas.health.NodeHealth``, shown by ``manus status``).
 
 Callbacks run on Zenoh's threads. Services serialise them into their core with
 :attr:`Node.lock` (one lock per node), so the core itself needs no locking.
@@ -37,6 +39,7 @@ from manus.errors import ManusError, SchemaError
 from manus.session import ZenohSettings, open_session
 from schemas.base import Message
 from schemas.endpoints import ALIVE
+from schemas.health import NodeHealth
 from schemas.keys import Keys
 
 M = TypeVar("M", bound=Message)
@@ -73,6 +76,8 @@ class Node:
         settings: how to reach the bus; its ``prefix`` roots every key.
         session: an already open session to use instead (not closed by :meth:`close`).
         liveliness: declare the liveliness tokens now (else with :meth:`announce`).
+        pid: the process its ``where`` token names (default: this one; the guardian's
+            reporter names the guardian).
     """
 
     def __init__(
@@ -82,14 +87,19 @@ class Node:
         *,
         session: zenoh.Session | None = None,
         liveliness: bool = True,
+        pid: int | None = None,
     ) -> None:
         self.name = name
+        self.pid = os.getpid() if pid is None else pid
+        """The process the ``where`` token names (another one's for a helper process)."""
         self.settings = settings or ZenohSettings()
         self.keys = Keys(self.settings.prefix)
         self._own_session = session is None
         self.session = session if session is not None else open_session(self.settings)
         self.lock = threading.RLock()
         self.bad_payloads: Counter[str] = Counter()
+        self.handler_errors = 0
+        """Messages that decoded but made a handler raise (logged and dropped)."""
         self.on_bad_payload: Callable[[str], None] | None = None
         """Called with the key after each bad payload is counted (on a Zenoh thread, not
         under :attr:`lock`): a service that reports its health live counts them there."""
@@ -105,11 +115,30 @@ class Node:
         if they are not up yet: a node made with ``liveliness=False`` calls it once its
         queryables are declared, so that whoever sees it alive can query it."""
         if self._token is None:
+            self._entities.append(
+                self.session.declare_queryable(self.keys.health(self.name), self._on_health)
+            )
             live = self.session.liveliness()
             self._token = live.declare_token(self.keys.alive(self.name))
             self._where = live.declare_token(
-                self.keys.where(self.name, socket.gethostname(), os.getpid())
+                self.keys.where(self.name, socket.gethostname(), self.pid)
             )
+
+    def health(self) -> NodeHealth:
+        """The bad input counted so far (``schemas.health``)."""
+        bad = dict(self.bad_payloads)
+        return NodeHealth(
+            service=self.name,
+            host=socket.gethostname(),
+            pid=self.pid,
+            bad_payloads=sum(bad.values()),
+            bad_keys=list(bad),
+            bad_counts=list(bad.values()),
+            handler_errors=self.handler_errors,
+        )
+
+    def _on_health(self, query: zenoh.Query) -> None:
+        query.reply(self.keys.health(self.name), self.health().encode())
 
     # -- publish / subscribe -------------------------------------------------------------
 
@@ -162,6 +191,7 @@ class Node:
                 else:
                     callback(msg, rx)
             except Exception:
+                self.handler_errors += 1
                 log.exception("%s: handler for %s failed", self.name, sample.key_expr)
 
         self._entities.append(self.session.declare_subscriber(key, handler))
@@ -221,6 +251,7 @@ class Node:
                 else:
                     reply = handler(request)
             except Exception as exc:
+                self.handler_errors += 1
                 log.exception("%s: query handler for %s failed", self.name, query.key_expr)
                 query.reply_err(f"{self.name}: internal error: {exc}".encode())
                 return

@@ -42,6 +42,12 @@ class FrameId(IntEnum):
     FOLD_IN = 0x376  # PC -> arm: fold in (likewise)
 
 
+REPLY_IDS = frozenset(
+    {FrameId.STOP, FrameId.CARTESIAN, FrameId.JOINT, FrameId.FOLD_OUT, FrameId.FOLD_IN}
+)
+"""Identifiers of the PC's replies to a sync (the bridge's, the guardian's)."""
+
+
 JOINT_UNIT_DEG = 0.1
 """Position unit of joint fields and of joint increments [deg]."""
 

@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("manus_stack.commands.bench", "benchmarks; prints figures as JSON"),
     "sim": ("services.simulator.main", "the Manus simulator (a python-can peer)"),
     "bridge": ("services.can_bridge.main", "the CAN bridge: owns the bus and the 60 ms cycle"),
+    "guardian": ("services.guardian.main", "stop the arm when a sync goes unanswered (CAN only)"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
     "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
     "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),
@@ -35,6 +36,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("manus_stack.commands.replay", "replay an MCAP onto the bus, or --check a core"),
     "export": ("services.recorder.export_cli", "MCAP -> JSON MCAP (Foxglove), candump .log, info"),
     "plot": ("services.recorder.plot_cli", "plot a recording: yz path, joints, increments, errors"),
+    "scene": ("manus_stack.commands.scene", "draw the arm in its scene, or check a scene file"),
 }
 """Subcommand -> (module, one-line help)."""
 

@@ -71,9 +71,7 @@ class Collected:
         keys = node.keys
         node.subscribe(keys(ep.FEEDBACK), ControllerFeedback, self._on_feedback, locked=False)
         node.subscribe(keys(ep.RESULT), GoalResult, self._on_result, locked=False)
-        node.subscribe(
-            keys(ep.GOAL.trace("request")), TrajectoryGoal, self._on_goal, locked=False
-        )
+        node.subscribe(keys(ep.GOAL.trace("request")), TrajectoryGoal, self._on_goal, locked=False)
 
     def _on_feedback(self, fb: ControllerFeedback, rx_ns: int) -> None:
         if fb.goal_id:

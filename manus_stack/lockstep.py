@@ -13,7 +13,13 @@ path takes a fraction of a second and gives the same result on every run:
 - a core attached with :meth:`LockStep.attach` gets what its service's wiring map
   subscribes, its queryables' requests as their ``trace/<q>/request`` mirrors (its
   answers go out on ``trace/<q>/reply``), as the live shells wire them;
-- the bridge's ``on_tick`` runs every 20 ms.
+- the bridge's ``on_tick`` runs every 20 ms;
+- other PC-side nodes on the bus (:meth:`LockStep.attach_node`, e.g. the guardian) get
+  every frame of the arm and of the bridge, and theirs reach the arm and the bridge, each
+  ``reply_latency_ns`` after it left (CAN broadcast); :meth:`LockStep.pause_bridge` stops
+  the bridge as SIGSTOP would (frames to it wait, messages to it are dropped),
+  :meth:`LockStep.resume_bridge` hands it the waiting frames at once (``kill=True``:
+  never again) and :meth:`LockStep.restart_bridge` starts a new one.
 
 Events at the same instant run in this order: the simulator, then message deliveries (in
 publication order), then the tick.
@@ -25,7 +31,7 @@ import heapq
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from manus.protocol import Frame
 from manus.wiring import Wiring
@@ -46,10 +52,29 @@ TICK_NS = 20_000_000
 C = TypeVar("C")
 
 
+class BusNode(Protocol):
+    """Another PC-side node on the arm's bus (see :meth:`LockStep.attach_node`)."""
+
+    def receive(self, frame: Frame) -> None:
+        """A frame of the arm or of another node, stamped with its arrival time."""
+
+    def next_event_ns(self) -> int | None:
+        """When the node next wants to act [ns] (None: only on a frame)."""
+
+    def advance(self, t_ns: int) -> list[Frame]:
+        """Act at ``t_ns``; returns the frames it sends now."""
+
+
 @dataclass(frozen=True)
 class _Delivery:
     suffix: str
     msg: Message
+
+
+@dataclass(frozen=True)
+class _FrameTo:
+    node: BusNode | None  # None: the bridge
+    frame: Frame
 
 
 class LockStep:
@@ -87,8 +112,15 @@ class LockStep:
         self._t = 0
         self._next_tick = TICK_NS
         self._order = itertools.count()
-        self._queue: list[tuple[int, int, _Delivery]] = []
+        self._queue: list[tuple[int, int, _Delivery | _FrameTo]] = []
         self._subs: dict[str, list[Handler]] = {}
+        self.nodes: list[BusNode] = []
+        """Other PC-side nodes on the bus (:meth:`attach_node`)."""
+        self.node_frames: list[Frame] = []
+        """Every frame the other nodes sent (stamped with its send time)."""
+        self._bridge_paused = False
+        self._bridge_killed = False
+        self._bridge_backlog: list[Frame] = []
         self._apply(self.bridge.start(0), 0)
 
     @property
@@ -106,6 +138,35 @@ class LockStep:
         ``trace/<q>/reply``), through :meth:`manus.wiring.Wiring.feed`."""
         for suffix in wiring.input_suffixes:
             self.subscribe(suffix, _fed(wiring, core, suffix))
+
+    def attach_node(self, node: BusNode) -> None:
+        """Put another PC-side node on the bus from now on."""
+        self.nodes.append(node)
+
+    def pause_bridge(self, *, kill: bool = False) -> None:
+        """The bridge stops (SIGSTOP; ``kill``: SIGKILL): it gets nothing and sends nothing."""
+        self._bridge_paused = True
+        self._bridge_killed = self._bridge_killed or kill
+
+    def resume_bridge(self) -> None:
+        """SIGCONT: the bridge gets every frame that waited, now, in order."""
+        if self._bridge_killed:
+            raise ValueError("the bridge was killed: it cannot resume")
+        self._bridge_paused = False
+        backlog, self._bridge_backlog = self._bridge_backlog, []
+        for frame in backlog:
+            self._apply(self.bridge.on_frame(frame, self._t), self._t)
+
+    def restart_bridge(self, config: BridgeConfig | None = None) -> None:
+        """A new bridge process takes over now (after a kill): a fresh core, started."""
+        self.bridge = BridgeCore(config or self.bridge.config)
+        self._bridge_paused = self._bridge_killed = False
+        self._bridge_backlog = []
+        self._apply(self.bridge.start(self._t), self._t)
+
+    def bridge_input(self, frame: Frame) -> None:
+        """A frame reaches the bridge now and only the bridge (a corrupted arm frame)."""
+        self._bridge_frame(frame.at(self._t))
 
     def publish(self, suffix: str, msg: Message) -> None:
         """Publish ``msg`` now; it is delivered ``bus_latency_ns`` later."""
@@ -129,18 +190,29 @@ class LockStep:
         while True:
             t_sim = self.sim.next_event_ns()
             t_msg = self._queue[0][0] if self._queue else None
-            t = min(x for x in (t_sim, t_msg, self._next_tick) if x is not None)
+            due = [x for n in self.nodes if (x := n.next_event_ns()) is not None]
+            t_node = min(due, default=None)
+            t = min(x for x in (t_sim, t_msg, self._next_tick, t_node) if x is not None)
             if t > t_ns:
                 break
             self._t = t
             if t == t_sim:
                 for frame in self.sim.advance(t):
                     self.arm_frames.append(frame)
-                    self._apply(self.bridge.on_frame(frame, frame.t_ns), frame.t_ns)
+                    for node in self.nodes:
+                        node.receive(frame)
+                    self._bridge_frame(frame)
             elif t == t_msg:
-                self._deliver(heapq.heappop(self._queue)[2], t)
+                item = heapq.heappop(self._queue)[2]
+                if isinstance(item, _FrameTo):
+                    self._frame_to(item)
+                else:
+                    self._deliver(item, t)
+            elif t == t_node:
+                self._node_events(t)
             else:
-                self._apply(self.bridge.on_tick(t), t)
+                if not self._bridge_paused:
+                    self._apply(self.bridge.on_tick(t), t)
                 self._next_tick += TICK_NS
         self.sim.advance(t_ns)
         self._t = t_ns
@@ -170,10 +242,42 @@ class LockStep:
 
     # -- plumbing -------------------------------------------------------------------------
 
+    def _bridge_frame(self, frame: Frame) -> None:
+        if self._bridge_killed:
+            return
+        if self._bridge_paused:
+            self._bridge_backlog.append(frame)
+            return
+        self._apply(self.bridge.on_frame(frame, frame.t_ns), frame.t_ns)
+
+    def _node_events(self, t: int) -> None:
+        for node in self.nodes:
+            due = node.next_event_ns()
+            if due is None or due > t:
+                continue
+            for frame in node.advance(t):
+                self.node_frames.append(frame.at(t))
+                arrival = frame.at(t + self.reply_latency_ns)
+                self.sim.receive(arrival)
+                for other in [None, *self.nodes]:
+                    if other is not node:
+                        item = _FrameTo(other, arrival)
+                        heapq.heappush(self._queue, (arrival.t_ns, next(self._order), item))
+
+    def _frame_to(self, item: _FrameTo) -> None:
+        if item.node is None:
+            self._bridge_frame(item.frame)
+        else:
+            item.node.receive(item.frame)
+
     def _apply(self, out: Outputs, now_ns: int) -> None:
         for frame in out.frames:
             self.bridge_frames.append(frame.at(now_ns))
             self.sim.receive(frame.at(now_ns + self.reply_latency_ns))
+            arrival = frame.at(now_ns + self.reply_latency_ns)
+            for node in self.nodes:
+                item = _FrameTo(node, arrival)
+                heapq.heappush(self._queue, (arrival.t_ns, next(self._order), item))
         for suffix, msg in BRIDGE.published(out):
             self._publish(suffix, msg, now_ns)
 
@@ -185,7 +289,7 @@ class LockStep:
 
     def _deliver(self, d: _Delivery, t: int) -> None:
         bridge_input = BRIDGE.input(d.suffix)
-        if bridge_input is not None:
+        if bridge_input is not None and not self._bridge_paused:  # a stopped bridge takes none
             self._apply(bridge_input.handle(self.bridge, d.msg, t), t)
         for handler in self._subs.get(d.suffix, ()):
             for suffix, msg in handler(d.msg, t):

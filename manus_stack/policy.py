@@ -7,7 +7,8 @@ computer's router by its certificate and user name) gets exactly what it owns:
 - ``put`` / ``delete`` on its own publications and on the ``trace/`` mirrors of its own
   queryables (``estop``: every identity);
 - ``declare_queryable`` and ``reply`` on its own queryables only: a rogue client cannot
-  answer ``planner/plan`` in the planner's place;
+  answer ``planner/plan`` in the planner's place (of a per-service root such as
+  ``health``: on ``health/<itself>`` only);
 - ``liveliness_token`` on ``alive/<itself>`` and ``where/<itself>/**`` only: it cannot
   make the sequencer believe a dead controller lives;
 - ``query`` on the queryables open to it (``Endpoint.clients``; by default every
@@ -34,7 +35,16 @@ from pathlib import Path
 from typing import Any
 
 from manus.certs import ARM_USERS, BASE_USERS
-from schemas.endpoints import ALIVE, ANYONE, TABLE, TRACE_PARTS, WHERE, Endpoint, Kind
+from schemas.endpoints import (
+    ALIVE,
+    ANYONE,
+    EACH_SERVICE,
+    TABLE,
+    TRACE_PARTS,
+    WHERE,
+    Endpoint,
+    Kind,
+)
 
 ZENOH_DIR = Path(__file__).resolve().parent.parent / "deploy" / "zenoh"
 BEGIN = "  // BEGIN access control, generated from schemas/endpoints.py by"
@@ -65,8 +75,10 @@ def permissions(identity: str) -> dict[str, list[str]]:
             if e.owner == identity:
                 declare.append(_key(e))
                 put += [_key(e.trace(part)) for part in TRACE_PARTS]
+            elif e.owner == EACH_SERVICE and identity != "supervisor":
+                declare.append(_key(f"{e}/{identity}"))  # its own one (health/<itself>)
             if _may_query(e, identity):
-                query.append(_key(e))
+                query.append(_key(e) if e.owner != EACH_SERVICE else _key(f"{e}/**"))
     tokens = [_key(f"{ALIVE}/{identity}"), _key(f"{WHERE}/{identity}/**")]
     return {
         "put": put,

@@ -11,8 +11,8 @@ Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), 
 through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
 its queryables' mirrored requests in; its publications and mirrored replies out.
 
-- ``planner``: joint states and plan requests in, plan replies out (``compute_ms`` is
-  wall time and is not compared).
+- ``planner``: joint states, plan requests and scene updates in, plan and scene replies
+  out (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat and the
   controller's query requests in; commands, feedback, results and the query replies out.
 

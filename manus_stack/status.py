@@ -2,9 +2,10 @@
 
 :func:`collect` asks the bus once: the liveliness tokens ``alive/<service>`` (which
 services are up), ``where/<service>/<host>/<pid>`` (on which computer and process each
-runs), and listens up to ``wait_s`` for the newest ``state/bridge`` (BridgeState) and
-``state/status`` (ArmStatus). :func:`format_status` makes one screen of text of it; the
-same dictionary is the ``--json`` output.
+runs), ``health/<service>`` (each service's bad input: payloads that did not decode, per
+key, and handler errors), and listens up to ``wait_s`` for the newest ``state/bridge``
+(BridgeState) and ``state/status`` (ArmStatus). :func:`format_status` makes one screen
+of text of it; the same dictionary is the ``--json`` output.
 """
 
 from __future__ import annotations
@@ -13,8 +14,12 @@ import threading
 import time
 from typing import Any
 
+import zenoh
+
+from manus.errors import SchemaError
 from manus.node import Node
 from schemas import endpoints as ep
+from schemas.health import NodeHealth
 from schemas.keys import SERVICES
 from schemas.state import ArmStatus, BridgeState
 
@@ -33,6 +38,9 @@ HEALTH_FIELDS = (
     "late_frames",
     "buffered_syncs",
     "bad_payloads",
+    "other_node_frames",
+    "preempted_replies",
+    "buffered_states",
 )
 """BridgeState counters shown under the bridge's health."""
 
@@ -67,6 +75,7 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
     start = time.monotonic()
     alive = node.alive_services(timeout=min(1.0, wait_s))
     hosts = node.service_hosts(timeout=min(1.0, wait_s))
+    health = node_health(node, timeout=min(1.0, wait_s))
     got.wait(max(0.0, wait_s - (time.monotonic() - start)))
     names = sorted(set(SERVICES) | alive | set(hosts), key=_order)
     services = {
@@ -84,7 +93,34 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
         "services": services,
         "bridge": bridge.to_dict() if bridge is not None else None,
         "arm": arm.to_dict() if arm is not None else None,
+        "bad_input": health,
     }
+
+
+def node_health(node: Node, timeout: float = 1.0) -> dict[str, dict[str, Any]]:
+    """Service -> its bad input (``schemas.health.NodeHealth``): ``bad_payloads`` (total),
+    ``by_key`` (key suffix -> count), ``handler_errors``; summed over a service's processes."""
+    out: dict[str, dict[str, Any]] = {}
+    replies = node.session.get(
+        node.keys.health_all,
+        timeout=timeout,
+        target=zenoh.QueryTarget.ALL,  # every service's queryable, not the best match
+        consolidation=zenoh.ConsolidationMode.NONE,
+    )
+    for reply in replies:
+        if reply.ok is None:
+            continue
+        try:
+            h = NodeHealth.decode(reply.ok.payload.to_bytes())
+        except SchemaError:
+            continue
+        entry = out.setdefault(h.service, {"bad_payloads": 0, "by_key": {}, "handler_errors": 0})
+        entry["bad_payloads"] += h.bad_payloads
+        entry["handler_errors"] += h.handler_errors
+        for key, count in zip(h.bad_keys, h.bad_counts, strict=False):
+            name = node.keys.suffix(key)
+            entry["by_key"][name] = entry["by_key"].get(name, 0) + count
+    return dict(sorted(out.items(), key=lambda kv: _order(kv[0])))
 
 
 def _order(name: str) -> tuple[int, str]:
@@ -115,6 +151,18 @@ def format_status(status: dict[str, Any]) -> str:
     else:
         text = arm["text"] or "no message"
         lines.append(f"  mode {arm['mode']}, {arm['msg_class']} {arm['msg_code']}: {text}")
+    bad = {
+        n: h
+        for n, h in status.get("bad_input", {}).items()
+        if h["bad_payloads"] or h["handler_errors"]
+    }
+    lines += ["", "bad input (payloads that did not decode; handler errors):"]
+    if not bad:
+        lines.append("  none")
+    for name, h in bad.items():
+        keys = ", ".join(f"{k} {v}" for k, v in sorted(h["by_key"].items()))
+        errors = h["handler_errors"]
+        lines.append(f"  {name:<11} {h['bad_payloads']} ({keys or '-'}); {errors} handler errors")
     return "\n".join(lines)
 
 

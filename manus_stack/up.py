@@ -5,7 +5,9 @@ Order: a Zenoh router on loopback (``manus router``, a Python session in router 
 every service's whole life, from the simulator's power-up and the bridge's first cycle
 to their shutdown, and ``manus replay --check`` can replay it through a core), the
 simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
-``manus bridge`` on that device (or the real CAN interface), ``manus planner``,
+``manus bridge`` on that device (or the real CAN interface), ``manus guardian`` beside it
+(the simulator's second node, or the same CAN interface; its reporter declares
+``alive/guardian``), ``manus planner``,
 ``manus controller`` and ``manus sequencer``. Every child is a client of the router
 (``MANUS_ZENOH_CONNECT``), writes its output to ``<run dir>/logs/<name>.log`` and runs
 in its own session, so a Ctrl-C reaches only this process, which then stops the
@@ -39,6 +41,7 @@ LIVELINESS = {
     "controller": "controller",
     "sequencer": "sequencer",
     "record": "recorder",
+    "guardian": "guardian",
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
@@ -73,6 +76,8 @@ class StackOptions:
         can_interface: python-can interface of a real arm (empty: the simulator).
         can_channel: its channel.
         record: start the recorder (``manus record``) first.
+        guardian: start ``manus guardian`` beside the bridge (on the simulator's second
+            node, or on the same CAN interface as the bridge).
         sim_args: extra arguments of ``manus sim``.
     """
 
@@ -82,6 +87,7 @@ class StackOptions:
     can_interface: str = ""
     can_channel: str = ""
     record: bool = True
+    guardian: bool = True
     sim_args: list[str] = field(default_factory=list)
 
     @property
@@ -182,19 +188,26 @@ class LocalStack:
         if opts.record:
             self._spawn("record", ["--output", str(opts.recording)])
             self.wait_alive(deadline)
+        guardian = opts.guardian
         if opts.can_interface:
             bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
+            guardian_args = bridge_args  # socketcan and the like: several sockets, one bus
         else:
-            sim = self._spawn("sim", ["--device-file", str(opts.device_file), *opts.sim_args])
-            while not opts.device_file.exists():
+            nodes = ["--nodes", "2"] if guardian else []
+            sim_args = ["--device-file", str(opts.device_file), *nodes, *opts.sim_args]
+            sim = self._spawn("sim", sim_args)
+            files = [opts.device_file, Path(f"{opts.device_file}.1")][: 2 if guardian else 1]
+            while not all(f.exists() for f in files):
                 self._check(sim)
                 if time.monotonic() > deadline:
                     raise StackError(f"the simulator wrote no device file (log {sim.log})")
                 time.sleep(0.05)
             self.device = opts.device_file.read_text().strip()
             bridge_args = ["--can-interface", "slcan", "--can-channel", self.device]
+            guardian_args = ["--can-interface", "slcan", "--can-channel", files[-1].read_text()]
         plan: list[tuple[str, list[str]]] = [
             ("bridge", bridge_args),
+            *([("guardian", guardian_args)] if guardian else []),
             ("planner", []),
             ("controller", []),
             ("sequencer", []),

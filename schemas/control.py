@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.collision import ClearanceReport
 from schemas.planning import Trajectory
 
 
@@ -187,6 +188,10 @@ class ControllerFeedback(Message):
     gripper_target: float = field("gripper target opening", unit="m", default=0.0)
     gripper: float = field("measured gripper opening", unit="m", default=0.0)
     speed_scale: float = field("current speed scaling", default=1.0)
+    guard: str = field(
+        "what the collision guard did to this cycle's command and why ('': nothing)",
+        default="",
+    )
 
 
 @dataclass(frozen=True)
@@ -214,6 +219,10 @@ class GoalResult(Message):
     )
     final_error: float = field("gripper position error at the end", unit="m", default=0.0)
     duration: float = field("time from start to end", unit="s", default=0.0)
+    clearance: ClearanceReport | None = field(
+        "smallest clearance the collision guard computed while the goal ran (None: none)",
+        default=None,
+    )
 
     @property
     def path_via_errors(self) -> list[float]:

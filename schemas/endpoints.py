@@ -38,7 +38,18 @@ from enum import StrEnum
 from typing import Any, Generic, TypeVar
 
 from manus.errors import SchemaError
-from schemas import commands, control, liveliness, planning, sequencing, simfault, state
+from schemas import (
+    collision,
+    commands,
+    control,
+    guardian,
+    health,
+    liveliness,
+    planning,
+    sequencing,
+    simfault,
+    state,
+)
 from schemas.base import Message
 
 M = TypeVar("M", bound=Message)
@@ -72,6 +83,7 @@ class Service(StrEnum):
     CONTROLLER = "controller"
     SEQUENCER = "sequencer"
     RECORDER = "recorder"
+    GUARDIAN = "guardian"
 
 
 ANYONE = "anyone"
@@ -262,6 +274,22 @@ PLAN = _query(
     planning.PlanReply,
     "via points -> joint trajectory",
 )
+SCENE = _query(
+    "planner/scene",
+    Service.PLANNER,
+    collision.SceneUpdate,
+    collision.SceneReply,
+    "replace the scene every plan is checked against (validated whole, versioned)",
+    _SUP,
+    clients=(SUPERVISOR,),
+)
+SCENE_STATE = _pub(
+    "planner/scene_state",
+    Service.PLANNER,
+    collision.SceneState,
+    "the scene every plan is checked against, when an update replaces it",
+    _SUP,
+)
 JOINT_VELOCITY = _pub(
     "cmd/joint_velocity", _CTRL, commands.JointVelocityCommand, "the command for the next sync"
 )
@@ -327,6 +355,14 @@ EVENTS = _pub(
     _SUP,
 )
 
+# -- the CAN guardian ---------------------------------------------------------------------------
+GUARDIAN_REPORT = _pub(
+    "guardian/report",
+    Service.GUARDIAN,
+    guardian.GuardianReport,
+    "what the CAN guardian did (a 0x370 for an unanswered sync, the bridge back), counts",
+)
+
 # -- presence and recordings -----------------------------------------------------------------
 ALIVE = Endpoint(
     "alive",
@@ -343,6 +379,16 @@ WHERE = Endpoint(
     audience=_SUP,
     doc="on which computer (host name) and process each service runs",
     params="<service>/<host>/<pid>",
+)
+HEALTH = Endpoint(
+    "health",
+    Kind.QUERYABLE,
+    EACH_SERVICE,
+    health.HealthRequest,
+    health.NodeHealth,
+    doc="each service's node: the bad input it counted (payloads that did not decode, per "
+    "key; handler errors); any request payload",
+    params="<service>",
 )
 LIVELINESS = Topic(
     liveliness.LIVELINESS,
@@ -436,6 +482,8 @@ TABLE = Table(
         ESTOP,
         SIM_TRUTH,
         PLAN,
+        SCENE,
+        SCENE_STATE,
         JOINT_VELOCITY,
         GOAL,
         GRIPPER_GOAL,
@@ -449,8 +497,10 @@ TABLE = Table(
         TASK_STATUS,
         HISTORY,
         EVENTS,
+        GUARDIAN_REPORT,
         ALIVE,
         WHERE,
+        HEALTH,
         LIVELINESS,
     )
 )

@@ -27,6 +27,7 @@ from manus.session import DEFAULT_PREFIX
 from schemas.base import Message
 from schemas.endpoints import (
     ALIVE,
+    HEALTH,
     LIVELINESS,
     TABLE,
     TRACE_PARTS,
@@ -77,6 +78,14 @@ class Keys:
     @property
     def where_all(self) -> str:
         return self(f"{WHERE}/**")
+
+    def health(self, service: str) -> str:
+        """Queryable of one service's bad-input counts (``schemas.health.NodeHealth``)."""
+        return self(f"{HEALTH}/{service}")
+
+    @property
+    def health_all(self) -> str:
+        return self(f"{HEALTH}/**")
 
     @property
     def liveliness(self) -> str:

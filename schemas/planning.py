@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.collision import ClearanceReport
 
 
 class Interpolation(StrEnum):
@@ -48,6 +49,8 @@ class PlanErrorReason(StrEnum):
     """no start configuration given and no joint state known"""
     INVALID = "invalid"
     """the request itself is inconsistent"""
+    COLLISION = "collision"
+    """the arm would come too close to the scene, a protection zone or itself"""
 
 
 INTERPOLATIONS = tuple(Interpolation)
@@ -146,6 +149,13 @@ class Trajectory(Message):
     preview_dt: float = field("sampling step of the preview", unit="s", default=0.0)
     time_scale: float = field("how much the planner stretched time (1: not at all)", default=1.0)
     notes: list[str] = field("what the planner wants the user to know", default_factory=list)
+    clearance: ClearanceReport | None = field(
+        "the smallest clearance along the trajectory (None: not checked, no scene)",
+        default=None,
+    )
+    scene_version: int = field(
+        "version of the scene it was checked against (-1: not checked)", default=-1, minimum=-1
+    )
 
 
 @dataclass(frozen=True)

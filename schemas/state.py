@@ -169,6 +169,24 @@ class BridgeState(Message):
         default=0,
         minimum=0,
     )
+    other_node_frames: int = field(
+        "frames of another PC-side node seen on the bus (replies to the arm such as the "
+        "guardian's 0x370): counted, never taken for the arm's or the bridge's own",
+        default=0,
+        minimum=0,
+    )
+    preempted_replies: int = field(
+        "replies of the bridge that reached the bus after another node's reply to the same "
+        "sync (the arm latched the other one, e.g. the guardian's stop)",
+        default=0,
+        minimum=0,
+    )
+    buffered_states: int = field(
+        "0x360 frames found in a buffer (processed more than sync_max_age_ms after they "
+        "arrived, e.g. after a SIGSTOP): no joint state published from them",
+        default=0,
+        minimum=0,
+    )
 
 
 @dataclass(frozen=True)
@@ -198,3 +216,25 @@ class SimTruth(Message):
     gripper: float = field("true gripper opening", unit="m")
     xyz: list[float] = field("true gripper position in the base frame", unit="m", length=3)
     ypr: list[float] = field("true gripper (yaw, pitch, roll)", unit="rad", length=3)
+    qd_true: list[float] = field(
+        "true DH joint speeds (the drives' speeds through the joint map; empty in recordings "
+        "made before it existed)",
+        unit="rad/s",
+        default_factory=list,
+    )
+    clearance: float | None = field(
+        "smallest true distance between the arm and the scene (objects and the arm itself, "
+        "no clearances, no zones) now; None: no scene",
+        unit="m",
+        default=None,
+    )
+    clearance_pair: str = field("body/object of `clearance` (e.g. gripper/head)", default="")
+    min_clearance: float | None = field(
+        "smallest `clearance` at any tick since power-up (None: no scene)", unit="m", default=None
+    )
+    contacts: int = field(
+        "ticks on which a body met an object (or the arm itself) and the arm was stopped",
+        default=0,
+        minimum=0,
+    )
+    contact: str = field("body/object of the last contact ('': none yet)", default="")

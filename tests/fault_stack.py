@@ -19,6 +19,7 @@ from manus.protocol import FrameId, decode_move
 from manus.session import client_settings
 from manus_stack.up import Child, LocalStack, StackOptions
 from schemas import endpoints as ep
+from schemas.guardian import GuardianReport
 from schemas.sequencing import SubmitReply, Task, TaskEvent
 from schemas.state import BridgeState, CanFrame, SimTruth
 
@@ -39,6 +40,7 @@ class Watch:
     events: list[TaskEvent] = field(default_factory=list)
     bridge: list[BridgeState] = field(default_factory=list)
     alive: list[tuple[int, str, bool]] = field(default_factory=list)
+    guardian: list[GuardianReport] = field(default_factory=list)
 
     def joint_moves(self, since_ns: int = 0) -> list[tuple[int, bool]]:
         """(send time [ns], all zero) of every 0x374 the bridge sent from ``since_ns``."""
@@ -69,7 +71,8 @@ class Watch:
 
 
 class FaultStack:
-    """``LocalStack`` (simulator starting unfolded, no recorder) + a watching node."""
+    """``LocalStack`` (simulator starting unfolded, no recorder, the guardian beside the
+    bridge) + a watching node."""
 
     def __init__(self, run_dir: Path, endpoint: str, prefix: str) -> None:
         config = run_dir / "sim.json"
@@ -104,6 +107,7 @@ class FaultStack:
         node.subscribe(keys(ep.SIM_TRUTH), SimTruth, keep(w.truth), locked=False)  # type: ignore[arg-type]
         node.subscribe(keys("sequencer/events"), TaskEvent, keep(w.events), locked=False)  # type: ignore[arg-type]
         node.subscribe(keys(ep.BRIDGE_STATE), BridgeState, keep(w.bridge), locked=False)  # type: ignore[arg-type]
+        node.subscribe(keys(ep.GUARDIAN_REPORT), GuardianReport, keep(w.guardian), locked=False)  # type: ignore[arg-type]
 
         def on_alive(name: str, up: bool) -> None:
             with w.lock:

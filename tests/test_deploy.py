@@ -42,7 +42,7 @@ def test_every_service_is_on_a_computer_and_runs_a_real_command() -> None:
     profiles = {name: set(s.get("profiles", [])) for name, s in services.items()}
     arm = {n for n, p in profiles.items() if "arm" in p}
     base = {n for n, p in profiles.items() if "base" in p}
-    assert {"router-arm", "can-bridge", "controller"} <= arm
+    assert {"router-arm", "can-bridge", "guardian", "controller"} <= arm
     assert {"router-base", "planner", "sequencer", "recorder"} <= base
     assert not arm & base
     for name, service in services.items():

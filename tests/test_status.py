@@ -83,3 +83,24 @@ def test_status_without_a_bridge_says_so(zenoh_settings: ZenohSettings) -> None:
     text = format_status(status)
     assert "no BridgeState received (is the bridge running?)" in text
     assert "no ArmStatus received" in text
+
+
+def test_status_shows_each_services_bad_input(zenoh_settings: ZenohSettings) -> None:
+    from schemas.state import JointState
+    from tests.conftest import eventually
+
+    with (
+        Node("controller", zenoh_settings) as controller,
+        Node("status-test", zenoh_settings, liveliness=False) as viewer,
+    ):
+        controller.subscribe(controller.keys(ep.JOINTS), JointState, lambda m, t: None)
+        for payload in (b"\xc1", b"not msgpack", b"\x93\x01\x02"):
+            viewer.session.put(viewer.keys(ep.JOINTS), payload)
+        eventually(lambda: sum(controller.bad_payloads.values()) == 3)
+        status = collect(viewer, wait_s=0.5)
+    assert status["bad_input"]["controller"] == {
+        "bad_payloads": 3,
+        "by_key": {"state/joints": 3},
+        "handler_errors": 0,
+    }
+    assert "controller  3 (state/joints 3); 0 handler errors" in format_status(status)

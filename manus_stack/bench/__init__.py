@@ -12,6 +12,9 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "track": ("manus_stack.bench.track", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
+    "guardian": ("manus_stack.bench.guardian", False),
+    "fuzz": ("manus_stack.bench.fuzz", False),
+    "collision": ("manus_stack.bench.collision", False),
     "chaos": ("manus_stack.bench.chaos", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

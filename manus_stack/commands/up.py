@@ -5,10 +5,11 @@
     manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
 
 Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
-planner, controller, sequencer and recorder (``manus_stack.up``), waits until each one's
-liveliness token is up, prints where things are, and runs until Ctrl-C (or
-``--duration``), then stops every process it started, newest first, by pid. Exits 1 if
-something did not come up or died meanwhile (naming it and its log).
+the CAN guardian (not with ``--no-guardian``), planner, controller, sequencer and
+recorder (``manus_stack.up``), waits until each one's liveliness token is up, prints
+where things are, and runs until Ctrl-C (or ``--duration``), then stops every process it
+started, newest first, by pid. Exits 1 if something did not come up or died meanwhile
+(naming it and its log).
 """
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-record", dest="record", action="store_false", help="do not start the recorder"
     )
     parser.add_argument(
+        "--no-guardian",
+        dest="guardian",
+        action="store_false",
+        help="do not start the CAN guardian beside the bridge",
+    )
+    parser.add_argument(
         "--start-timeout",
         type=float,
         default=60.0,
@@ -61,6 +68,7 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         can_interface=args.can_interface,
         can_channel=args.can_channel,
         record=args.record,
+        guardian=args.guardian,
     )
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from manus.protocol import (
+    REPLY_IDS,
     ZERO_JOINT_MOVE,
     Frame,
     FrameId,
@@ -90,6 +91,8 @@ class BridgeCore:
         self._seq = {ep.JOINTS: 0, ep.STATUS: 0, ep.BRIDGE_STATE: 0, ep.CAN_TX: 0, ep.CAN_RX: 0}
         self._faulted_cycle = -1
         self._last_reply_sync_ns: int | None = None
+        self._last_reply_sent_ns: int | None = None
+        self._last_sync_ns: int | None = None
         self._last_arm_ns: int | None = None
         self._applied: tuple[tuple[int, ...], str, int] = (_NO_COUNTS, "none", -1)
         self._status: tuple[int, Frame] | None = None  # (cycle index, accepted 0x350)
@@ -127,6 +130,10 @@ class BridgeCore:
         self.phases.start(now_ns)
         self._seq[ep.CAN_RX] += 1
         out.messages.append((ep.CAN_RX, _can_frame(frame, frame.t_ns, self._seq[ep.CAN_RX] - 1)))
+        if frame.id in REPLY_IDS and not frame.remote:
+            self._other_node(frame)
+            self._report(now_ns, out)
+            return out
         self._last_arm_ns = frame.t_ns
         self.phases.frame_seen()
         p = self.assembler.place(frame)
@@ -136,7 +143,7 @@ class BridgeCore:
             if p.kind == "status" and not p.duplicate:
                 self._on_status(frame, p, cycle, out)
             elif p.kind == "position" and p.accepted:
-                self._on_position(frame, cycle, out)
+                self._on_position(frame, cycle, out, now_ns)
             if cycle.faults and self.assembler.anchor_ns is not None:
                 self._fault(cycle)
             if frame.id == FrameId.SYNC and not p.duplicate:
@@ -204,6 +211,26 @@ class BridgeCore:
 
     # -- frames ---------------------------------------------------------------------------
 
+    def _other_node(self, frame: Frame) -> None:
+        """A reply to the arm sent by another PC-side node (the guardian's 0x370): counted.
+        If it reached the bus within the window of the last sync and before the bridge's
+        own reply to that sync, the arm latched it, not ours: ``applied`` says so."""
+        self.health.other_node_frames += 1
+        sync, sent = self._last_sync_ns, self._last_reply_sent_ns
+        if sync is None or not 0 <= frame.t_ns - sync < WINDOW_NS:
+            return
+        if self._last_reply_sync_ns == sync and sent is not None and frame.t_ns >= sent:
+            return  # ours came first: theirs is ignored by the arm
+        if self._last_reply_sync_ns == sync:
+            self.health.preempted_replies += 1
+            self.phases.detail, self.phases.changed = "another node's reply preempted ours", True
+        fid = FrameId(frame.id)
+        counts = _NO_COUNTS
+        if fid == FrameId.JOINT and len(frame.data) == 8:
+            mv = decode_move(fid, frame.data)
+            counts = (mv.lift, *mv.axes, mv.gripper)
+        self._applied = (counts, _APPLIED_KIND.get(fid, "none"), -1)
+
     def _count(self, p: Placement) -> None:
         h = self.health
         h.garbled_frames += p.kind in ("garbled", "unknown")
@@ -230,8 +257,13 @@ class BridgeCore:
         self._status = (cycle.index, frame) if p.accepted else None
         self.phases.on_status(st, frame.t_ns, cycle)
 
-    def _on_position(self, frame: Frame, cycle: Cycle, out: Outputs) -> None:
+    def _on_position(self, frame: Frame, cycle: Cycle, out: Outputs, now_ns: int) -> None:
         if self._status is None or self._status[0] != cycle.index or cycle.faults:
+            return
+        if now_ns - frame.t_ns > self.config.sync_max_age_ms * MS:
+            # It sat in a buffer (the bridge was stopped): a controller fed old states
+            # would carry on its path as if the arm had followed; the gap stops it instead.
+            self.health.buffered_states += 1
             return
         st = decode_status(self._status[1].data)
         pos = decode_position(frame.data)
@@ -276,6 +308,7 @@ class BridgeCore:
     # -- the sync -------------------------------------------------------------------------
 
     def _on_sync(self, frame: Frame, p: Placement, now_ns: int, out: Outputs) -> None:
+        self._last_sync_ns = frame.t_ns
         if now_ns - frame.t_ns > self.config.sync_max_age_ms * MS:
             self.health.buffered_syncs += 1
             return
@@ -288,6 +321,7 @@ class BridgeCore:
         reply = self.phases.on_sync(frame.t_ns, clean, lambda: self._command_reply(frame.t_ns))
         if reply is not None:
             self._last_reply_sync_ns = frame.t_ns
+            self._last_reply_sent_ns = now_ns
             self._emit(reply[0].at(now_ns), now_ns, out, reply[1])
             self.health.replies += 1
             self.health.reply_sent(frame.t_ns, now_ns)

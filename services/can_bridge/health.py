@@ -30,6 +30,9 @@ class Health:
     bad_payloads: int = 0
     late_frames: int = 0
     replies: int = 0
+    other_node_frames: int = 0
+    preempted_replies: int = 0
+    buffered_states: int = 0
 
     def period(self, period_ns: int) -> None:
         """A sync-to-sync period of consecutive cycles [ns]."""
@@ -67,4 +70,7 @@ class Health:
             bad_payloads=self.bad_payloads,
             detail=detail,
             late_frames=self.late_frames,
+            other_node_frames=self.other_node_frames,
+            preempted_replies=self.preempted_replies,
+            buffered_states=self.buffered_states,
         )

@@ -81,6 +81,9 @@ class ControllerConfig:
             grow by up to half a band while the true ones shrink.
         backlash_dead_zone_deg: an estimated belt output this close to its target is
             not pushed [deg].
+        scene: what the collision guard keeps every command clear of (:mod:`.guard`;
+            :func:`manus.scene.scene_from_setting`: ``""`` = ``$MANUS_SCENE`` or the
+            shipped wheelchair scene, ``default``, ``none`` or a scene file).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -107,6 +110,7 @@ class ControllerConfig:
     rounding_joint_m: float = 0.2
     backlash_deg: tuple[float, ...] = (0.0,) * 6
     backlash_dead_zone_deg: float = 0.02
+    scene: str = ""
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)

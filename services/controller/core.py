@@ -35,6 +35,7 @@ from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.trajectory import TrajectoryError
 from schemas import endpoints as ep
+from schemas.collision import ClearanceReport, SceneState
 from schemas.control import (
     CancelGoal,
     GoalAck,
@@ -56,6 +57,7 @@ from services.controller.goals import (
     trajectory_error,
 )
 from services.controller.gripper import GripperRun, gripper_command
+from services.controller.guard import run_guard, scene_guard
 from services.controller.outbox import Outbox, Output
 from services.controller.reference import Reference
 from services.controller.tracking import Step, TrajectoryRun
@@ -107,6 +109,8 @@ class ControllerCore:
         """Message numbering and the results waiting for their stamp."""
         self.heartbeat_ref_ns: int | None = None
         """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
+        self.guard = run_guard(cfg.scene, cfg.arm)
+        """The collision guard every command passes (None: no scene)."""
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
@@ -217,6 +221,14 @@ class ControllerCore:
             return self._flush(bs.stamp_ns)
         return []
 
+    def on_scene(self, scene: SceneState) -> Output:
+        """The planner's scene replaced at run time: the guard follows it (one that does
+        not build keeps the guard as it was; the planner validated it already)."""
+        guard = scene_guard(scene, self.config.arm)
+        if guard is not None and self.guard is not None:
+            self.guard = guard
+        return []
+
     def on_heartbeat(self, hb: Heartbeat) -> Output:
         """The supervisor's deadman heartbeat: remember the newest joint state it echoes.
 
@@ -254,6 +266,7 @@ class ControllerCore:
             return []  # a duplicate or an old state: already answered
         # (a lower seq with a newer stamp: a bridge started again; a gap, answered)
         cfg = self.config
+        # A lower seq with a newer stamp is a restarted bridge (its seq starts again at 0).
         gap = last is not None and (
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
@@ -387,6 +400,7 @@ class ControllerCore:
             via_stamps=list(run.via_stamps),
             final_error=run.final_error,
             duration=max(0.0, (end - run.start_ns) / 1e9),
+            clearance=self.guard.result(run.goal.goal_id) if self.guard is not None else None,
         )
         if self.run is run:
             self.run = None
@@ -402,6 +416,7 @@ class ControllerCore:
         via_stamps: list[int] | None = None,
         final_error: float = 0.0,
         duration: float = 0.0,
+        clearance: ClearanceReport | None = None,
     ) -> None:
         self.outbox.queue(
             GoalResult(
@@ -415,6 +430,7 @@ class ControllerCore:
                 via_stamps=via_stamps or [],
                 final_error=final_error,
                 duration=duration,
+                clearance=clearance,
             )
         )
 
@@ -433,12 +449,18 @@ class ControllerCore:
         """The command, the feedback (while a goal ran this cycle: ``xyz`` is the gripper
         position of the measured angles [m], None when none ran) and queued results."""
         counts = np.asarray(counts, dtype=np.int64)
+        guarded = "" if self.guard is None else None
+        if self.guard is not None and js.valid:
+            verdict = self.guard.command(js, counts, run.goal.goal_id if run else "")
+            counts, guarded = verdict.counts, verdict.reason
+            if verdict.scale == 0.0 and run is not None and self.run is run:
+                self._end_run(run, "aborted", f"collision guard {verdict.reason}")
         self.last_counts = counts
         cmd = self.outbox.command(js, counts, grip)
         out: Output = [(ep.JOINT_VELOCITY, cmd)]
         if xyz is not None:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
-            out.append((ep.FEEDBACK, fb))
+            out.append((ep.FEEDBACK, dataclasses.replace(fb, guard=guarded) if guarded else fb))
         return out + self._flush(js.stamp_ns)
 
 

@@ -50,9 +50,7 @@ class Outbox:
         """The queued results, stamped ``stamp_ns`` [ns] and numbered."""
         out: Output = []
         for r in self._queued:
-            out.append(
-                (ep.RESULT, dataclasses.replace(r, stamp_ns=stamp_ns, seq=self._res_seq))
-            )
+            out.append((ep.RESULT, dataclasses.replace(r, stamp_ns=stamp_ns, seq=self._res_seq)))
             self._res_seq += 1
         self._queued.clear()
         return out

@@ -19,6 +19,7 @@ WIRING: Wiring[ControllerCore, Output] = Wiring(
         Input(ep.STATUS, lambda core, st, t: core.on_status(st)),
         Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs)),
         Input(ep.HEARTBEAT, lambda core, hb, t: core.on_heartbeat(hb)),
+        Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
     ),
     answers=(
         Answer(ep.GOAL, lambda core, goal, t: (core.submit(goal), [])),

@@ -24,6 +24,9 @@ class PlannerConfig:
             (the shoulder branch) [-].
         max_preview_points: most points in the Cartesian preview; longer trajectories
             (or finer steps asked for) get a coarser step [-].
+        scene: the scene every trajectory is checked against
+            (:func:`manus.scene.scene_from_setting`: ``""`` = ``$MANUS_SCENE`` or the
+            shipped wheelchair scene, ``default``, ``none`` = no check, or a file).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -31,6 +34,7 @@ class PlannerConfig:
     wrist_margin: float = math.radians(2.0)
     check_samples: int = 32
     max_preview_points: int = 2000
+    scene: str = ""
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_knot_jump <= 2.0 * math.pi:

@@ -12,7 +12,9 @@ Steps (docs/protocol.md, Thesis planning steps):
    both ends (:mod:`.spline`);
 6. check joint limits, the wrist singularity and the IK branch along the whole curve,
    then joint speeds and accelerations, stretching time if asked (:mod:`.checks`);
-7. reply with the knots (piecewise Hermite), their Cartesian positions and a preview.
+7. sweep the final curve through the collision model: the scene, the protection zones
+   and the arm itself, with each class's clearance (:mod:`.collisions`);
+8. reply with the knots (piecewise Hermite), their Cartesian positions and a preview.
 
 No clock, no randomness, no I/O: the same request and joint state give the same reply.
 Trajectory time 0 is the first via point (the start configuration); knot i is via
@@ -21,16 +23,22 @@ point i and is reached at ``times[i]`` (the file's time, times ``time_scale``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import threading
 from typing import Any
 
 import numpy as np
 
+from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.viapoints import ViaPointError, validate_path
+from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner.checks import check_geometry, check_rates
+from services.planner.collisions import check_collisions
 from services.planner.config import PlannerConfig
 from services.planner.errors import PlanningError, refuse
 from services.planner.knots import check_start, solve_knots
@@ -57,6 +65,42 @@ class PlannerCore:
     def __init__(self, config: PlannerConfig | None = None) -> None:
         self.config = config or PlannerConfig()
         self.latest: JointState | None = None
+        self.collision: CollisionModel | None = None
+        self.scene_state: SceneState | None = None
+        """The last accepted update (None: the scene read at start)."""
+        self.checking = threading.Lock()
+        """Held while the collision model is used or replaced: its Pinocchio data is
+        scratch space shared by every check (a live shell plans on several threads)."""
+        self.set_scene(scene_from_setting(self.config.scene))
+
+    def set_scene(self, scene: Scene | None) -> None:
+        """Check every later plan against ``scene`` (None: no collision check)."""
+        model = None if scene is None else CollisionModel(scene, self.config.arm)
+        with self.checking:
+            self.collision = model
+
+    def update_scene(self, update: SceneUpdate) -> SceneReply:
+        """Replace the scene (the ``planner/scene`` queryable): validated whole, then
+        used from the next plan on with the next version; never raises."""
+        current = self.collision.scene if self.collision is not None else None
+        version = current.version if current is not None else 0
+        if update.base_version not in (-1, version):
+            return SceneReply(
+                accepted=False,
+                version=version,
+                error=f"the update replaces version {update.base_version}, but version "
+                f"{version} is in use: read it again",
+            )
+        try:
+            scene = parse_scene(update.text, update.source or "<scene update>")
+            scene = dataclasses.replace(scene, version=version + 1)
+            model = CollisionModel(scene, self.config.arm)
+        except SceneError as exc:
+            return SceneReply(accepted=False, version=version, error=str(exc))
+        with self.checking:
+            self.collision = model
+        self.scene_state = SceneState(version=scene.version, text=update.text, source=scene.source)
+        return SceneReply(accepted=True, version=scene.version)
 
     def on_joint_state(self, js: JointState) -> None:
         """Remember ``js`` as the default start if it is valid (invalid ones are ignored)."""
@@ -126,6 +170,11 @@ class PlannerCore:
         check_geometry(curve, path, branch_of(q_start, config.arm), config)
         rates = check_rates(curve, path, config, speed_scaling=request.speed_scaling)
         notes.extend(rates.notes)
+        clearance, version = None, -1
+        with self.checking:
+            if self.collision is not None:
+                clearance = check_collisions(self.collision, rates.curve, path)
+                version = self.collision.scene.version if self.collision.scene else -1
         k = rates.time_scale
         duration = rates.curve.duration
         preview_dt = 0.0
@@ -149,6 +198,8 @@ class PlannerCore:
             preview_dt=preview_dt,
             time_scale=k,
             notes=notes,
+            clearance=clearance,
+            scene_version=version,
         )
 
 

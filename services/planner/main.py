@@ -15,6 +15,7 @@ from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
 from services.planner.config import PlannerConfig
+from services.planner.plan_cli import add_scene_argument
 from services.planner.shell import PlannerShell
 
 
@@ -22,12 +23,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Bus settings (over the ``MANUS_ZENOH_*`` environment) and the arm config."""
     add_bus_arguments(parser)
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
+    add_scene_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve plans until interrupted."""
     settings = bus_settings(args)
-    config = PlannerConfig(arm=load_arm_config(args.arm_config))
+    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:
         freeze_startup_heap()

@@ -1,5 +1,8 @@
 """``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON.
 
+The trajectory is checked against the scene (``--scene``); the smallest clearance and
+where it occurs go into the JSON (``clearance``) and on one line of standard error.
+
 Thesis units at this edge: degrees and millimetres. One row per knot (knot i is via
 point i; time 0 is the start). A path that cannot be planned exits 1 with the reason on
 one line of standard error (via :func:`manus_stack.cli.main`'s error handling).
@@ -17,6 +20,7 @@ import numpy as np
 
 from manus.config import UNFOLDED_Q_DEG, load_arm_config
 from manus.viapoints import load_path
+from schemas.collision import ClearanceReport
 from schemas.planning import PlanRequest
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
@@ -44,6 +48,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--preview", action="store_true", help="include the Cartesian preview (every 60 ms)"
     )
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
+    add_scene_argument(parser)
+
+
+def add_scene_argument(parser: argparse.ArgumentParser) -> None:
+    """``--scene``: the scene file every plan is checked against."""
+    parser.add_argument(
+        "--scene",
+        default="",
+        help="scene file (docs/scene.md); 'none': no collision check "
+        "(default: $MANUS_SCENE, else the shipped wheelchair scene)",
+    )
+
+
+def clearance_json(report: ClearanceReport | None) -> dict[str, Any] | None:
+    """The smallest clearance in thesis units (mm, s), or None."""
+    if report is None:
+        return None
+    return {
+        "distance_mm": round(report.distance * 1e3, 3),
+        "required_mm": round(report.required * 1e3, 3),
+        "body": report.body,
+        "other": report.other,
+        "class": report.cls,
+        "time_s": round(report.time, 6),
+    }
 
 
 def _deg(a: list[Any]) -> list[Any]:
@@ -58,7 +87,7 @@ def _mm(a: list[Any]) -> list[Any]:
 
 def run(args: argparse.Namespace) -> int:
     """Plan ``args.file`` from ``args.start_joints``; print JSON."""
-    config = PlannerConfig(arm=load_arm_config(args.arm_config))
+    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
     request = PlanRequest(
         path=load_path(args.file),
         start=[math.radians(q) for q in args.start_joints],
@@ -82,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
         "via_lines": traj.via_lines,
         "time_scale": traj.time_scale,
         "notes": traj.notes,
+        "clearance": clearance_json(traj.clearance),
+        "scene_version": traj.scene_version,
     }
     if traj.accelerations:
         out["accelerations_deg_s2"] = _deg(traj.accelerations)
@@ -89,4 +120,10 @@ def run(args: argparse.Namespace) -> int:
         out["preview_dt_s"] = traj.preview_dt
         out["preview_xyz_mm"] = _mm(traj.preview_xyz)
     sys.stdout.write(json.dumps(out) + "\n")
+    if traj.clearance is not None:
+        c = traj.clearance
+        sys.stderr.write(
+            f"smallest clearance: {c.body} {c.distance * 1e3:.1f} mm from {c.other} "
+            f"({c.cls}: needs {c.required * 1e3:.0f} mm) at t = {c.time:.2f} s\n"
+        )
     return 0

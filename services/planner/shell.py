@@ -1,11 +1,13 @@
 """The planner's live shell: a Zenoh queryable around :class:`PlannerCore`.
 
 Its wiring map (:data:`services.planner.wiring.WIRING`): answers ``planner/plan``
-(PlanRequest -> PlanReply) and follows the joint states for the default start
-configuration (valid states only). Planning runs outside the node lock on the newest
-joint state (one attribute, replaced whole by each update), so a long plan never delays
-joint-state updates and concurrent queries do not wait for each other (the core mutates
-nothing while planning). ``compute_ms`` is the time the answer took.
+(PlanRequest -> PlanReply) and ``planner/scene`` (SceneUpdate -> SceneReply: the scene
+replaced at run time) and follows the joint states for the default start configuration
+(valid states only). Planning runs outside the node lock on the newest joint state (one
+attribute, replaced whole by each update), so a long plan never delays joint-state
+updates; concurrent plans take turns only for their collision check (the collision
+model's Pinocchio data is shared: :attr:`PlannerCore.checking`). ``compute_ms`` is the
+time the answer took.
 """
 
 from __future__ import annotations

@@ -13,7 +13,9 @@ Four panels:
   ``state/joints`` when there is no controller);
 - commanded increments per motor [counts of 0.1 deg per 20 ms], as the arm executed
   them (``JointState.applied``);
-- the via-point error table of every ``controller/result`` [mm] (mean, max).
+- the via-point error table of every ``controller/result`` [mm] (mean, max);
+- when the simulator's truth carries it, the smallest true clearance between the arm
+  and the scene over time [mm] (a fifth panel), with the contacts.
 
 :func:`load_plot_data` extracts the series (testable without drawing); :func:`plot_recording`
 draws them with matplotlib's Agg backend and is what ``manus demo`` calls.
@@ -80,6 +82,9 @@ class PlotData:
     q_js: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     applied: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     results: list[GoalResult] = field(default_factory=list)
+    t_clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contacts: int = 0
 
 
 def _preview(traj: Trajectory) -> np.ndarray:
@@ -103,6 +108,9 @@ class _Series:
     js_applied: list[list[int]] = field(default_factory=list)
     truth: list[list[float]] = field(default_factory=list)
     results: list[GoalResult] = field(default_factory=list)
+    clear_t: list[float] = field(default_factory=list)
+    clear: list[float] = field(default_factory=list)
+    contacts: int = 0
 
     def add(self, t: float, msg: Message) -> None:
         """One message logged at ``t`` [s since the recording's start]."""
@@ -121,6 +129,10 @@ class _Series:
             self.results.append(msg)
         elif isinstance(msg, SimTruth):
             self.truth.append(msg.xyz)
+            if msg.clearance is not None:
+                self.clear_t.append(t)
+                self.clear.append(msg.clearance)
+                self.contacts = msg.contacts
         elif isinstance(msg, TrajectoryGoal):
             self.goals.append(msg.trajectory)
         elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
@@ -153,6 +165,9 @@ def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
         q_js=np.asarray(series.js_q, dtype=float).reshape(-1, 6),
         applied=np.asarray(series.js_applied, dtype=float).reshape(-1, 6),
         truth=np.asarray(series.truth, dtype=float).reshape(-1, 3),
+        t_clearance=np.asarray(series.clear_t),
+        clearance=np.asarray(series.clear, dtype=float),
+        contacts=series.contacts,
     )
     _paths(data, series, arm)
     return data
@@ -218,12 +233,16 @@ def plot_recording(
 
     data = load_plot_data(path, arm)
     out = Path(output) if output is not None else Path(path).with_suffix(".png")
-    fig, axes = plt.subplots(2, 2, figsize=(14, 10))
+    rows = 3 if len(data.clearance) else 2
+    fig, axes = plt.subplots(rows, 2, figsize=(14, 5 * rows))
     try:
         _path_panel(axes[0][0], data)
         _joint_panel(axes[0][1], data)
         _increment_panel(axes[1][0], data)
         errors = _table_panel(axes[1][1], data)
+        if rows == 3:
+            _clearance_panel(axes[2][0], data)
+            axes[2][1].axis("off")
         fig.suptitle(title or Path(path).name)
         fig.tight_layout()
         fig.savefig(out, dpi=80)
@@ -296,6 +315,20 @@ def _increment_panel(a: Axes, data: PlotData) -> None:
     a.set_ylim(-10.5, 10.5)
     a.grid(True, alpha=0.3)
     a.legend(loc="best", fontsize=8, ncol=3)
+
+
+def _clearance_panel(a: Axes, data: PlotData) -> None:
+    a.plot(data.t_clearance, data.clearance * 1e3, color="tab:green", lw=1.0, label="true")
+    a.axhline(0.0, color="tab:red", lw=0.8, label="contact")
+    a.set_xlabel("time [s]")
+    a.set_ylabel("clearance [mm]")
+    lowest = float(data.clearance.min()) * 1e3
+    a.set_title(
+        f"smallest true clearance to the scene (simulator): {lowest:.1f} mm, "
+        f"{data.contacts} contact ticks"
+    )
+    a.grid(True, alpha=0.3)
+    a.legend(loc="best", fontsize=8)
 
 
 def _table_panel(a: Axes, data: PlotData) -> list[float]:

@@ -10,6 +10,7 @@ default.
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -146,7 +147,7 @@ class Recording:
             try:
                 summary = reader.get_summary()
                 meta = {m.name: m.metadata for m in reader.iter_metadata()}
-            except (McapError, ValueError, EOFError) as exc:
+            except (McapError, ValueError, EOFError, struct.error) as exc:  # a cut record
                 raise RecordingError(
                     f"{self.path}: unreadable summary ({exc}); if the recorder crashed, "
                     f"rescue it with: manus record --recover {self.path}"

@@ -12,8 +12,8 @@ tokens (``alive/<service>``, and ``where/<service>/<host>/<pid>`` with the repla
 host and pid) and answers its queryables (:func:`service_queryables_table`) from the
 recorded exchanges, for as long as the :class:`Replayer` is open
 (:mod:`services.recorder.standin`; the matching rules are in
-:mod:`services.recorder.answers`). The planner publishes nothing: standing in for it is
-answering ``planner/plan`` only.
+:mod:`services.recorder.answers`). The planner publishes only the scene states of
+run-time updates: standing in for it is mostly answering ``planner/plan``.
 
 The ``liveliness`` channel (token changes the recorder saw) is a record, not traffic: it
 is never published back, neither as samples (nobody listens on that key) nor as tokens
@@ -45,6 +45,7 @@ REPLAYABLE = (
     Service.SIMULATOR,
     Service.SEQUENCER,
     Service.PLANNER,
+    Service.GUARDIAN,
 )
 """The services ``--as`` accepts."""
 

@@ -1,6 +1,9 @@
 """A supervisor client of the sequencer over Zenoh (used by ``manus run`` and ``manus demo``).
 
 Submits a task, follows its events until it ends, and can cancel, pause or resume it.
+It watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
+vanishes, :meth:`TaskClient.follow` returns at once and :attr:`TaskClient.sequencer_gone`
+is set, since no final event will ever come.
 A supervisor in another language does the same with plain Zenoh and MessagePack (see
 ``examples/supervisor.py`` and the JSON Schema in ``schemas/supervisor.schema.json``).
 """
@@ -44,6 +47,14 @@ class TaskClient:
         self._valid_states = 0  # valid joint states since the bridge entered running
         node.subscribe(node.keys(ep.BRIDGE_STATE), BridgeState, self._on_bridge, locked=False)
         node.subscribe(node.keys(ep.JOINTS), JointState, self._on_joints, locked=False)
+        self.sequencer_gone = threading.Event()
+        """The sequencer's liveliness token vanished while following a task (set once; a
+        new sequencer does not know the task)."""
+        self._watching = False
+
+    def _on_liveliness(self, service: str, alive: bool) -> None:
+        if service == "sequencer" and not alive:
+            self.sequencer_gone.set()
 
     def _on_bridge(self, state: BridgeState, rx_ns: int) -> None:
         self.bridge_phase = state.phase
@@ -109,11 +120,15 @@ class TaskClient:
         """Pass each event of ``task_id`` to ``on_event`` until the task ends.
 
         Returns:
-            The final event, or None when ``stop`` was set or ``timeout`` [s] passed.
+            The final event, or None when ``stop`` was set, ``timeout`` [s] passed or the
+            sequencer's liveliness token vanished (:attr:`sequencer_gone`).
         """
+        if not self._watching:  # declared here: a liveliness query right after the
+            self._watching = True  # subscriber's declaration may miss tokens
+            self.node.watch_liveliness(self._on_liveliness)
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
-            if stop is not None and stop.is_set():
+            if (stop is not None and stop.is_set()) or self.sequencer_gone.is_set():
                 return None
             if deadline is not None and time.monotonic() >= deadline:
                 return None

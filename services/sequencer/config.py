@@ -33,6 +33,9 @@ class SequencerConfig:
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
         history: how many ended tasks ``sequencer/history`` remembers.
+        scene: the scene folds are checked against (``""`` = ``$MANUS_SCENE`` or the
+            shipped one, ``default``, ``none`` or a file; the planner checks every move
+            against its own, the same by default).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -45,6 +48,7 @@ class SequencerConfig:
     heartbeat_timeout_s: float = 0.1
     link_timeout_s: float = 0.5
     history: int = 100
+    scene: str = ""
 
     def __post_init__(self) -> None:
         for name in ("result_margin_s", "gripper_timeout_s", "fold_timeout_s", "cancel_timeout_s"):

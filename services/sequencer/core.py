@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 from schemas import endpoints as ep
 from schemas.base import Message
+from schemas.collision import SceneState
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult, Heartbeat
 from schemas.planning import PlanReply
@@ -76,7 +77,7 @@ from services.sequencer.actions import (
 )
 from services.sequencer.config import SequencerConfig
 from services.sequencer.steps import BY_REQUEST, NS, STEP_TYPES, Phase, Step
-from services.sequencer.validate import Validator, step_label
+from services.sequencer.validate import Validator, fold_checker, scene_fold_checker, step_label
 
 __all__ = [  # the actions are defined in services.sequencer.actions
     "EVENTS_SUFFIX",
@@ -137,6 +138,8 @@ class SequencerCore:
         self._js_rx: int | None = None  # receive time of the newest joint state [ns]
         self._started_ns = 0
         self._history: list[TaskRecord] = []  # ended tasks, oldest first
+        self.fold_check = fold_checker(self.config.scene, self.config.arm)
+        """Checks folds against the scene during validation (None: no scene)."""
         self._reset_step()
 
     def _reset_step(self) -> None:
@@ -244,7 +247,7 @@ class SequencerCore:
         refused = self.refuse(task)
         if refused is not None:
             return [answer(task_id, refused)]
-        validator = Validator(task, self.start_configuration(), self.config.arm)
+        validator = Validator(task, self.start_configuration(), self.config.arm, self.fold_check)
         self._submission = Submission(task_id, task, validator)
         return self._validate()
 
@@ -276,6 +279,14 @@ class SequencerCore:
             return [answer(sub.task_id, refused)]
         accepted = SubmitReply(accepted=True, task_id=sub.task_id)
         return [*self.start(sub.task_id, sub.task, self.now), answer(sub.task_id, accepted)]
+
+    def on_scene(self, scene: SceneState) -> list[Action]:
+        """The planner's scene replaced at run time: later validations check folds
+        against it (one that does not build leaves the check as it was)."""
+        check = scene_fold_checker(scene, self.config.arm)
+        if check is not None and self.fold_check is not None:
+            self.fold_check = check
+        return []
 
     def history(self, limit: int) -> TaskHistory:
         """The ``limit`` most recent tasks, newest first (``sequencer/history``)."""

@@ -5,9 +5,11 @@
 
 Submits the task to the running sequencer (or, when none is up, runs one in this
 process), shows a progress bar for the task and one for the current step, and exits 0
-when the task succeeds; 1 with the failure reason when it fails or is cancelled; 2 when
-it is refused (every validation problem is printed, with its location). Ctrl-C cancels
-the task (the arm decelerates and stops) and exits 130.
+when the task succeeds; 1 with the failure reason when it fails or is cancelled, or when
+the sequencer's liveliness token vanishes while the task runs (the sequencer died: no
+final event will come; named on stderr, within the token's loss); 2 when it is refused
+(every validation problem is printed, with its location). Ctrl-C cancels the task (the
+arm decelerates and stops) and exits 130.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import threading
 
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import settings_from_env
-from schemas.sequencing import StepKind, Task, TaskAction, TaskEventKind, TaskStep
+from schemas.sequencing import StepKind, Task, TaskAction, TaskEvent, TaskEventKind, TaskStep
 from services.sequencer.client import TaskClient
 from services.sequencer.config import REQUIRED_SERVICES
 from services.sequencer.progress import ProgressView
@@ -134,15 +137,34 @@ def run(args: argparse.Namespace) -> int:
         _out(f"task {reply.task_id}: {task.name} ({len(task.steps)} steps)")
         view = ProgressView(task, sys.stdout, live=sys.stdout.isatty() and not args.plain)
         final = client.follow(reply.task_id, view.show, stop=stop, timeout=args.timeout)
-        if final is None:
-            why = "interrupted" if stop.is_set() else f"no end within {args.timeout:g} s"
-            _err(f"manus run: {why}: cancelling task {reply.task_id}")
-            with contextlib.suppress(QueryError):
-                client.control(TaskAction.CANCEL, reply.task_id)
-            client.follow(reply.task_id, view.show, timeout=10.0)
-            return 130 if stop.is_set() else 1
-        if final.event != TaskEventKind.SUCCEEDED:
-            _err(f"manus run: task {final.event}: {final.reason}")
-            return 1
-        _out(f"task {reply.task_id}: succeeded")
-        return 0
+        return _outcome(client, reply.task_id, final, view, stop, args.timeout)
+
+
+def _outcome(
+    client: TaskClient,
+    task_id: str,
+    final: TaskEvent | None,
+    view: ProgressView,
+    stop: threading.Event,
+    timeout: float | None,
+) -> int:
+    """The exit status of a followed task (cancelling it when interrupted or too long)."""
+    if final is None and client.sequencer_gone.is_set():
+        _err(
+            f"manus run: the sequencer is gone (its liveliness token alive/sequencer "
+            f"vanished) while task {task_id} ran: its outcome is unknown; the "
+            "controller's deadman stops the arm"
+        )
+        return 1
+    if final is None:
+        why = "interrupted" if stop.is_set() else f"no end within {timeout:g} s"
+        _err(f"manus run: {why}: cancelling task {task_id}")
+        with contextlib.suppress(QueryError):
+            client.control(TaskAction.CANCEL, task_id)
+        client.follow(task_id, view.show, timeout=10.0)
+        return 130 if stop.is_set() else 1
+    if final.event != TaskEventKind.SUCCEEDED:
+        _err(f"manus run: task {final.event}: {final.reason}")
+        return 1
+    _out(f"task {task_id}: succeeded")
+    return 0

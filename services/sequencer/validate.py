@@ -4,18 +4,28 @@ Every step is checked on its own (openings in range, known pose names, via point
 obey the via-point rules: each kind's :meth:`~services.sequencer.steps.Step.problems`),
 and every move is planned from where the previous steps leave the arm: the arm's current
 configuration at first, the fold poses after a fold, the last knot of the previous plan
-after a move. The :class:`Validator` hands out one :class:`~schemas.planning.PlanRequest`
-at a time (with an explicit ``start``) and takes the planner's reply; when it has none
-left, :attr:`Validator.errors` lists every problem in step order, each as
-``<where>: step N (kind): <problem>``. :meth:`SequencerCore.submit
+after a move. A fold is the arm's own motion (a straight line in joint space to the fold
+pose), so it is checked against the scene here (``fold_check``: :func:`fold_checker`,
+:func:`manus.sweep.straight_motion_problem`). The :class:`Validator` hands out one
+:class:`~schemas.planning.PlanRequest` at a time (with an explicit ``start``) and takes
+the planner's reply; when it has none left, :attr:`Validator.errors` lists every problem
+in step order, each as ``<where>: step N (kind): <problem>``. :meth:`SequencerCore.submit
 <services.sequencer.core.SequencerCore.submit>` drives it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
 
+import numpy as np
+
+from manus.collision import CollisionModel
 from manus.config import ArmConfig
+from manus.scene import SceneError, parse_scene, scene_from_setting
+from manus.sweep import straight_motion_problem
+from schemas.collision import SceneState
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
 from services.sequencer.steps import FOLD_END, STEP_TYPES
@@ -27,6 +37,10 @@ def step_label(step: TaskStep, index: int) -> str:
     return f"{head}step {index + 1} ({step.kind})"
 
 
+FoldCheck = Callable[[list[float], list[float], str], str | None]
+"""Checks a fold's motion (from, to [rad], step kind): None when clear, else the problem."""
+
+
 class Validator:
     """Checks a whole task; plans its moves one request at a time.
 
@@ -34,15 +48,24 @@ class Validator:
         task: the task.
         start: the arm's configuration now (DH [rad]); None: unknown (no joint state).
         arm: the arm's geometry (named poses become via points by its kinematics).
+        fold_check: checks a fold's own motion (from, to [rad], step kind) against the
+            scene: None when clear, else the problem (:func:`fold_checker`).
 
     Use: ``while (req := v.next_request()) is not None: v.on_reply(ask(req))``, with
     ``on_reply(None, error)`` when the planner could not be asked; then :attr:`errors`.
     :attr:`plans` holds each planned step's trajectory (index -> Trajectory).
     """
 
-    def __init__(self, task: Task, start: list[float] | None, arm: ArmConfig) -> None:
+    def __init__(
+        self,
+        task: Task,
+        start: list[float] | None,
+        arm: ArmConfig,
+        fold_check: FoldCheck | None = None,
+    ) -> None:
         self.task = task
         self.arm = arm
+        self._fold_check = fold_check
         self._problems: list[list[str]] = [[] for _ in task.steps]
         self.plans: dict[int, Trajectory] = {}
         self._q: list[float] | None = list(start) if start is not None else None
@@ -77,6 +100,10 @@ class Validator:
             kind = STEP_TYPES[step.kind]
             end = kind.leaves_arm_at(step)
             if end is not None:
+                if self._q is not None and self._fold_check is not None:
+                    problem = self._fold_check(self._q, end, step.kind)
+                    if problem is not None:
+                        self._problems[i].append(problem)
                 self._q = end
                 continue
             if not kind.planned:
@@ -116,6 +143,38 @@ class Validator:
             return
         self.plans[i] = reply.trajectory
         self._q = list(reply.trajectory.positions[-1])
+
+
+def fold_checker(scene: str, arm: ArmConfig) -> FoldCheck | None:
+    """The ``fold_check`` of a :class:`Validator` for the scene setting ``scene``
+    (``default``, ``none`` or a file; None when ``none``).
+
+    Raises:
+        SceneError: the scene file is malformed.
+    """
+    loaded = scene_from_setting(scene)
+    if loaded is None:
+        return None
+    return _checker(CollisionModel(loaded, arm))
+
+
+def scene_fold_checker(state: SceneState, arm: ArmConfig) -> FoldCheck | None:
+    """The ``fold_check`` for a scene the planner published (None: it does not build)."""
+    try:
+        scene = dataclasses.replace(parse_scene(state.text, state.source), version=state.version)
+        model = CollisionModel(scene, arm)
+    except SceneError:
+        return None
+    return _checker(model)
+
+
+def _checker(model: CollisionModel) -> FoldCheck:
+    def check(q_from: list[float], q_to: list[float], kind: str) -> str | None:
+        return straight_motion_problem(
+            model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"
+        )
+
+    return check
 
 
 def _near(q: list[float], ref: list[float], tol_deg: float = 5.0) -> bool:

@@ -39,6 +39,7 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
         Input(ep.FEEDBACK, lambda core, fb, t: core.on_feedback(fb, t)),
         Input(ep.RESULT, lambda core, res, t: core.on_result(res, t)),
         Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
+        Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
     ),
     answers=(
         Answer(ep.TASK_CONTROL, lambda core, req, t: core.control(req, t)),

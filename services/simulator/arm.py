@@ -13,7 +13,10 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
    margin (warning 2) or take the gripper deeper into the forbidden area (warning 1) is
    refused, the arm holds;
 5. gripper (0..max), then the belts: the true joint follows its motor through a dead band,
-   and joint 1 has a scale error.
+   and joint 1 has a scale error;
+6. the scene (:mod:`services.simulator.contact`): a motion that would take a body of the
+   true arm deeper into an object (or the arm itself) is refused, the arm holds where
+   the body met it (warning 3, "motor blocked"), also during a fold.
 
 :meth:`ArmModel.step` is pure, so the core also uses it to evaluate the truth between ticks.
 """
@@ -30,6 +33,7 @@ from manus.joint_map import M_ENCODER_TO_DH, dh_to_encoder, encoder_to_dh
 from manus.kinematics import fk
 from manus.protocol import WARN_MOTOR_BLOCKED, WARN_STRETCHED, WARN_WRONG_AREA
 from services.simulator.config import SimConfig
+from services.simulator.contact import ContactModel, Distance
 from services.simulator.drives import backlash, lag_step, move_toward
 from services.simulator.workspace import area_violation, stretch_violation
 
@@ -96,11 +100,15 @@ class StepResult(NamedTuple):
         state: the state at the end of the step.
         warnings: warning codes raised during the step.
         arrived: a fold procedure reached its target.
+        distance: smallest true distance to the scene at the end [m] (None: no scene).
+        contact: ``body/object`` that met and stopped the arm ("" : none).
     """
 
     state: ArmState
     warnings: frozenset[int]
     arrived: bool
+    distance: Distance | None = None
+    contact: str = ""
 
 
 class ArmModel:
@@ -123,6 +131,7 @@ class ArmModel:
         # The power-up measurement of absolute angles is right; the scale error of joint 1's
         # transmission accumulates with its motion from there.
         self._q1_start = float(config.start_q_deg[0])
+        self.contacts = ContactModel(config.scene, config.arm, config.start_gripper_mm * 1e-3)
 
     def initial_state(self) -> ArmState:
         """At rest in the configured start pose, every belt's slack centred."""
@@ -168,10 +177,22 @@ class ArmModel:
                 x, v = x0, np.zeros(6)
         g, gv = self._gripper(state, intent.gripper_mm_s, dt_s)
         out = backlash(state.output_deg, x, self.width)
+        end = ArmState(x, v, out, g, gv)
+        after = self.contacts.distance(self.q_true_deg(end), g)
+        contact = ""
+        if after is not None and after.distance < 0.0 and not np.array_equal(x, x0):
+            before = self.contacts.distance(self.q_true_deg(state), state.gripper_mm)
+            assert before is not None
+            if after.distance < before.distance - _EPS:
+                warnings.add(WARN_MOTOR_BLOCKED)
+                contact = after.pair
+                end = ArmState(x0, np.zeros(6), state.output_deg, g, gv)
+                x = x0
+                after = before
         arrived = intent.fold_target_deg is not None and bool(
             np.all(np.abs(intent.fold_target_deg - x) <= _EPS)
         )
-        return StepResult(ArmState(x, v, out, g, gv), frozenset(warnings), arrived)
+        return StepResult(end, frozenset(warnings), arrived, after, contact)
 
     def _limit(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         # Each DH joint i is set by its own motor i (joint 3 relative to motor 2), so clamp

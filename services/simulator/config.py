@@ -86,6 +86,10 @@ class SimConfig:
         garbage: what position fields carry before a move mode is active: ``noise``
             (seeded random 16-bit values) or ``max`` (0x7FFF).
         faults: injected faults (none by default).
+        scene: what is around the arm (:func:`manus.scene.scene_from_setting`: ``""`` =
+            ``$MANUS_SCENE`` or the shipped wheelchair scene, ``default``, ``none`` or a
+            scene file), the same as the planner's by default. A body
+            that meets an object stops there (warning 3); the truth reports distances.
     """
 
     seed: int = 0
@@ -109,6 +113,7 @@ class SimConfig:
     base_radius_mm: float = 90.0
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
+    scene: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:

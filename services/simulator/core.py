@@ -56,7 +56,7 @@ from services.simulator.report import (
     gripper_field,
     joint_fields,
 )
-from services.simulator.truth import make_truth
+from services.simulator.truth import ContactRecord, make_truth
 
 TICK_NS = 20 * MS
 """The 20 ms tick [ns]."""
@@ -102,6 +102,8 @@ class SimCore:
         self._window_used = False
         self.snapshot: Snapshot | None = None
         """The last cycle's report."""
+        self.contact_record = ContactRecord()
+        """Contacts and the smallest true clearance since power-up (the truth reports them)."""
         self._arm_faults = ArmFaults()
         for fault in cfg.faults.all:
             self.add_fault(fault)
@@ -172,7 +174,7 @@ class SimCore:
             SimError: ``t_ns`` is outside [last tick, next tick].
         """
         t = self._now if t_ns is None else t_ns
-        return make_truth(self.model, self.state_at(t), t, t // TICK_NS)
+        return make_truth(self.model, self.state_at(t), t, t // TICK_NS, self.contact_record)
 
     def state_at(self, t_ns: int) -> ArmState:
         """The mechanical state at ``t_ns`` in [last tick, next tick] (exact, not stored)."""
@@ -234,6 +236,7 @@ class SimCore:
     def _tick(self, t: int) -> None:
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
+        self.contact_record.update(result)
         self._board.raise_warnings(result.warnings)
         ctl = self.controller
         if ctl.active is not None and ctl.active_clamped:

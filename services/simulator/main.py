@@ -2,6 +2,7 @@
 
     manus sim                                  # slcan on a new pty; prints "device: /dev/pts/N"
     manus sim --device-file /tmp/manus.dev     # ... and writes the device path there
+    manus sim --nodes 2 --device-file /tmp/m.dev   # two PC nodes: /tmp/m.dev, /tmp/m.dev.1
     manus sim --can-interface slcan-pty --can-channel /tmp/manus-can   # ... plus a symlink
     manus sim --can-interface virtual --can-channel manus   # any python-can interface
     manus sim --step-response fig51.png        # the thesis's step response, then exit
@@ -36,6 +37,7 @@ from services.simulator.config import load_sim_config
 from services.simulator.core import SimCore
 from services.simulator.fault_desk import FaultDesk
 from services.simulator.live import LiveSim
+from services.simulator.nodes import NodeHub
 from services.simulator.shell import TruthPublisher, open_node
 from services.simulator.slcan import SlcanPtyBus
 from services.simulator.truth_log import TruthLog
@@ -61,6 +63,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
     parser.add_argument("--device-file", help=f"write the pty device path here ({PTY_INTERFACE})")
+    parser.add_argument(
+        "--nodes",
+        type=int,
+        default=1,
+        help=f"{PTY_INTERFACE}: PC-side nodes on the simulated bus, one pty each, with CAN "
+        "broadcast between them (node i > 0 announced as '<device-file>.<i>'); default 1",
+    )
     parser.add_argument("--config", help="simulator config JSON (default $MANUS_SIM_CONFIG)")
     parser.add_argument("--seed", type=int, help="random seed (overrides the config)")
     parser.add_argument(
@@ -98,14 +107,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def open_sim_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
-    """The bus the simulator speaks on (its own slcan pty, or any python-can interface)."""
+def open_sim_bus(interface: str, channel: str, bitrate: int, nodes: int = 1) -> can.BusABC:
+    """The bus the simulator speaks on (its own slcan pty, one per node with ``nodes`` > 1,
+    or any python-can interface: every other peer on its channel is a node)."""
     if interface == PTY_INTERFACE:
+        if nodes > 1:
+            return NodeHub(nodes, channel or None, bitrate=bitrate)
         return SlcanPtyBus(channel or None, bitrate=bitrate)
     return open_bus(interface, channel, bitrate)
 
 
-def wait_for_client(bus: SlcanPtyBus, stop: threading.Event, deadline: float | None) -> None:
+def write_device_file(path: str, device: str) -> None:
+    """Write ``device`` to ``path`` atomically (no newline)."""
+    tmp = Path(path + ".tmp")
+    tmp.write_text(device)
+    tmp.replace(path)
+
+
+def wait_for_client(
+    bus: SlcanPtyBus | NodeHub, stop: threading.Event, deadline: float | None
+) -> None:
     """Block until a client opens the slcan channel, ``stop`` is set or the monotonic
     ``deadline`` [s] passes (frames the client sends meanwhile are discarded)."""
     while not bus.is_open and not stop.is_set():
@@ -113,7 +134,7 @@ def wait_for_client(bus: SlcanPtyBus, stop: threading.Event, deadline: float | N
             stop.set()
             return
         bus.recv(timeout=0.1)
-    log.info("slcan client opened %s: powering the arm up", bus.device)
+    log.info("slcan client opened %s: powering the arm up", bus.channel_info)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,16 +147,17 @@ def run(args: argparse.Namespace) -> int:
         return 0
     stop = wait_for_signal()
     deadline = None if args.duration is None else time.monotonic() + args.duration
-    bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate)
+    bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate, args.nodes)
     node: Node | None = None
     truth_log: TruthLog | None = None
     try:
+        devices = bus.devices if isinstance(bus, NodeHub) else []
         if isinstance(bus, SlcanPtyBus):
-            print(f"device: {bus.device}", flush=True)
+            devices = [bus.device]
+        for i, device in enumerate(devices):
+            print(f"device: {device}" if i == 0 else f"device {i}: {device}", flush=True)
             if args.device_file:
-                tmp = Path(args.device_file + ".tmp")
-                tmp.write_text(bus.device)
-                tmp.replace(args.device_file)
+                write_device_file(args.device_file + (f".{i}" if i else ""), device)
         if args.zenoh:
             node = open_node(settings_from_env(connect=args.zenoh_connect, prefix=args.prefix))
         sinks: list[Callable[[SimTruth], None]] = [TruthPublisher(node)] if node else []
@@ -151,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
         if node is not None:
             node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
             node.announce()
-        if isinstance(bus, SlcanPtyBus) and args.wait_client:
+        if isinstance(bus, SlcanPtyBus | NodeHub) and args.wait_client:
             wait_for_client(bus, stop, deadline)
         if not stop.is_set():
             freeze_startup_heap()
@@ -164,6 +186,7 @@ def run(args: argparse.Namespace) -> int:
             "late_mean_ms": round(live.stats.late_mean_ms, 3),
             "late_over_5ms": live.stats.late_over_5ms,
             "received": live.stats.received,
+            **({"received_per_node": bus.received} if isinstance(bus, NodeHub) else {}),
             **live.core.counters.as_dict(),
         }
         print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)

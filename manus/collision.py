@@ -1,0 +1,458 @@
+"""The arm's collision model: distances from its bodies to the scene, the zones and itself.
+
+The arm's bodies are the URDF's collision geometry (:func:`manus.urdf.collision_shapes`),
+loaded with Pinocchio into a :class:`pinocchio.GeometryModel`; the scene's objects and
+keep-out zones are added to it as fixed bodies (placed through the mount), and
+:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call. Each
+class's clearance is baked into the fixed body as Coal's swept-sphere radius, so a
+pair's distance is its margin and the call's answer (the closest pair) is the tightest
+check; :meth:`CollisionModel.probe` asks one small geometry model per moving body, which
+gives each body its own margin. The keep-in workspace is checked apart, exactly, from
+each body's convex cover (its end points or corners and a radius): a concave margin over
+a convex body is smallest at one of those points.
+
+Every check is one :class:`Check`: an arm body, what it is checked against, the class
+(``person``, ``chair``, ``environment``, ``self`` or ``zone``) and the clearance that
+class requires. A configuration's *margin* per check is distance minus clearance;
+negative means violated.
+
+Self-collision pairs are declared once, in :data:`SELF_PAIRS`: the gripper, its motor,
+the wrist and the forearm against the arm's base (column and shoulder). Adjacent bodies
+are excluded, and so is everything between the upper arm and the forearm-wrist-gripper
+chain: the DH model puts them in one plane (folded, on one line), while on the arm the
+forearm and the gripper fold beside the upper arm, so their distance in this model says
+nothing about the arm. Pairs that no configuration can bring within their clearance (an
+object beyond the sphere about the shoulder that holds the body) are left out. The
+``column`` and the ``shoulder`` do not move (the shoulder turns about its own axis), so
+their distances to the scene are checked once, when the model is built
+(:meth:`CollisionModel.base_overlaps`), not per configuration.
+
+:func:`manus.sweep.sweep` checks a whole motion through :meth:`CollisionModel.probe`
+(each moving body's margin and its reach from each joint's axis).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from manus.config import ArmConfig
+from manus.scene import Primitive, Scene, SceneError
+from manus.shapes import coal_shape, cover, inner_distances
+from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
+from schemas.collision import ClearanceReport
+
+SELF_PAIRS: tuple[tuple[str, str], ...] = (
+    ("gripper", "column"),
+    ("gripper", "shoulder"),
+    ("gripper_motor", "column"),
+    ("gripper_motor", "shoulder"),
+    ("wrist", "column"),
+    ("forearm", "column"),
+)
+"""Self-collision pairs (arm body, arm body), the only place they are declared."""
+
+GRIPPER_BODIES = ("gripper", "gripper_motor")
+"""The bodies a zone with ``links: gripper`` applies to."""
+
+STATIC_BODIES = ("column", "shoulder")
+"""Bodies whose distance to the scene does not depend on the joint angles."""
+
+
+class Check(NamedTuple):
+    """One distance the model watches.
+
+    Attributes:
+        body: the arm body.
+        other: the object, zone or arm body it is kept from.
+        cls: ``person``, ``chair``, ``environment``, ``self`` or ``zone``.
+        required: the clearance [m].
+    """
+
+    body: str
+    other: str
+    cls: str
+    required: float
+
+
+class Clearance(NamedTuple):
+    """The tightest check of one configuration (or of a motion).
+
+    Attributes:
+        margin: distance minus required clearance [m] (< 0: violated).
+        distance: distance between the two [m] (a keep-in zone: to its boundary).
+        check: which check.
+        time: time along the motion [s] (0 for a single configuration).
+        q: the configuration [rad], shape (6,).
+    """
+
+    margin: float
+    distance: float
+    check: Check
+    time: float
+    q: np.ndarray
+
+    def report(self) -> ClearanceReport:
+        """The message form."""
+        c = self.check
+        return ClearanceReport(
+            distance=float(self.distance),
+            required=float(c.required),
+            body=c.body,
+            other=c.other,
+            cls=c.cls,
+            time=float(self.time),
+        )
+
+    def describe(self) -> str:
+        """``gripper 12.0 mm from head (person: needs 50 mm)``."""
+        c = self.check
+        kind = "inside" if c.cls == "zone" and c.other.startswith("keep_in ") else "from"
+        return (
+            f"{c.body} {self.distance * 1e3:.1f} mm {kind} {c.other} "
+            f"({c.cls}: needs {c.required * 1e3:.0f} mm)"
+        )
+
+
+class Probe(NamedTuple):
+    """One configuration as :meth:`CollisionModel.probe` sees it.
+
+    Attributes:
+        best: the tightest check.
+        free: per moving body, its smallest margin (never below 0) [m].
+        reach: per joint and moving body, the farthest the body is from the joint's
+            axis [m], shape (6, bodies): the body moves no faster than
+            ``|qd| @ reach`` [m/s].
+    """
+
+    best: Clearance
+    free: np.ndarray
+    reach: np.ndarray
+
+
+class CollisionModel:
+    """The arm's bodies, a scene and the checks between them.
+
+    Raises:
+        SceneError: a scene object overlaps the arm's base (column or shoulder), naming
+            the file, its line and the object.
+
+    Args:
+        scene: the surroundings (None: self-collision only).
+        cfg: arm geometry (passed explicitly, as the kinematics take it).
+        opening: gripper opening the gripper box is sized for [m] (default: fully open,
+            the planner's choice: it does not know the opening a move will have).
+    """
+
+    def __init__(self, scene: Scene | None, cfg: ArmConfig, opening: float | None = None) -> None:
+        self.cfg = cfg
+        self.scene = scene
+        urdf = build_urdf(self.cfg)
+        self.model = pin.buildModelFromXML(urdf)
+        self.data = self.model.createData()
+        gm = pin.buildGeomFromUrdfString(self.model, urdf, pin.GeometryType.COLLISION)
+        self.shapes = collision_shapes(self.cfg)
+        # Pinocchio names them <link>_<k>, in URDF order: give them the shapes' names.
+        for obj, shape in zip(gm.geometryObjects, self.shapes, strict=True):
+            obj.name = shape.name
+        self.body_index = {s.name: i for i, s in enumerate(self.shapes)}
+        self._gripper_box = gm.geometryObjects[self.body_index["gripper"]].geometry
+        self.checks: list[Check] = []
+        self._keep_in_bodies: list[tuple[Check, Primitive, list[int]]] = []
+        self._static: list[tuple[int, int, Check]] = []
+        pairs = self._self_pairs(gm, scene.clearance["self"] if scene is not None else 0.01)
+        if scene is not None:
+            pairs += self._scene_pairs(gm, scene)
+            self._keep_in_zones(scene)
+        self.geom = gm
+        self._covers = [cover(s) for s in self.shapes]
+        self._prepare_points()
+        # Pairs no configuration can bring within their clearance are left out.
+        reachable = [self._can_meet(first, second) for first, second in pairs]
+        pairs = [p for p, keep in zip(pairs, reachable, strict=True) if keep]
+        self.checks = [c for c, keep in zip(self.checks, reachable, strict=True) if keep]
+        for first, second in pairs:
+            gm.addCollisionPair(pin.CollisionPair(first, second))
+        self.geom_data = pin.GeometryData(gm)
+        self._required = np.array([c.required for c in self.checks])
+        self._per_body = self._split(pairs)
+        overlaps = self.base_overlaps()
+        if overlaps:
+            raise SceneError(overlaps[0])
+        self.set_opening(self.cfg.gripper_max if opening is None else opening)
+
+    def _self_pairs(self, gm: Any, required: float) -> list[tuple[int, int]]:
+        """The pairs of :data:`SELF_PAIRS`. Each clearance is baked into the other body
+        as Coal's swept-sphere radius, so every pair's distance is its margin and
+        computeDistances' argmin the tightest; the self pairs' bodies get inflated
+        copies (the originals face the scene)."""
+        pairs: list[tuple[int, int]] = []
+        copies: dict[str, int] = {}
+        for a, b in SELF_PAIRS:
+            if b not in copies:
+                original = gm.geometryObjects[self.body_index[b]]
+                geometry = original.geometry.clone()
+                geometry.setSweptSphereRadius(required)
+                copies[b] = gm.addGeometryObject(
+                    pin.GeometryObject(
+                        f"{b}+self", original.parentJoint, original.placement, geometry
+                    )
+                )
+            pairs.append((self.body_index[a], copies[b]))
+            self.checks.append(Check(a, b, "self", required))
+        return pairs
+
+    def _scene_pairs(self, gm: Any, scene: Scene) -> list[tuple[int, int]]:
+        """The scene's objects and keep-out zones as fixed bodies (their clearance as
+        swept-sphere radius) and their pairs with the arm's moving bodies; the static
+        bodies' pairs go to :meth:`base_overlaps`."""
+        to_base = np.linalg.inv(scene.mount)
+        fixed = [(o.name, o.cls, o.body, scene.clearance[o.cls], "all") for o in scene.objects]
+        fixed += [
+            (z.name, "zone", z.body, z.clearance, z.links)
+            for z in scene.zones
+            if z.kind == "keep_out"
+        ]
+        pairs: list[tuple[int, int]] = []
+        for name, cls, body, required, links in fixed:
+            geometry, pose = coal_shape(body)
+            geometry.setSweptSphereRadius(required)
+            placement = pin.SE3(to_base @ pose)
+            index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
+            for i, shape in enumerate(self.shapes):
+                if links == "gripper" and shape.name not in GRIPPER_BODIES:
+                    continue
+                check = Check(shape.name, name, cls, required)
+                if shape.name in STATIC_BODIES:
+                    self._static.append((i, index, check))
+                else:
+                    pairs.append((i, index))
+                    self.checks.append(check)
+        return pairs
+
+    def _keep_in_zones(self, scene: Scene) -> None:
+        to_base = np.linalg.inv(scene.mount)
+        for zone in scene.zones:
+            if zone.kind == "keep_in":
+                bodies = [
+                    i
+                    for i, arm_body in enumerate(self.shapes)
+                    if zone.links == "all" or arm_body.name in GRIPPER_BODIES
+                ]
+                check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
+                body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
+                self._keep_in_bodies.append((check, body, bodies))
+
+    # --- configuration queries ----------------------------------------------------------
+
+    def set_opening(self, opening: float) -> None:
+        """Size the gripper box for ``opening`` [m] (clamped to 0..gripper_max)."""
+        opening = min(max(opening, 0.0), self.cfg.gripper_max)
+        half = self._gripper_box.halfSide.copy()
+        half[0] = opening / 2.0 + FINGER_THICKNESS
+        self._gripper_box.halfSide = half
+        self._gripper_box.computeLocalAABB()
+        self.opening = opening
+
+    def margins(self, q: np.ndarray) -> np.ndarray:
+        """Distance minus clearance of every pair check at ``q`` [m], shape (len(checks),);
+        keep-in zones are not included (:meth:`keep_in_margins`)."""
+        pin.computeDistances(
+            self.model, self.data, self.geom, self.geom_data, np.asarray(q, dtype=float)
+        )
+        return np.array([r.min_distance for r in self.geom_data.distanceResults])
+
+    def tightest(self, q: np.ndarray) -> tuple[int, float]:
+        """The tightest pair check at ``q``: its index in :attr:`checks` and its margin [m]."""
+        k = pin.computeDistances(self.model, self.data, self.geom, self.geom_data, q)
+        return k, self.geom_data.distanceResults[k].min_distance
+
+    def keep_in_margins(self) -> list[tuple[float, Check]]:
+        """For each keep-in zone: the smallest inner distance of its bodies to its boundary
+        minus its clearance, at the configuration of the last :meth:`margins` call."""
+        return self._keep_in_at(self._world_points())
+
+    def clearance(self, q: np.ndarray, time: float = 0.0) -> Clearance:
+        """The tightest check at ``q``."""
+        q = np.asarray(q, dtype=float)
+        m = self.margins(q)
+        k = int(np.argmin(m)) if len(m) else -1
+        best = (
+            Clearance(float(m[k]), float(m[k] + self._required[k]), self.checks[k], time, q)
+            if k >= 0
+            else Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
+        )
+        for margin, check in self.keep_in_margins():
+            if margin < best.margin:
+                best = Clearance(margin, margin + check.required, check, time, q)
+        return best
+
+    def base_overlaps(self) -> list[str]:
+        """Scene objects that touch the arm's fixed base (column, shoulder), one line each."""
+        out = []
+        for i, j, check in self._static:
+            res = coal.DistanceResult()
+            placement = self.geom.geometryObjects[i].placement
+            other = self.geom.geometryObjects[j]
+            distance = coal.distance(
+                self.geom.geometryObjects[i].geometry,
+                coal.Transform3s(placement.rotation, placement.translation),
+                other.geometry,
+                coal.Transform3s(other.placement.rotation, other.placement.translation),
+                coal.DistanceRequest(),
+                res,
+            )
+            distance += check.required  # the object carries its clearance
+            if distance <= 0.0:
+                where = self.scene.where(_line_of(self.scene, check.other)) if self.scene else ""
+                out.append(
+                    f"{where}: objects.{check.other}: overlaps the arm's {check.body} (its "
+                    f"base, at the mount) by {-distance * 1e3:.1f} mm: move the object or "
+                    "the mount"
+                )
+        return out
+
+    # --- motions --------------------------------------------------------------------------
+
+    def probe(self, q: np.ndarray, time: float = 0.0, *, reach: bool = True) -> Probe:
+        """At ``q``, per moving body: its tightest margin (how far it may travel before any
+        of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
+        False: cheaper); and the tightest check."""
+        q = np.asarray(q, dtype=float)
+        pin.forwardKinematics(self.model, self.data, q)
+        free = np.full(len(self._moving), math.inf)
+        best = Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
+        tight, tight_row = math.inf, -1
+        update, distances, model, data = (
+            pin.updateGeometryPlacements,
+            pin.computeDistances,
+            self.model,
+            self.data,
+        )
+        for b, (gm, gd, rows) in enumerate(self._per_body):
+            if rows:
+                update(model, data, gm, gd)
+                k = distances(gm, gd)
+                margin = gd.distanceResults[k].min_distance
+                free[b] = margin
+                if margin < tight:
+                    tight, tight_row = margin, rows[k]
+        if tight_row >= 0:
+            check = self.checks[tight_row]
+            best = Clearance(tight, tight + check.required, check, time, q)
+        points = self._world_points()
+        for margin, check in self._keep_in_at(points):
+            free = np.minimum(free, margin)  # every body: the zone's tightest (cheaper)
+            if margin < best.margin:
+                best = Clearance(margin, margin + check.required, check, time, q)
+        reaches = self._reach_at(points) if reach else np.zeros((6, len(self._moving)))
+        return Probe(best, np.maximum(free, 0.0), reaches)
+
+    def _world_points(self) -> np.ndarray:
+        """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
+        oMi = self.data.oMi
+        H = np.array([oMi[j].homogeneous for j in range(self.model.njoints)])
+        self._joints_now = H
+        Hp = H[self._point_joint]
+        return np.asarray(np.einsum("nij,nj->ni", Hp[:, :3, :3], self._points) + Hp[:, :3, 3])
+
+    def _reach_at(self, world: np.ndarray) -> np.ndarray:
+        """Per joint and moving body, the farthest point of the body from the joint's axis
+        (0 for a body the joint does not move) [m], shape (6, moving bodies)."""
+        H = self._joints_now[1:]
+        d = world[None, :, :] - H[:, None, :3, 3]  # (6, n, 3)
+        along = np.einsum("jnk,jk->jn", d, H[:, :3, 2])
+        radial = np.sqrt(np.maximum(np.einsum("jnk,jnk->jn", d, d) - along * along, 0.0))
+        radial = np.where(self._beyond_mask, radial + self._radii, 0.0)
+        per_body = np.maximum.reduceat(radial, self._body_starts, axis=1)
+        return np.asarray(per_body[:, self._moving])
+
+    def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check]]:
+        """Per keep-in zone: its tightest margin and the check naming the body."""
+        out = []
+        for check, zone, rows in self._keep_in:
+            inner = inner_distances(zone, world[rows]) - self._radii[rows]
+            k = int(np.argmin(inner))
+            body = self.shapes[int(self._point_body[rows][k])].name
+            out.append((float(inner[k]) - check.required, check._replace(body=body)))
+        return out
+
+    def _can_meet(self, body: int, other: int) -> bool:
+        """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
+        the shoulder that holds ``body`` in every configuration (the joint placements'
+        lengths up to the body, plus its own extent)."""
+        obj = self.geom.geometryObjects[body]
+        rows = self._point_body == body
+        radius = sum(
+            float(np.linalg.norm(self.model.jointPlacements[k].translation))
+            for k in range(1, obj.parentJoint + 1)
+        )
+        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        fixed = self.geom.geometryObjects[other]
+        if fixed.parentJoint != 0:
+            return True  # another arm body (a self pair)
+        M = fixed.placement
+        gap = coal.distance(
+            coal.Sphere(radius),
+            coal.Transform3s(),
+            fixed.geometry,
+            coal.Transform3s(M.rotation, M.translation),
+            coal.DistanceRequest(),
+            coal.DistanceResult(),
+        )
+        return bool(gap <= 0.0)
+
+    def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
+        """One geometry model per moving body with its pairs, for per-body margins: the
+        body, then its partners; with the rows of :attr:`checks` of its pairs."""
+        out = []
+        for b in self._moving:
+            gm = pin.GeometryModel()
+            gm.addGeometryObject(self.geom.geometryObjects[b])
+            rows = []
+            for k, (first, second) in enumerate(pairs):
+                if first == b:
+                    index = gm.addGeometryObject(self.geom.geometryObjects[second])
+                    gm.addCollisionPair(pin.CollisionPair(0, index))
+                    rows.append(k)
+            out.append((gm, pin.GeometryData(gm), rows))
+        return out
+
+    def _prepare_points(self) -> None:
+        """Stack every body's cover points in its joint's frame (for reach and keep-in)."""
+        points, radii, joints, bodies = [], [], [], []
+        for i, (local, radius) in enumerate(self._covers):
+            obj = self.geom.geometryObjects[i]
+            M = obj.placement
+            points.append(local @ M.rotation.T + M.translation)
+            radii += [radius] * len(local)
+            joints += [obj.parentJoint] * len(local)
+            bodies += [i] * len(local)
+        self._points = np.vstack(points)
+        self._radii = np.array(radii)
+        self.extent = float(np.linalg.norm(self._points, axis=1).max() + self._radii.max())
+        """Farthest any body point is from its joint's origin [m] (a coarse speed bound)."""
+        self._point_joint = np.array(joints)
+        self._point_body = np.array(bodies)
+        self._rows_by_joint = [
+            (j, np.flatnonzero(self._point_joint == j)) for j in sorted(set(joints))
+        ]
+        self._beyond_mask = np.array([self._point_joint >= j for j in range(1, self.model.njoints)])
+        self._body_starts = np.searchsorted(self._point_body, np.arange(len(self.shapes)))
+        self._moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
+        """Arm bodies whose distances depend on the joint angles (indices into shapes)."""
+        self._keep_in = [
+            (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
+            for check, zone, bodies in self._keep_in_bodies
+        ]
+
+
+def _line_of(scene: Scene, name: str) -> int:
+    for obj in scene.objects:
+        if obj.name == name:
+            return obj.line
+    return 0

@@ -1,0 +1,236 @@
+"""The controller's per-cycle collision guard (MoveIt Servo's slow-down, Kortex's zones).
+
+Every command passes through :meth:`Guard.filter` where the controller forms it, so
+trajectories, spliced (replaced) trajectories and jogs are all guarded. It predicts where
+the arm will be: the joint state's snapshot at s, plus what the arm executes during
+[s, s+60) ms (``JointState.applied``, already sent), plus this command during
+[s+60, s+120) ms, plus the drives' run-out after it (``runout_s``, the lag). If the
+clearances (the scene's, per class, and the zones) would be violated there, the
+command is scaled down, or stopped; near an obstacle (margin under ``slow_zone_m``) a
+motion that closes in is slowed in proportion. A motion that opens a margin is always
+allowed, so an arm that starts too close can still leave.
+
+Most cycles compute no distance at all: from the last configuration whose distances
+were computed (the anchor), no point of the arm can have moved further than its joint
+moves times each joint's reach, and while that bound stays under the anchor's margin
+nothing can be violated (conservative advancement, as in
+:func:`manus.sweep.sweep`).
+
+Pure: no clock, no I/O; the same inputs give the same commands.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from manus.collision import Clearance, CollisionModel
+from manus.config import ArmConfig
+from manus.joint_map import encoder_increments_to_dh_list
+from manus.quantize import COUNT_RAD_S
+from manus.scene import SceneError, parse_scene, scene_from_setting
+from schemas.collision import ClearanceReport, SceneState
+from schemas.state import JointState
+
+_NOTHING = (0,) * 6
+"""``JointState.applied`` when the command in flight is not a joint move."""
+
+
+class Verdict(NamedTuple):
+    """What the guard did to one command.
+
+    Attributes:
+        counts: the motor counts to send, shape (6,) (the input's, scaled toward 0).
+        scale: the factor applied (1: unchanged, 0: stopped).
+        reason: why it scaled or stopped ("" when unchanged).
+        clearance: the tightest clearance computed this cycle (None: none computed).
+    """
+
+    counts: np.ndarray
+    scale: float
+    reason: str
+    clearance: Clearance | None
+
+
+class _Anchor(NamedTuple):
+    q: list[float]
+    """where the distances were computed [rad]"""
+    free: list[float]
+    """margins of the bodies that have something to keep clear of [m]"""
+    radius: list[list[float]]
+    """per body, each joint's reach to it plus its margin [m]"""
+    margin: float
+
+
+class Guard:
+    """Scales or stops commands that would break a clearance.
+
+    Args:
+        model: the collision model (scene, zones, the arm itself).
+        cycle_s: the arm's cycle [s] (60 ms).
+        runout_s: how far past its cycle a command carries the arm (drive lag) [s].
+        slow_zone_m: below this margin, motions that close in are slowed in proportion [m].
+    """
+
+    def __init__(
+        self,
+        model: CollisionModel,
+        *,
+        cycle_s: float = 0.06,
+        runout_s: float = 0.06,
+        slow_zone_m: float = 0.03,
+    ) -> None:
+        self.model = model
+        self.cycle_s = cycle_s
+        self.runout_s = runout_s
+        self.slow_zone_m = slow_zone_m
+        self._anchor: _Anchor | None = None
+        self.computed = 0
+        """Configurations whose distances were computed (most cycles need none)."""
+
+    def filter(
+        self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
+    ) -> Verdict:
+        """Guard ``counts`` (motor increments, (6,)) for the snapshot angles ``q`` [rad]
+        and the motor counts in flight ``applied`` (6 values), gripper ``opening`` [m]."""
+        counts = np.asarray(counts, dtype=np.int64)
+        motor = counts.tolist()
+        if not any(motor) and not any(applied):
+            return Verdict(counts, 1.0, "", None)
+        model = self.model
+        if abs(model.opening - opening) > 0.005:  # a wider gripper: the proof is void
+            model.set_opening(opening)
+            self._anchor = None
+        # Plain floats on the common path (proven clear): a cycle costs microseconds.
+        ahead = self.cycle_s + self.runout_s
+        now_dh = encoder_increments_to_dh_list(applied)
+        cmd_dh = encoder_increments_to_dh_list(motor)
+        nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
+        end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
+        if self._proven_clear(list(q), nxt, end):
+            return Verdict(counts, 1.0, "", None)
+        return self._decide(counts, list(q), nxt, end, cmd_dh)
+
+    def _decide(
+        self,
+        counts: np.ndarray,
+        q: list[float],
+        nxt: list[float],
+        end: list[float],
+        cmd_dh: list[float],
+    ) -> Verdict:
+        """Compute the distances: pass, slow down or stop (not proven clear already)."""
+        q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
+        v_cmd = np.array(cmd_dh) * COUNT_RAD_S
+        now = self._anchor_at(q_s)
+        if now.margin >= self.slow_zone_m and self._proven_clear(nxt, end):
+            return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
+        floor = min(0.0, now.margin) - 1e-4
+        m_next = self._margin(q_next)
+        if m_next.margin < floor:
+            return self._stopped(counts, m_next, "already in flight")
+        m_end = self._margin(q_end)
+        scale = 1.0
+        if m_end.margin < floor:
+            # The margin along the way is about linear in the scale: aim below the root.
+            span = m_next.margin - m_end.margin
+            scale = max(0.0, min(1.0, 0.9 * (m_next.margin - floor) / span)) if span > 0 else 0.0
+        if 0.0 < now.margin < self.slow_zone_m and m_end.margin < now.margin:
+            scale = min(scale, max(0.1, now.margin / self.slow_zone_m))
+        if scale >= 1.0:
+            return Verdict(counts, 1.0, "", now.clearance)
+        scaled = np.trunc(counts * scale).astype(np.int64)
+        if scale > 0.0 and scaled.any():
+            q_scaled = q_next + v_cmd * (scaled / np.where(counts != 0, counts, 1)).max() * (
+                self.cycle_s + self.runout_s
+            )
+            check = self._margin(q_scaled)
+            if check.margin >= floor:
+                return Verdict(
+                    scaled,
+                    scale,
+                    f"slowed to {scale:.2f}: {check.describe()} ahead",
+                    now.clearance,
+                )
+        return self._stopped(counts, m_end, "ahead at the commanded speed")
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _stopped(self, counts: np.ndarray, found: Clearance, when: str) -> Verdict:
+        return Verdict(np.zeros_like(counts), 0.0, f"stopped: {found.describe()} {when}", found)
+
+    def _margin(self, q: np.ndarray) -> Clearance:
+        self.computed += 1
+        return self.model.probe(q, reach=False).best
+
+    def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
+        best, free, reach = self.model.probe(q)
+        self.computed += 1
+        bound = np.isfinite(free)
+        radius = (reach[:, bound] + free[bound]).T.tolist()
+        self._anchor = _Anchor(q.tolist(), free[bound].tolist(), radius, best.margin)
+        return _AnchorResult(best.margin, best)
+
+    def _proven_clear(self, *qs: list[float]) -> bool:
+        """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
+        body closer to the anchor than its margin there."""
+        a = self._anchor
+        if a is None or not all(f > 0.0 for f in a.free):
+            return False
+        box = [max(abs(q[j] - a.q[j]) for q in qs) for j in range(len(a.q))]
+        return all(
+            sum(b * r for b, r in zip(box, radius, strict=True)) < free
+            for radius, free in zip(a.radius, a.free, strict=True)
+        )
+
+
+class _AnchorResult(NamedTuple):
+    margin: float
+    clearance: Clearance
+
+
+class RunGuard:
+    """The :class:`Guard` as the controller core uses it: per joint state, and the
+    smallest clearance of each goal while it runs.
+
+    Args:
+        guard: the guard.
+    """
+
+    def __init__(self, guard: Guard) -> None:
+        self.guard = guard
+        self.lowest: dict[str, ClearanceReport] = {}
+
+    def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
+        """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
+        applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
+        verdict = self.guard.filter(js.position, applied, counts, js.gripper)
+        found = verdict.clearance
+        if goal_id and found is not None:
+            low = self.lowest.get(goal_id)
+            if low is None or found.distance - found.check.required < low.distance - low.required:
+                self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
+        return verdict
+
+    def result(self, goal_id: str) -> ClearanceReport | None:
+        """The smallest clearance of the goal (forgotten once read)."""
+        return self.lowest.pop(goal_id, None)
+
+
+def scene_guard(state: SceneState, arm: ArmConfig) -> RunGuard | None:
+    """The guard for a scene published by the planner (None: it does not build)."""
+    try:
+        scene = parse_scene(state.text, state.source)
+        scene = dataclasses.replace(scene, version=state.version)
+        return RunGuard(Guard(CollisionModel(scene, arm)))
+    except SceneError:
+        return None
+
+
+def run_guard(scene: str, arm: ArmConfig) -> RunGuard | None:
+    """The guard for a scene setting (``default``, ``none`` or a file; None: no guard)."""
+    loaded = scene_from_setting(scene)
+    return None if loaded is None else RunGuard(Guard(CollisionModel(loaded, arm)))

@@ -1,0 +1,46 @@
+"""``manus scene show|check`` and the clearance panel of ``manus plot``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from manus.config import DEFAULT_ARM
+from manus_stack.cli import main
+from manus_stack.recordings import record_thesis_run
+from services.recorder.plot import load_plot_data, plot_recording
+
+
+def test_scene_show_draws_the_arm_and_names_the_tightest_clearance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    png = tmp_path / "scene.png"
+    assert (
+        main(["scene", "show", "--joints", "0", "-90", "-90", "0", "-90", "0", "-o", str(png)]) == 0
+    )
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == (
+        "q = (0, -90, -90, 0, -90, 0) deg: gripper_motor 20.2 mm from shoulder (self: needs 10 mm)"
+    )
+    assert out[1] == f"plot: {png}"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scene_check_refuses_a_malformed_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\nmount: {xyz_mm: [0, 0, 0]}\nobjects:\n  - {name: x}\n")
+    assert main(["scene", "check", "--scene", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert err == f"manus scene: error: {bad}:4: objects[0].class: missing field\n"
+
+
+def test_plot_shows_the_true_clearance_of_a_run(tmp_path: Path) -> None:
+    run = record_thesis_run("square", tmp_path / "square.mcap")
+    data = load_plot_data(run.output, DEFAULT_ARM)
+    assert len(data.clearance) > 100 and data.contacts == 0
+    assert 0.05 < float(data.clearance.min()) < 0.2  # the upper arm passes the thighs
+    summary = plot_recording(run.output, tmp_path / "square.png", arm=DEFAULT_ARM)
+    assert Path(summary.output).read_bytes()[:4] == b"\x89PNG"
