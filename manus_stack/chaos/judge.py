@@ -15,7 +15,8 @@ hundredths of a degree after a stop).
   on (a transient CAN fault costs a short stop, not the task) is exempt from the last two.
 - One final event per task, its reason naming the fault.
 - The recording is complete: every sample the soak's node received while a recorder
-  was alive is in that recorder's file (or the file recovered after a kill).
+  was alive (its process running, its token on the bus: a router restart takes it off)
+  is in that recorder's file (or the file recovered after a kill).
 """
 
 from __future__ import annotations

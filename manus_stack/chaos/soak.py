@@ -476,9 +476,26 @@ class Soak:
         if judge.first_motion(truth, sim(done.ready_ns), sim(done.next_submit_ns)) is not None:
             violated(done, "moved by itself after the recovery, before the next task")
 
+    def _token_gaps(self, service: str) -> list[tuple[int, int]]:
+        """When the soak's node saw ``service``'s token gone, [vanished, back] [wall ns]
+        (a router restart cuts every token: the recorder is not on the bus then)."""
+        with self.w.seen.lock:
+            changes = [(t, up) for name, up, t in self.w.seen.alive if name == service]
+        gaps, down = [], None
+        for t, up in changes:
+            if not up and down is None:
+                down = t
+            elif up and down is not None:
+                gaps.append((down, t))
+                down = None
+        if down is not None:
+            gaps.append((down, 2**63 - 1))
+        return gaps
+
     def _completeness(self) -> judge.Completeness:
         recorded: set[tuple[str, bytes]] = set()
         numbered: list[tuple[str, int, int]] = []
+        process_windows: list[tuple[int, int]] = []
         windows: list[tuple[int, int]] = []
         for life in self.lives:
             path = life.path
@@ -490,12 +507,10 @@ class Soak:
                 except Exception as exc:  # judged as lost, not a crash of the soak
                     self._say(f"cannot recover {path}: {exc}")
                     continue
-            cuts = sorted(life.pauses)
-            start = life.start_ns
-            for a, b in cuts:
-                windows.append((start, a))
-                start = b
-            windows.append((start, life.end_ns))
+            windows += _cut(
+                life.start_ns, life.end_ns, [*life.pauses, *self._token_gaps("recorder")]
+            )
+            process_windows += _cut(life.start_ns, life.end_ns, life.pauses)
             with contextlib.suppress(Exception):
                 for rec in Recording(path).messages():
                     recorded.add((rec.key, digest(rec.payload)))
@@ -507,9 +522,21 @@ class Soak:
                                 numbered.append((rec.key, seq, rec.log_ns))
         with self.w.seen.lock:
             samples = list(self.w.seen.samples)
-        gaps = judge.seq_gaps(numbered, windows)
+        gaps = judge.seq_gaps(numbered, process_windows)
         self.unrecorded = {k.removeprefix("chaos/"): n for k, n in gaps.items()}
         return judge.completeness(samples, windows, recorded, "chaos")
+
+
+def _cut(start: int, end: int, cuts: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """[start, end] without the ``cuts`` ([a, b] each), as windows."""
+    windows = []
+    for a, b in sorted(cuts):
+        if a > start:
+            windows.append((start, min(a, end)))
+        start = max(start, b)
+    if start < end:
+        windows.append((start, end))
+    return windows
 
 
 def run_soak(run_dir: Path, minutes: float, seed: int, out: IO[str] | None) -> dict[str, Any]:
