@@ -178,7 +178,8 @@ def test_seq_gaps_count_numbered_messages_missing_inside_one_recorder_life() -> 
 
 FOLDS = ("fold_in", "fold_out")
 OPEN: dict[tuple[str, str], str] = {
-    ("bridge_sigkill", "*"): "issue 19: nothing stops an arm whose bridge died (the guardian)",
+    ("bridge_sigkill", "*"): "without the guardian nothing stops an arm whose bridge died; "
+    "after a restart the next task's fold step races the bridge's phase",
     ("bridge_sigstop", "*"): "issue 19: nor one whose bridge hangs; the task's reason blames "
     "the link; a bridge continued after a SIGSTOP finishes the fold of a failed task",
     ("router_restart", "*"): "the final event is published during the cut and lost; a fold "
