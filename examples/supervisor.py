@@ -6,7 +6,9 @@ positions in metres). It
 
 1. checks the services' liveliness tokens (``<prefix>/alive/*``),
 2. submits a task (``<prefix>/sequencer/submit``, a Zenoh get with the Task as payload;
-   the reply is a SubmitReply: a task id, or every validation error),
+   the reply is a SubmitReply: a task id, or every validation error); when the task
+   cannot be planned from where the arm is (a folded arm, as after power-up) but can be
+   after the arm's own fold-out, it unfolds the arm first (``--no-fold-out``: never),
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
    pause it after a while and resume it (``<prefix>/sequencer/control``),
 4. watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
@@ -85,6 +87,9 @@ def parse_args() -> argparse.Namespace:
                         help="resume this long after the pause [s]")  # fmt: skip
     parser.add_argument("--timeout", type=float, default=300.0, help="give up after [s]")
     parser.add_argument("--scene", metavar="FILE", help="replace the scene first (YAML)")
+    parser.add_argument("--no-fold-out", action="store_true",
+                        help="never unfold the arm first (a task that cannot be planned "
+                             "from where the arm is is refused)")  # fmt: skip
     return parser.parse_args()
 
 
@@ -143,6 +148,16 @@ class Sequencer:
         return self.ask("sequencer/control", {"action": action, "task_id": task_id})
 
 
+def unfold_first(seq: Sequencer, task: dict[str, Any]) -> dict[str, Any] | None:
+    """Submit ``task`` with the arm's own fold-out first; the reply if accepted (None: not)."""
+    unfolded = dict(task, steps=[{"kind": "fold_out", "where": "--fold-out"}, *task["steps"]])
+    retry = seq.ask("sequencer/submit", unfolded)
+    if not retry["accepted"]:
+        return None
+    print("not plannable from where the arm is: unfolding it first", flush=True)
+    return retry
+
+
 def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
     """Print the task's events (pausing and resuming it if asked) until it ends: exit status."""
     start = time.monotonic()
@@ -197,7 +212,10 @@ def main() -> int:
         print(f"alive: {', '.join(sorted(seq.alive())) or 'nothing'}", flush=True)
         if args.scene and not replace_scene(seq, args.scene):
             return 2
-        submitted = seq.ask("sequencer/submit", task_from_words(args.task))
+        task = task_from_words(args.task)
+        submitted = seq.ask("sequencer/submit", task)
+        if not submitted["accepted"] and not args.no_fold_out:
+            submitted = unfold_first(seq, task) or submitted
         if not submitted["accepted"]:
             print("refused:\n  " + "\n  ".join(submitted["errors"]), flush=True)
             return 2

@@ -13,8 +13,10 @@ its queryables' mirrored requests in; its publications and mirrored replies out.
 
 - ``planner``: joint states, plan requests and scene updates in, plan and scene replies
   out (``compute_ms`` is wall time and is not compared).
-- ``controller``: the bridge's joint states, status and phase, the heartbeat and the
-  controller's query requests in; commands, feedback, results and the query replies out.
+- ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
+  stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
+  the live shell does), the scene and the controller's query requests in; commands,
+  feedback, results, the jog's state and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
@@ -31,6 +33,7 @@ other order than the service saw them.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -39,16 +42,21 @@ from typing import Any
 
 import msgpack
 
+from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.endpoints import LIVELINESS
+from schemas.jog import JogTaken
 from schemas.liveliness import LivelinessChange, TokenKind
 from schemas.planning import PlanReply
+from schemas.state import JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
+from services.controller.jog import BAD_JOG_PAYLOAD
 from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
 from services.planner.wiring import WIRING as PLANNER
+from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording, decode
 
 
@@ -237,10 +245,17 @@ def _plain(payload: bytes) -> Any:
 
 def _inputs(
     recording: Recording, suffixes: tuple[str, ...], window: Window = EVERYTHING
-) -> Iterator[tuple[Recorded, Message]]:
+) -> Iterator[tuple[Recorded, Message | None]]:
+    """The inputs in order; None for a ``jog`` payload that does not decode (the live
+    shell hands those to the controller as bad jogs)."""
     for rec in recording.messages(_present(recording, suffixes)):
         if window[0] <= rec.log_ns <= window[1]:
-            yield rec, decode(rec)
+            try:
+                yield rec, decode(rec)
+            except RecordingError:
+                if rec.suffix != ep.JOG:
+                    raise
+                yield rec, None
 
 
 def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
@@ -260,6 +275,8 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     inputs = 0
     for rec, msg in _inputs(recording, PLANNER.input_suffixes, window):
         inputs += 1
+        if msg is None:  # a bad jog payload: not the planner's
+            continue
         for suffix, out in PLANNER.feed(core, rec.suffix, msg, rec.log_ns):
             sent = out
             if isinstance(out, PlanReply):  # compute_ms is wall time: not compared
@@ -280,11 +297,62 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     cmp = _Comparer(recording, CONTROLLER.output_suffixes, window)
     window = (window[0], cmp.last_ns)
     inputs = 0
-    for rec, msg in _inputs(recording, CONTROLLER.input_suffixes, window):
+    for rec, msg in _controller_inputs(recording, window):
         inputs += 1
-        for suffix, out in CONTROLLER.feed(core, rec.suffix, msg, rec.log_ns):
-            cmp.add(suffix, out.encode(), rec.log_ns)
+        if isinstance(msg, JogTaken):  # where the controller took it (see below)
+            taken = msg.command
+            out = core.on_jog(taken) if taken is not None else core.on_bad_jog(msg.error)
+            outputs = CONTROLLER.published(out)
+        elif msg is None:
+            outputs = CONTROLLER.published(core.on_bad_jog(BAD_JOG_PAYLOAD))
+        else:
+            outputs = CONTROLLER.feed(core, rec.suffix, msg, rec.log_ns)
+        for suffix, out_msg in outputs:
+            cmp.add(suffix, out_msg.encode(), rec.log_ns)
     return cmp.result(CONTROLLER.service, inputs)
+
+
+def _controller_inputs(
+    recording: Recording, window: Window
+) -> list[tuple[Recorded, Message | None]]:
+    """The controller's inputs in the order it saw them.
+
+    The jog stream and the joint states come from two publishers, so a recorder may log a
+    command and a joint state that arrived together in the other order than the controller
+    saw them. The controller publishes each command it takes as a
+    :class:`~schemas.jog.JogTaken` saying after which joint state it came: when the
+    recording holds those, each is fed (as the command it carries) after that joint state
+    and before the next, at its log time within that span, instead of the raw stream.
+    """
+    have = {c.suffix for c in recording.info.channels.values()}
+    if ep.JOG_TAKEN not in have:
+        return list(_inputs(recording, CONTROLLER.input_suffixes, window))
+    suffixes = tuple(s for s in CONTROLLER.input_suffixes if s != ep.JOG)
+    base = list(_inputs(recording, suffixes, window))
+    times = [rec.log_ns for rec, _ in base]
+    states = [i for i, (_, m) in enumerate(base) if isinstance(m, JointState)]
+    at_seq = {m.seq: i for i, (_, m) in enumerate(base) if isinstance(m, JointState)}
+    placed: list[tuple[int, int, Recorded, Message | None]] = []
+    for order, (rec, taken) in enumerate(_inputs(recording, (ep.JOG_TAKEN,), window)):
+        assert isinstance(taken, JogTaken)
+        pos = bisect.bisect_right(times, rec.log_ns)
+        after = at_seq.get(taken.after_seq)
+        if after is not None:  # within (that joint state, the next one]
+            nxt = next((i for i in states if i > after), len(base))
+            pos = min(max(pos, after + 1), nxt)
+        elif taken.after_seq < 0 and states:  # before any joint state
+            pos = min(pos, states[0])
+        placed.append((pos, order, rec, taken))
+    out: list[tuple[Recorded, Message | None]] = []
+    j = 0
+    placed.sort(key=lambda p: (p[0], p[1]))
+    for i, item in enumerate(base):
+        while j < len(placed) and placed[j][0] <= i:
+            out.append((placed[j][2], placed[j][3]))
+            j += 1
+        out.append(item)
+    out += [(p[2], p[3]) for p in placed[j:]]
+    return out
 
 
 CHECKS: dict[str, Callable[[str | Path], CheckResult]] = {

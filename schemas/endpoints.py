@@ -44,6 +44,7 @@ from schemas import (
     control,
     guardian,
     health,
+    jog,
     liveliness,
     planning,
     sequencing,
@@ -308,6 +309,37 @@ FEEDBACK = _pub(
 )
 RESULT = _pub("controller/result", _CTRL, control.GoalResult, "the one result of each goal")
 
+# -- live control (schemas/jog.py) -----------------------------------------------------------
+JOG = _pub(
+    "jog",
+    SUPERVISOR,
+    jog.JogCommand,
+    "live control at 10-50 Hz: twist, joint or gripper speeds; the controller's deadman "
+    "(jog_timeout, 150 ms) stops the arm when it stops coming; a running task pauses",
+    _SUP,
+)
+JOG_LEVEL = _query(
+    "controller/jog_level",
+    _CTRL,
+    jog.JogLevel,
+    control.GoalAck,
+    "set the jog speed level (1..5)",
+    _SUP,
+)
+JOG_TAKEN = _pub(
+    "controller/jog_taken",
+    _CTRL,
+    jog.JogTaken,
+    "each jog command as the controller took it: after which joint state (exact replays)",
+)
+JOG_STATE = _pub(
+    "controller/jog_state",
+    _CTRL,
+    jog.JogState,
+    "the jog as the controller runs it: level, slow-down and stop reasons, refusals, pose",
+    _SUP,
+)
+
 # -- the sequencer: the supervisor's API -----------------------------------------------------
 HEARTBEAT = _pub(
     "heartbeat", _SEQ, control.Heartbeat, "deadman: echo of each joint state while a task runs"
@@ -491,6 +523,10 @@ TABLE = Table(
         SPEED_SCALE,
         FEEDBACK,
         RESULT,
+        JOG,
+        JOG_LEVEL,
+        JOG_TAKEN,
+        JOG_STATE,
         HEARTBEAT,
         SUBMIT,
         TASK_CONTROL,

@@ -208,6 +208,21 @@ def test_only_sequencer_and_supervisor_submit_tasks(lab: Lab) -> None:
     assert len(keep) == 3
 
 
+def test_only_the_supervisor_may_jog(lab: Lab) -> None:
+    lab.open("router-base.json5", listen=(lab.base_tcp,), connect=())
+    sequencer = lab.client("sequencer", lab.base_tcp)  # stands in for the arm's side
+    inbox = Inbox(sequencer, "manus/jog")
+    supervisor = lab.client("supervisor", lab.base_tcp)
+    planner = lab.client("planner", lab.base_tcp)
+    assert _put_until_received(supervisor, inbox, "manus/jog", b"supervisor-1")
+    for key in ("manus/jog", "manus/*", "manus/**", "*/jog"):
+        planner.put(key, b"rogue " + key.encode())
+    supervisor.put("manus/jog", b"supervisor-2")
+    assert inbox.wait_for(b"supervisor-2")
+    time.sleep(QUIET_S)
+    assert not [p for p in inbox.items if p.startswith(b"rogue")], inbox.items
+
+
 @pytest.mark.parametrize("host", ["localhost", "127.0.0.1"])
 def test_routers_linked_over_tls_pass_samples_both_ways(lab: Lab, host: str) -> None:
     lab.arm_tls = lab.arm_tls.replace("localhost", host)  # a DNS name and an IP address SAN

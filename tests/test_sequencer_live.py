@@ -54,11 +54,11 @@ gripper = 30
 
 
 class LiveStack:
-    def __init__(self, settings: ZenohSettings) -> None:
+    def __init__(self, settings: ZenohSettings, sim: SimConfig = FAST) -> None:
         channel = f"seq-{uuid.uuid4().hex}"
         self.arm_bus = can.Bus(interface="virtual", channel=channel)
         self.pc_bus = can.Bus(interface="virtual", channel=channel)
-        self.sim = LiveSim(SimCore(FAST), self.arm_bus)
+        self.sim = LiveSim(SimCore(sim), self.arm_bus)
         self.bridge = BridgeShell(self.pc_bus, settings)
         self.controller = ControllerShell(settings)
         self.planner = PlannerShell(settings)
@@ -165,3 +165,49 @@ def test_supervisor_process_runs_a_task_on_the_real_stack(
     assert proc.stdout.strip().endswith("event: succeeded step -1/2")
     eventually(lambda: len(live.results) >= 2, timeout=3.0)
     assert [r.status for r in live.results] == ["succeeded", "succeeded"]
+
+
+def test_supervisor_unfolds_a_folded_arm_first(
+    zenoh_settings: ZenohSettings, router_endpoint: str, tmp_path: Path
+) -> None:
+    """As after `manus up`: the arm starts folded and the README's command still works."""
+    folded = SimConfig(start_pose="folded", gripper_ready_ms=60, angles_measured_ms=120)
+    stack = LiveStack(zenoh_settings, folded)
+    try:
+        path = tmp_path / "reach.txt"  # absolute: 40 mm from the unfolded pose, not folded
+        path.write_text("0 0 0 0 0 0 0 0 0 0 0 0 0 0\n208 145 200 0 0 0 0 0 -60 0 0 0 3.0 0\n")
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        example = [sys.executable, str(ROOT / "examples" / "supervisor.py"),
+                   "--connect", router_endpoint, "--prefix", "test"]  # fmt: skip
+        refused = subprocess.run(
+            [*example, "--no-fold-out", str(path), "20"],
+            capture_output=True, text=True, timeout=60, env=env,
+        )  # fmt: skip
+        assert refused.returncode == 2, refused.stdout + refused.stderr
+        proc = subprocess.run(
+            [*example, str(path), "20"], capture_output=True, text=True, timeout=90, env=env
+        )
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "unfolding it first" in proc.stdout
+        assert proc.stdout.strip().endswith("event: succeeded step -1/3")
+    finally:
+        stack.close()
+
+
+def test_example_jog_stream_moves_the_real_arm(live: LiveStack, router_endpoint: str) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    first = live.joints[-1][1].position
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "jog.py"), "--connect", router_endpoint,
+         "--prefix", "test", "--level", "2", "--x", "1", "--seconds", "1.0"],
+        capture_output=True, text=True, timeout=60, env=env,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "level 2: ok" in proc.stdout and "jogging" in proc.stdout
+    eventually(lambda: live.at_rest_since(0.3), 5.0, "the arm at rest after the release")
+    moved = (
+        fk(live.joints[-1][1].position, DEFAULT_ARM)[:3, 3] - fk(first, DEFAULT_ARM)[:3, 3]
+    ) * 1e3
+    # 60 mm/s for about a second (ramp and latency aside), along x only
+    assert 35.0 < moved[0] < 75.0, moved
+    assert abs(moved[1]) < 2.0 and abs(moved[2]) < 2.0, moved

@@ -154,3 +154,14 @@ def test_estop_mid_path_fails_the_task_and_the_next_is_refused() -> None:
     rig.ls.run_for(1.0)
     refused = rig.seq.refuse(square_only())
     assert refused is not None and "estopped" in refused.errors[0]
+
+
+def test_a_wait_step_ends_on_time() -> None:
+    """A joint state that arrives as a wait ends must not swallow its end (lock-step
+    delivers each joint state before the tick of the same instant)."""
+    rig = Rig()
+    rig.start(Task(steps=[TaskStep(kind="wait", duration=1.5)]))
+    start = rig.ls.t_ns
+    rig.run_while_busy(10.0)
+    assert rig.seq.state == "succeeded", rig.seq.reason
+    assert 1.5 <= (rig.ls.t_ns - start) / NS <= 1.7

@@ -94,8 +94,11 @@ def test_status_shows_each_services_bad_input(zenoh_settings: ZenohSettings) -> 
         Node("status-test", zenoh_settings, liveliness=False) as viewer,
     ):
         controller.subscribe(controller.keys(ep.JOINTS), JointState, lambda m, t: None)
+        pub = viewer.session.declare_publisher(viewer.keys(ep.JOINTS))
+        # The subscription takes a moment to reach the router: publish once it has.
+        eventually(lambda: bool(getattr(pub.matching_status, "matching", False)))
         for payload in (b"\xc1", b"not msgpack", b"\x93\x01\x02"):
-            viewer.session.put(viewer.keys(ep.JOINTS), payload)
+            pub.put(payload)
         eventually(lambda: sum(controller.bad_payloads.values()) == 3)
         status = collect(viewer, wait_s=0.5)
     assert status["bad_input"]["controller"] == {

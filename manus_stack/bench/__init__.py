@@ -15,6 +15,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "guardian": ("manus_stack.bench.guardian", False),
     "fuzz": ("manus_stack.bench.fuzz", False),
     "collision": ("manus_stack.bench.collision", False),
+    "jog": ("manus_stack.bench.jog", False),
     "chaos": ("manus_stack.bench.chaos", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

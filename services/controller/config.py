@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ConfigError
+from services.controller.jog_config import JogConfig
 
 MS = 1_000_000
 """One millisecond [ns]."""
@@ -84,6 +85,7 @@ class ControllerConfig:
         scene: what the collision guard keeps every command clear of (:mod:`.guard`;
             :func:`manus.scene.scene_from_setting`: ``""`` = ``$MANUS_SCENE`` or the
             shipped wheelchair scene, ``default``, ``none`` or a scene file).
+        jog: live control (:class:`~services.controller.jog_config.JogConfig`).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -111,6 +113,7 @@ class ControllerConfig:
     backlash_deg: tuple[float, ...] = (0.0,) * 6
     backlash_dead_zone_deg: float = 0.02
     scene: str = ""
+    jog: JogConfig = field(default_factory=JogConfig)
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)

@@ -19,6 +19,10 @@ Contract (docs/architecture.md, Time; Freshness and safety rules):
   (or of the goal's first joint state, before any) is judged on the bridge's stamps, and
   beyond the timeout every goal aborts ("lost the supervisor's heartbeat ...") with
   zeros. Nothing restarts by itself when heartbeats return.
+- Live control (jog, :mod:`.jog`): the newest ``JogCommand`` drives the arm while no
+  trajectory runs; a moving one preempts every goal (reason starting
+  :data:`~schemas.jog.USER_TOOK_OVER`), goals are refused while it moves, and the same
+  stops (arm error, bridge phases, long gaps) stop it.
 - Time comes only from the messages' stamps; no clock, no randomness: replaying the same
   messages gives the same commands, bit for bit.
 """
@@ -42,9 +46,11 @@ from schemas.control import (
     GoalResult,
     GripperGoal,
     Heartbeat,
+    ResultStatus,
     SpeedScale,
     TrajectoryGoal,
 )
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import MS, ControllerConfig
@@ -58,6 +64,7 @@ from services.controller.goals import (
 )
 from services.controller.gripper import GripperRun, gripper_command
 from services.controller.guard import run_guard, scene_guard
+from services.controller.jog import Jog
 from services.controller.outbox import Outbox, Output
 from services.controller.reference import Reference
 from services.controller.tracking import Step, TrajectoryRun
@@ -114,6 +121,8 @@ class ControllerCore:
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
+        self.jog = Jog(cfg)
+        """Live control: the jog stream, its level and its reference."""
 
     # -- requests --------------------------------------------------------------------------
 
@@ -159,13 +168,24 @@ class ControllerCore:
         return GoalAck(accepted=True, goal_id=goal.goal_id)
 
     def _check_ready(self) -> None:
-        if self.arm_error is not None:
-            raise GoalRefusedError(f"the arm reports an error: {self.arm_error}")
-        if self.bridge_phase is not None and self.bridge_phase != "running":
+        if self.jog.engaged:
             raise GoalRefusedError(
+                f"{JOGGING} (controller/jog_state): goals wait until the jog stops"
+            )
+        reason = self._not_ready()
+        if reason is not None:
+            raise GoalRefusedError(reason)
+
+    def _not_ready(self) -> str | None:
+        """Why nothing may move now (None: it may)."""
+        if self.arm_error is not None:
+            return f"the arm reports an error: {self.arm_error}"
+        if self.bridge_phase is not None and self.bridge_phase != "running":
+            return (
                 f"the bridge is in phase {self.bridge_phase!r}, not 'running' "
                 "(clear it or wait for it first)"
             )
+        return None
 
     def cancel(self, req: CancelGoal) -> GoalAck:
         """Cancel one goal (or every goal with an empty id): decelerate, then report."""
@@ -257,7 +277,51 @@ class ControllerCore:
         )
 
     def _active(self) -> bool:
+        goals = self.pending is not None or self.run is not None or self.gripper is not None
+        return goals or self.jog.engaged
+
+    # -- live control ------------------------------------------------------------------------
+
+    def on_jog(self, cmd: JogCommand) -> Output:
+        """A command of the jog stream: taken (it acts from the next joint state), or
+        refused and counted (the arm stops). A moving one preempts every goal; one that
+        stops a moving jog also replaces the command already sent for this cycle."""
+        js = self.last_js
+        stamp = js.stamp_ns if js is not None and js.valid else None
+        moving = self.jog.engaged
+        self.jog.receive(cmd, stamp, self._not_ready())
+        if self.jog.engaged and self._active_goals():
+            reason = f"{USER_TOOK_OVER}: jog command from {cmd.source!r}"
+            self._abort_all(reason, ResultStatus.PREEMPTED)
+        return [self._taken(cmd), *self._jog_stopped(moving)]
+
+    def on_bad_jog(self, error: str) -> Output:
+        """A jog payload that does not decode (the shell's node refused it): counted,
+        and the arm stops."""
+        moving = self.jog.engaged
+        self.jog.refuse(f"bad jog payload: {error}")
+        return [self._taken(None, error), *self._jog_stopped(moving)]
+
+    def set_jog_level(self, req: JogLevel) -> GoalAck:
+        """Set the jog speed level (shown in the next JogState)."""
+        reason = self.jog.set_level(req.level)
+        return GoalAck(accepted=reason is None, goal_id="", reason=reason or "")
+
+    def _taken(self, cmd: JogCommand | None, error: str = "") -> tuple[str, JogTaken]:
+        after = self.last_js.seq if self.last_js is not None else -1
+        return ep.JOG_TAKEN, JogTaken(after_seq=after, command=cmd, error=error)
+
+    def _active_goals(self) -> bool:
         return self.pending is not None or self.run is not None or self.gripper is not None
+
+    def _jog_stopped(self, moving: bool) -> Output:
+        js = self.last_js
+        out = self._flush(js.stamp_ns) if js is not None else []
+        if not moving or self.jog.engaged or js is None:
+            return out
+        zero = np.zeros(6, dtype=np.int64)
+        self.last_counts = zero  # the stop replaces this cycle's command at the next sync
+        return [(ep.JOINT_VELOCITY, self.outbox.command(js, zero, 0)), *out]
 
     def on_joint_state(self, js: JointState) -> Output:
         """One cycle: the command for this joint state, feedback and any results."""
@@ -298,6 +362,9 @@ class ControllerCore:
         if self.arm_error is not None:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
         snap = js.stamp_ns - cfg.snapshot_age_ns
+        jogged = self._jog_cycle(js, gap)
+        if jogged is not None:
+            return jogged
         q = np.array(position)
         before = self.run
         self._start_pending(snap, q)
@@ -323,6 +390,16 @@ class ControllerCore:
         if gap:  # stop for this cycle: nothing is known of the cycle(s) missed
             counts, grip = np.zeros(6, dtype=np.int64), 0
         return self._answer(js, counts, grip, step, run, xyz)
+
+    def _jog_cycle(self, js: JointState, gap: bool) -> Output | None:
+        """This cycle's answer while a jog drives the arm (None: no jog does)."""
+        self.jog.deadman(js)
+        if not self.jog.engaged or self.run is not None or self.pending is not None:
+            return None
+        counts, grip = self.jog.cycle(self.joints)
+        if gap:  # nothing is known of the cycle(s) missed: stop, start the reference afresh
+            counts, grip, self.jog.run = np.zeros(6, dtype=np.int64), 0, None
+        return self._answer(js, counts, grip, None, None, None)
 
     def _outage(self, js: JointState, last: JointState) -> int:
         """How long the joint states were missing [ns] (0: none)."""
@@ -380,15 +457,17 @@ class ControllerCore:
             return 0
         return counts
 
-    def _abort_all(self, reason: str) -> None:
+    def _abort_all(self, reason: str, status: str = ResultStatus.ABORTED) -> None:
         if self.pending is not None:
-            self._queue(self.pending.goal_id, "aborted", reason)
+            self._queue(self.pending.goal_id, status, reason)
             self.pending = None
         if self.run is not None:
-            self._end_run(self.run, "aborted", reason)
+            self._end_run(self.run, status, reason)
         if self.gripper is not None:
-            self._queue(self.gripper.goal.goal_id, "aborted", reason, kind="gripper")
+            self._queue(self.gripper.goal.goal_id, status, reason, kind="gripper")
             self.gripper = None
+        if status == ResultStatus.ABORTED and self.jog.engaged:
+            self.jog.stop(reason)
 
     def _end_run(self, run: TrajectoryRun, status: str, reason: str) -> None:
         end = self.last_js.stamp_ns - self.config.snapshot_age_ns if self.last_js else 0
@@ -461,6 +540,11 @@ class ControllerCore:
         if xyz is not None:
             fb = self.outbox.feedback(js, xyz, step, run, self.gripper, cmd.velocity)
             out.append((ep.FEEDBACK, dataclasses.replace(fb, guard=guarded) if guarded else fb))
+        jog = self.jog.state(js)
+        if jog is not None:
+            if guarded and jog.active:  # the collision guard slowed or stopped the jog
+                jog = dataclasses.replace(jog, reason=f"collision guard {guarded}")
+            out.append((ep.JOG_STATE, jog))
         return out + self._flush(js.stamp_ns)
 
 

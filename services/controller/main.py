@@ -15,6 +15,7 @@ from manus.node import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
 from services.controller.config import QUANTIZERS, ControllerConfig
+from services.controller.jog_config import JogConfig
 from services.controller.shell import ControllerShell
 
 
@@ -31,6 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--thesis-gain", type=float, default=2.5, help="K of the thesis mode [1/s] (default 2.5)"
     )
+    parser.add_argument("--jog-timeout-ms", type=float, default=JogConfig.timeout_ms,
+                        help="live control's deadman [ms] (default 150)")  # fmt: skip
+    parser.add_argument("--jog-max-linear-mm-s", type=float, default=JogConfig.max_linear * 1e3,
+                        help="Cartesian jog speed at the top level [mm/s] (default 150, "
+                             "at most 250)")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -40,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
         arm=load_arm_config(args.arm_config),
         default_quantizer=args.quantizer,
         thesis_gain=args.thesis_gain,
+        jog=JogConfig(timeout_ms=args.jog_timeout_ms, max_linear=args.jog_max_linear_mm_s / 1e3),
     )
     stop = wait_for_signal()
     with ControllerShell(settings, config) as shell:

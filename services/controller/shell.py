@@ -4,8 +4,10 @@ Its subscriptions, queryables and publishers are those of its wiring map
 (:data:`services.controller.wiring.WIRING`): the bridge's joint states, status and phase
 (goals run only while the bridge is ``running``), the supervisor's deadman heartbeat;
 goals, gripper goals, cancels and speed scaling, each answered with a GoalAck; commands,
-feedback and results out. Everything runs under the node lock, so the core sees one
-message at a time, in arrival order.
+feedback and results out; the jog stream and its level, the jog's state out. A ``jog``
+payload that does not decode is handed to the core as a bad jog (it stops the arm).
+Everything runs under the node lock, so the core sees one message at a time, in arrival
+order.
 """
 
 from __future__ import annotations
@@ -17,8 +19,10 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
+from schemas import endpoints as ep
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
+from services.controller.jog import BAD_JOG_PAYLOAD
 from services.controller.wiring import WIRING
 
 log = logging.getLogger("manus.controller")
@@ -47,7 +51,13 @@ class ControllerShell:
         self.node = Node("controller", settings, session=session, liveliness=False)
         self.sent: Counter[str] = Counter()
         self._publish = WIRING.attach(self.node, self.core, self._deliver)
+        self.node.on_bad_payload = self._on_bad_payload
         self.node.announce()  # alive once it listens and answers
+
+    def _on_bad_payload(self, key: str) -> None:
+        if key == self.node.keys(ep.JOG):
+            with self.node.lock:
+                self._deliver(self.core.on_bad_jog(BAD_JOG_PAYLOAD))
 
     def _deliver(self, out: Output) -> None:
         self._publish(out)

@@ -20,12 +20,14 @@ WIRING: Wiring[ControllerCore, Output] = Wiring(
         Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs)),
         Input(ep.HEARTBEAT, lambda core, hb, t: core.on_heartbeat(hb)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
+        Input(ep.JOG, lambda core, cmd, t: core.on_jog(cmd)),
     ),
     answers=(
         Answer(ep.GOAL, lambda core, goal, t: (core.submit(goal), [])),
         Answer(ep.GRIPPER_GOAL, lambda core, goal, t: (core.submit_gripper(goal), [])),
         Answer(ep.CANCEL, lambda core, req, t: (core.cancel(req), [])),
         Answer(ep.SPEED_SCALE, lambda core, req, t: (core.set_speed_scale(req), [])),
+        Answer(ep.JOG_LEVEL, lambda core, req, t: (core.set_jog_level(req), [])),
     ),
 )
 """The controller's wiring map."""

@@ -42,6 +42,14 @@ flight) takes effect as soon as that finishes. **Cancel** ends the task and stop
 arm: a running goal is cancelled (bounded deceleration), a fold is stopped by the bridge
 (``stop``, then ``clear`` so the arm is ready for the next task). A controller that does
 not confirm a cancel or pause within ``cancel_timeout_s`` gets the bridge's ``stop``.
+
+**The user takes over** (live control, ``schemas/jog.py``): when the controller ends the
+running goal because a jog command arrived (result ``preempted``, reason starting
+:data:`~schemas.jog.USER_TOOK_OVER`) or refuses a goal because the user jogs, the task
+pauses (event ``paused``, reason "user took over") instead of failing, and so it does when
+``controller/jog_state`` shows a jog while it waits, plans or sends a goal (a fold cannot
+be jogged: the bridge holds the arm). It resumes only when asked, from wherever the user
+left the arm.
 """
 
 from __future__ import annotations
@@ -53,6 +61,7 @@ from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult, Heartbeat
+from schemas.jog import USER_TOOK_OVER, JogState
 from schemas.planning import PlanReply
 from schemas.sequencing import (
     SubmitReply,
@@ -149,6 +158,7 @@ class SequencerCore:
         self.step_progress = 0.0
         self._reported = -1.0
         self.pause_requested = False
+        self.pause_reason = ""  # why the next pause happens ('' : asked for)
         self.cancel_requested = False
 
     # -- queries about the task ------------------------------------------------------------
@@ -426,6 +436,16 @@ class SequencerCore:
             return []
         return self._current.on_result(res)
 
+    def on_jog_state(self, msg: JogState, now_ns: int) -> list[Action]:
+        """The controller's jog: the user took over. A running goal is ended by the
+        controller itself (see the module docstring); a wait pauses now; a plan or a goal
+        request at its answer."""
+        self.now = now_ns
+        if not (msg.active and self.state == TaskState.RUNNING and self._current is not None):
+            return []
+        self.pause_reason = USER_TOOK_OVER
+        return self._pause()
+
     def on_estop(self, msg: EStop, now_ns: int) -> list[Action]:
         """An e-stop on the bus (the bridge latches it itself): the task fails at once."""
         self.now = now_ns
@@ -562,13 +582,15 @@ class SequencerCore:
         self.pause_requested = pause
         return out + self._start_step()
 
-    def paused(self) -> list[Action]:
-        """The arm stopped for a pause."""
+    def paused(self, reason: str = "") -> list[Action]:
+        """The arm stopped for a pause (``reason``: why, when it was not asked for)."""
+        reason, self.pause_reason = reason or self.pause_reason, ""
         self.pause_requested = False
         self.state = TaskState.PAUSED
         self._deadline = None
         progress = self._task_progress()
-        return [self._event(TaskEventKind.PAUSED, progress=progress, step=self.step)]
+        return [self._event(TaskEventKind.PAUSED, progress=progress, step=self.step,
+                            reason=reason)]  # fmt: skip
 
     def cancelled(self, reason: str) -> list[Action]:
         """The task ends cancelled."""

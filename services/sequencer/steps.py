@@ -47,6 +47,7 @@ from schemas.control import (
     ResultStatus,
     TrajectoryGoal,
 )
+from schemas.jog import JOGGING, USER_TOOK_OVER
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
 from schemas.state import BridgePhase, BridgeState
@@ -107,7 +108,7 @@ class StepContext(Protocol):
     def set_deadline(self, after_s: float) -> None: ...
     def report(self, progress: float) -> list[Action]: ...
     def step_done(self) -> list[Action]: ...
-    def paused(self) -> list[Action]: ...
+    def paused(self, reason: str = "") -> list[Action]: ...
     def cancelled(self, reason: str) -> list[Action]: ...
     def fail(self, reason: str) -> list[Action]: ...
 
@@ -226,7 +227,7 @@ class GoalStep(Step):
             return self.ctx.fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self.goal_id = ""
-            return self.ctx.fail(f"controller refused the goal: {reply.reason}")
+            return self._refused(reply.reason)
         self.phase = Phase.ACTIVE
         if self.ctx.cancel_requested:
             return self.cancel()
@@ -234,6 +235,11 @@ class GoalStep(Step):
             self.ctx.pause_requested = False
             return self._stop_goal(Phase.PAUSING)
         return []
+
+    def _refused(self, reason: str) -> list[Action]:
+        if reason.startswith(JOGGING):  # the user jogs: pause, not fail
+            return self.ctx.paused(USER_TOOK_OVER)
+        return self.ctx.fail(f"controller refused the goal: {reason}")
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
@@ -251,6 +257,9 @@ class GoalStep(Step):
         if res.status == ResultStatus.CANCELLED and self.phase == Phase.PAUSING:
             self._remember_pause()
             return self.ctx.paused()
+        if res.status == ResultStatus.PREEMPTED and res.reason.startswith(USER_TOOK_OVER):
+            self._remember_pause()  # a jog took the arm: pause where it stopped
+            return self.ctx.paused(USER_TOOK_OVER)
         return self.ctx.fail(f"controller: goal {res.status}: {res.reason}")
 
     def _remember_pause(self) -> None:
