@@ -50,6 +50,7 @@ from schemas import (
     planning,
     playback,
     sequencing,
+    simfault,
     state,
 )
 from schemas.base import Message
@@ -259,6 +260,13 @@ ESTOP = Topic(
 )
 SIM_TRUTH = _pub(
     "sim/truth", Service.SIMULATOR, state.SimTruth, "the simulator's true state, once per cycle"
+)
+SIM_FAULT = _query(
+    "sim/fault",
+    Service.SIMULATOR,
+    simfault.SimFault,
+    simfault.SimFaultReply,
+    "switch a fault on in the running simulator (soaks, tests; no real arm has it)",
 )
 
 # -- planner and controller -------------------------------------------------------------------

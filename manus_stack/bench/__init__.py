@@ -18,5 +18,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "jog": ("manus_stack.bench.jog", False),
     "view": ("manus_stack.bench.view", False),
     "flight": ("manus_stack.bench.flight", False),
+    "chaos": ("manus_stack.bench.chaos", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -23,6 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
     parser.add_argument("-o", "--output", help="also write the JSON to this file")
+    parser.add_argument("--minutes", type=float, help="chaos: length of the soak [min]")
+    parser.add_argument("--seed", type=int, help="chaos: seed of the fault schedule")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +35,8 @@ def run(args: argparse.Namespace) -> int:
         started = time.perf_counter()
         print(f"bench {name} ...", file=sys.stderr, flush=True)
         module = importlib.import_module(BENCHES[name][0])
-        results[name] = module.run(quick=args.quick)
+        options = {k: getattr(args, k) for k in getattr(module, "OPTIONS", ())}
+        results[name] = module.run(quick=args.quick, **options)
         print(f"bench {name}: {time.perf_counter() - started:.1f} s", file=sys.stderr, flush=True)
     text = json.dumps(results, indent=2)
     print(text)

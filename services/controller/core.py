@@ -328,6 +328,7 @@ class ControllerCore:
         last = self.last_js
         if last is not None and js.seq <= last.seq and js.stamp_ns <= last.stamp_ns:
             return []  # a duplicate or an old state: already answered
+        # (a lower seq with a newer stamp: a bridge started again; a gap, answered)
         cfg = self.config
         # A lower seq with a newer stamp is a restarted bridge (its seq starts again at 0).
         gap = last is not None and (

@@ -9,7 +9,8 @@
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
-answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle.
+answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle and answers
+``<prefix>/sim/fault`` (switch a fault on at run time, ``services/simulator/fault_desk.py``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import logging
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -28,12 +30,17 @@ from manus.canbus import open_bus
 from manus.node import Node, freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import settings_from_env
+from schemas import endpoints as ep
+from schemas.simfault import SimFault
+from schemas.state import SimTruth
 from services.simulator.config import load_sim_config
 from services.simulator.core import SimCore
+from services.simulator.fault_desk import FaultDesk
 from services.simulator.live import LiveSim
 from services.simulator.nodes import NodeHub
 from services.simulator.shell import TruthPublisher, open_node
 from services.simulator.slcan import SlcanPtyBus
+from services.simulator.truth_log import TruthLog
 
 log = logging.getLogger("manus.sim")
 
@@ -78,6 +85,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--zenoh-connect", action="append", help="router endpoint(s)")
     parser.add_argument("--prefix", help="key prefix (default $MANUS_PREFIX or 'manus')")
+    parser.add_argument(
+        "--truth-log",
+        metavar="FILE",
+        help="also write the truth to FILE, one line per cycle (services/simulator/truth_log.py)",
+    )
     parser.add_argument(
         "--wait-client",
         action=argparse.BooleanOptionalAction,
@@ -137,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
     deadline = None if args.duration is None else time.monotonic() + args.duration
     bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate, args.nodes)
     node: Node | None = None
+    truth_log: TruthLog | None = None
     try:
         devices = bus.devices if isinstance(bus, NodeHub) else []
         if isinstance(bus, SlcanPtyBus):
@@ -147,7 +160,19 @@ def run(args: argparse.Namespace) -> int:
                 write_device_file(args.device_file + (f".{i}" if i else ""), device)
         if args.zenoh:
             node = open_node(settings_from_env(connect=args.zenoh_connect, prefix=args.prefix))
-        live = LiveSim(SimCore(config), bus, on_snapshot=TruthPublisher(node) if node else None)
+        sinks: list[Callable[[SimTruth], None]] = [TruthPublisher(node)] if node else []
+        if args.truth_log:
+            truth_log = TruthLog(args.truth_log)
+            sinks.append(truth_log)
+
+        def on_snapshot(truth: SimTruth) -> None:
+            for sink in sinks:
+                sink(truth)
+
+        live = LiveSim(SimCore(config), bus, on_snapshot=on_snapshot if sinks else None)
+        if node is not None:
+            node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
+            node.announce()
         if isinstance(bus, SlcanPtyBus | NodeHub) and args.wait_client:
             wait_for_client(bus, stop, deadline)
         if not stop.is_set():
@@ -169,4 +194,6 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if node is not None:
             node.close()
+        if truth_log is not None:
+            truth_log.close()
         bus.shutdown()

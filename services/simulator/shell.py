@@ -41,9 +41,10 @@ class TruthPublisher:
 
 
 def open_node(settings: ZenohSettings) -> Node | None:
-    """The simulator's node, or None (logged) when no Zenoh router can be reached."""
+    """The simulator's node, or None (logged) when no Zenoh router can be reached; not
+    alive yet (:meth:`Node.announce` once its queryable is declared)."""
     try:
-        return Node(SERVICE_NAME, settings)
+        return Node(SERVICE_NAME, settings, liveliness=False)
     except ConfigError as exc:
         log.warning("running without Zenoh (no truth published): %s", exc)
         return None

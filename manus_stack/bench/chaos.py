@@ -1,0 +1,28 @@
+"""The chaos soak as a bench: ``manus bench chaos --minutes M [--seed N]``.
+
+The whole stack of ``manus up`` on the simulator (with the recorder) runs tasks back to
+back while a seeded schedule injects one fault per task (:mod:`manus_stack.chaos`);
+prints ``faults_injected``, ``tasks_run``, ``invariant_violations`` (each naming the
+round, fault, time and what was violated), ``worst_stop_ms`` per fault kind,
+``recorder_lost_messages`` and a line per round. Logs, recordings and ``chaos.json``
+stay in ``runs/chaos-<time>/``. ``--quick``: one minute.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from manus_stack.chaos.soak import run_soak
+
+OPTIONS = ("minutes", "seed")
+"""Options of ``manus bench`` this bench takes."""
+
+
+def run(quick: bool, minutes: float | None = None, seed: int | None = None) -> dict[str, Any]:
+    """Run the soak for ``minutes`` (default 10; 1 with ``quick``) with ``seed`` (0)."""
+    length = minutes if minutes is not None else (1.0 if quick else 10.0)
+    run_dir = Path("runs") / time.strftime("chaos-%Y%m%d-%H%M%S")
+    return run_soak(run_dir.resolve(), length, 0 if seed is None else seed, sys.stderr)

@@ -1,0 +1,552 @@
+"""The soak itself: ``manus up``'s stack, tasks back to back, one fault per task.
+
+Each round (:class:`~manus_stack.chaos.schedule.Round`): wait until the stack is ready
+(every started service alive, the bridge ``running``), submit the task through the
+sequencer as a supervisor would, wait until its last step runs and the arm moves, wait
+the round's delay, inject the fault, hold it, make the documented recovery (start again
+what was killed, SIGCONT what was stopped, clear the simulator's faults, release an
+e-stop, ``clear`` the bridge), wait for the task's end, and go on. Every instant is kept
+(wall clock, converted to the simulator's clock through its truth samples) for the judge;
+:meth:`Soak.figures` judges once the stack is down and the recordings are closed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from manus.node import QueryError
+from manus.session import client_settings
+from manus_stack.chaos import judge
+from manus_stack.chaos.schedule import Action, FaultKind, Outcome, Round, draw
+from manus_stack.chaos.watch import Watcher, digest
+from manus_stack.up import Child, LocalStack, StackOptions, port_in_use
+from schemas import endpoints as ep
+from schemas.commands import ArmCommand, ArmCommandReply, EStop
+from schemas.sequencing import SubmitReply, TaskControl, TaskEvent, TaskStatus
+from schemas.simfault import SimFault, SimFaultReply
+from services.recorder.reading import Recording, decode
+from services.recorder.recover import recover
+from services.simulator.truth_log import TruthLine, read_truth_log
+
+SERVICES = {s.value for s in ep.Service}
+"""Owners of numbered streams (``estop``, anyone's, is not one stream)."""
+LATCHED = ("arm_error", "stopped", "estopped")
+"""Bridge phases that wait for ``clear``."""
+
+
+@dataclass
+class Life:
+    """One recorder process: its file and when it was alive [wall ns] (end 0: to the end)."""
+
+    path: Path
+    start_ns: int
+    end_ns: int = 0
+    killed: bool = False
+    pauses: list[tuple[int, int]] = field(default_factory=list)
+
+
+@dataclass
+class Done:
+    """What happened in one round (wall ns; 0: did not happen)."""
+
+    round: Round
+    task_id: str = ""
+    refused: str = ""
+    fault_ns: int = 0
+    fault_sim_ns: int = 0
+    step: str = ""
+    recovery_ns: int = 0
+    ready_ns: int = 0
+    next_submit_ns: int = 0
+    note: str = ""
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Soak:
+    """Runs the soak (see the module docstring).
+
+    Args:
+        run_dir: logs, recordings.
+        minutes: no new round starts after this long [min].
+        seed: the schedule's seed.
+        out: progress lines (None: nowhere).
+    """
+
+    def __init__(self, run_dir: Path, minutes: float, seed: int, out: IO[str] | None) -> None:
+        self.run_dir = run_dir
+        self.minutes = minutes
+        self.seed = seed
+        self.out = out
+        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.truth_log = run_dir / "truth.txt"
+        self.options = StackOptions(
+            run_dir=run_dir,
+            endpoint=endpoint,
+            prefix="chaos",
+            sim_args=["--truth-log", str(self.truth_log)],
+        )
+        self.stack = LocalStack(self.options)
+        self.watcher: Watcher | None = None
+        self.lives: list[Life] = []
+        self.done: list[Done] = []
+        self.t0 = 0
+        self.unrecorded: dict[str, int] = {}
+
+    # -- plumbing ---------------------------------------------------------------------------
+
+    def _say(self, text: str) -> None:
+        if self.out is not None:
+            self.out.write(f"chaos {(time.time_ns() - self.t0) / 1e9:7.1f} s  {text}\n")
+            self.out.flush()
+
+    @property
+    def w(self) -> Watcher:
+        assert self.watcher is not None
+        return self.watcher
+
+    def _child(self, name: str) -> Child:
+        return [c for c in self.stack.children if c.name == name][-1]
+
+    def _respawn(self, child: Child, args: list[str] | None = None) -> Child:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            child.proc.wait(timeout=5.0)
+        child.stream.close()
+        index = self.stack.children.index(child)
+        self.stack.children.remove(child)
+        new = self.stack._spawn(child.name, child.argv[4:] if args is None else args)
+        self.stack.children.remove(new)
+        self.stack.children.insert(index, new)  # the stop order stays the start order
+        return new
+
+    def _query(self, suffix: str, request: Any, reply: type[Any], timeout: float = 3.0) -> Any:
+        node = self.w.node
+        return node.query(node.keys(suffix), request, reply, timeout=timeout)
+
+    def _wait(self, cond: Any, timeout: float, step: float = 0.05) -> bool:
+        end = time.monotonic() + timeout
+        while not cond():
+            if time.monotonic() > end:
+                return False
+            time.sleep(step)
+        return True
+
+    def _moving(self) -> bool:
+        truth = [judge.from_truth(t) for t in self.w.truth_since(0)[-3:]]
+        return len(truth) == 3 and not judge.quiet(truth[0], truth[2])
+
+    def _ready(self) -> bool:
+        expected = self.stack.expected()
+        alive = self.w.node.alive_services(timeout=0.3)
+        return expected <= alive and self.w.phase() == "running"
+
+    # -- the run ------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Bring the stack up (as ``manus up`` does) and the soak's node."""
+        self.t0 = time.time_ns()
+        self.stack.start(timeout=90.0)
+        self.lives.append(Life(self.options.recording, self.t0))
+        self.watcher = Watcher(client_settings(self.options.endpoint, prefix="chaos"))
+        if not self._wait(lambda: self.w.phase() == "running", 60.0):
+            raise RuntimeError("the bridge did not reach phase running in 60 s")
+        self._say(f"stack up: {self.options.endpoint}, logs in {self.run_dir / 'logs'}")
+
+    def run(self) -> None:
+        """Rounds until the time is up."""
+        end = time.monotonic() + self.minutes * 60.0
+        for rnd in draw(self.seed, 10_000):
+            if time.monotonic() >= end:
+                break
+            done = Done(rnd)
+            self.done.append(done)
+            self._round(done)
+
+    def _round(self, done: Done) -> None:
+        rnd = done.round
+        if not self._wait(self._ready, 45.0, 0.1):
+            done.note = "stack not ready after the previous recovery"
+            self._say(f"round {rnd.index}: {done.note}")
+        time.sleep(0.3)  # a moment at rest, judged: nothing moves by itself
+        if len(self.done) > 1:
+            self.done[-2].next_submit_ns = time.time_ns()
+        reply = self._submit(rnd)
+        if reply is None or not reply.accepted:
+            done.refused = "; ".join(reply.errors) if reply is not None else "no reply"
+            self._say(f"round {rnd.index}: {rnd.task.name} refused: {done.refused}")
+            return
+        done.task_id = reply.task_id
+        if not self._wait(lambda: self._last_step_moving(done), 60.0):
+            done.note = "the task's last step never moved the arm: fault injected anyway"
+        time.sleep(rnd.delay_s)
+        started = [e for e in self.w.events_of(done.task_id) if e.event == "step_started"]
+        done.step = started[-1].kind if started else ""
+        self._say(f"round {rnd.index}: {rnd.task.name} ({done.step}) + {rnd.fault.name}")
+        self._inject(done, rnd.fault)
+        self._finish(done, rnd.fault)
+
+    def _submit(self, rnd: Round) -> SubmitReply | None:
+        task = rnd.task.task()
+        reply: SubmitReply | None = None
+        end = time.monotonic() + 20.0
+        while time.monotonic() < end:
+            try:
+                reply = self._query(ep.SUBMIT, task, SubmitReply, timeout=20.0)
+            except QueryError as exc:
+                reply = SubmitReply(accepted=False, task_id="", errors=[str(exc)])
+            if reply.accepted:
+                return reply
+            time.sleep(0.5)
+        return reply
+
+    def _last_step_moving(self, done: Done) -> bool:
+        events = self.w.events_of(done.task_id)
+        if judge.final_events(events):
+            return True
+        last = [e for e in events if e.event == "step_started" and e.step == e.total - 1]
+        return bool(last) and self._moving()
+
+    # -- faults and recoveries -------------------------------------------------------------
+
+    def _inject(self, done: Done, fault: FaultKind) -> None:
+        done.fault_ns = time.time_ns()
+        if fault.action in (Action.SIGKILL, Action.SIGSTOP):
+            child = self._child(fault.target)
+            sig = signal.SIGKILL if fault.action is Action.SIGKILL else signal.SIGSTOP
+            os.kill(child.proc.pid, sig)
+            if fault.target == "record":
+                life = self.lives[-1]
+                if fault.action is Action.SIGKILL:
+                    life.end_ns, life.killed = done.fault_ns, True
+            time.sleep(fault.hold_s)
+            done.recovery_ns = time.time_ns()
+            if fault.action is Action.SIGKILL:
+                self._restart(child)
+            else:
+                os.kill(child.proc.pid, signal.SIGCONT)
+                if fault.target == "record":
+                    self.lives[-1].pauses.append((done.fault_ns, self._recorder_back()))
+        elif fault.action is Action.SIM:
+            try:
+                reply = self._query(
+                    ep.SIM_FAULT, SimFault(**fault.sim, source="chaos"), SimFaultReply
+                )
+                done.fault_sim_ns = reply.start_ns
+            except QueryError as exc:
+                done.note = f"sim/fault: {exc}"
+            time.sleep(max(fault.hold_s, fault.sim.get("duration_ms", 0.0) / 1e3))
+            done.recovery_ns = time.time_ns()
+            with contextlib.suppress(QueryError):
+                self._query(ep.SIM_FAULT, SimFault(kind="clear", source="chaos"), SimFaultReply)
+        elif fault.action is Action.ESTOP:
+            pub = self.w.node.publisher(self.w.node.keys(ep.ESTOP))
+            pub.put(
+                EStop(
+                    stamp_ns=time.time_ns(),
+                    seq=2 * done.round.index,
+                    engaged=True,
+                    source="chaos",
+                    reason="chaos soak",
+                )
+            )
+            time.sleep(fault.hold_s)
+            done.recovery_ns = time.time_ns()
+            pub.put(
+                EStop(
+                    stamp_ns=time.time_ns(),
+                    seq=2 * done.round.index + 1,
+                    engaged=False,
+                    source="chaos",
+                )
+            )
+        else:
+            router = self._child("router")
+            os.kill(router.proc.pid, signal.SIGKILL)
+            time.sleep(fault.hold_s)
+            done.recovery_ns = time.time_ns()
+            self._respawn(router)
+            self._wait(lambda: port_in_use(self.options.endpoint), 10.0)
+        self._clear_latched()
+
+    def _restart(self, child: Child) -> None:
+        if child.name != "record":
+            self._respawn(child)
+            return
+        path = self.run_dir / f"recording-{len(self.lives)}.mcap"
+        self._respawn(child, ["--output", str(path)])
+        self.lives.append(Life(path, self._recorder_back()))
+
+    def _recorder_back(self) -> int:
+        """Wait (10 s at most) for the recorder's token; when it is up again [wall ns]."""
+        self._wait(lambda: "recorder" in self.w.node.alive_services(timeout=0.3), 10.0, 0.1)
+        return time.time_ns()
+
+    def _clear_latched(self) -> None:
+        """The documented recovery of a latched bridge: ``clear`` until it runs again."""
+        end = time.monotonic() + 15.0
+        while time.monotonic() < end:
+            time.sleep(0.2)
+            if self.w.phase() in LATCHED:
+                with contextlib.suppress(QueryError):
+                    self._query(
+                        ep.BRIDGE_COMMAND,
+                        ArmCommand(action="clear", source="chaos"),
+                        ArmCommandReply,
+                    )
+            elif self.w.phase() == "running":
+                return
+
+    def _finish(self, done: Done, fault: FaultKind) -> None:
+        """Wait for the task's end (a task that should fail gets 10 s, one that should
+        succeed 60 s), then cancel it if it still runs."""
+        wait = 60.0 if fault.outcome is Outcome.SUCCEEDED else 10.0
+        if fault.event:
+            ended = self._wait(lambda: judge.final_events(self.w.events_of(done.task_id)), wait)
+            if not ended:
+                with contextlib.suppress(QueryError):
+                    self._query(ep.TASK_CONTROL, TaskControl(action="cancel"), TaskStatus)
+                self._wait(lambda: judge.final_events(self.w.events_of(done.task_id)), 5.0)
+        self._wait(self._ready, 45.0, 0.1)
+        done.ready_ns = time.time_ns()
+
+    def stop(self) -> None:
+        """Stop the soak's node and the stack (the recorder closes its file)."""
+        if self.lives and self.lives[-1].end_ns == 0:
+            self.lives[-1].end_ns = time.time_ns()
+        if self.done and self.done[-1].next_submit_ns == 0:
+            self.done[-1].next_submit_ns = time.time_ns()
+        if self.watcher is not None:
+            self.watcher.close()
+        self.stack.stop(grace=10.0)
+
+    # -- the figures ------------------------------------------------------------------------
+
+    def figures(self) -> dict[str, Any]:
+        """Judge every round and the recordings; the bench's JSON figures."""
+        w = self.w
+        offset = w.sim_offset_ns()
+        if self.truth_log.exists():
+            truth = read_truth_log(self.truth_log)
+        else:  # an older simulator: the bus's truth (not through a router restart)
+            truth = [judge.from_truth(t) for t in w.truth_since(0)]
+        violations: list[dict[str, Any]] = []
+        stops: dict[str, list[float]] = {}
+        rounds: list[dict[str, Any]] = []
+
+        def sim(wall: int) -> int:
+            return wall - offset
+
+        def violated(done: Done, what: str, after: str = "") -> None:
+            violation = {
+                "round": done.round.index,
+                "fault": done.round.fault.name,
+                "task": done.round.task.name,
+                "step": done.step,
+                "t_s": round((done.fault_ns - self.t0) / 1e9, 2),
+                "what": what,
+            }
+            if after:  # the aftermath of the previous round's fault
+                violation["after"] = after
+            violations.append(violation)
+
+        for done in self.done:
+            fault = done.round.fault
+            row: dict[str, Any] = {
+                "round": done.round.index,
+                "task": done.round.task.name,
+                "step": done.step,
+                "fault": fault.name,
+            }
+            rounds.append(row)
+            if done.refused:
+                row["refused"] = done.refused
+                violated(done, f"task refused after the recovery: {done.refused}")
+                continue
+            if done.note:
+                row["note"] = done.note
+            fault_sim = done.fault_sim_ns or sim(done.fault_ns)
+            finals = judge.final_events(w.events_of(done.task_id))
+            early = [e for e in finals if e.stamp_ns < done.fault_ns]
+            if early and early[0].event != "succeeded":
+                before = self.done.index(done) - 1
+                after = self.done[before].round.fault.name if before >= 0 else ""
+                what = f"the task {early[0].event} before its fault: {early[0].reason!r}"
+                violated(done, what, after)
+            elif early:
+                row["note"] = "the task succeeded before the fault came (an idle arm was hit)"
+            if fault.stops and not (early and early[0].event != "succeeded"):
+                self._judge_stop(done, truth, fault_sim, sim, violated, stops, row)
+            row["final"] = [f"{e.event}: {e.reason}" for e in finals]
+            for what in self._judge_final(fault, finals, bool(early)):
+                violated(done, what)
+        rec = self._completeness()
+        injected = [d for d in self.done if d.fault_ns]
+        kinds = sorted({d.round.fault.name for d in injected})
+        return {
+            "seed": self.seed,
+            "minutes": self.minutes,
+            "faults_injected": len(injected),
+            "faults_by_kind": {k: sum(d.round.fault.name == k for d in injected) for k in kinds},
+            "tasks_run": sum(1 for d in self.done if d.task_id),
+            "tasks_succeeded": sum(
+                1
+                for d in self.done
+                if any(e.event == "succeeded" for e in judge.final_events(w.events_of(d.task_id)))
+            ),
+            "invariant_violations": violations,
+            "worst_stop_ms": {k: round(max(v), 1) for k, v in sorted(stops.items())},
+            "recorder_lost_messages": rec.lost,
+            "recorder_expected_messages": rec.expected,
+            "recorder_lost_by_key": rec.lost_by_key,
+            "unrecorded_by_seq": self.unrecorded,
+            "recordings": [str(life.path) for life in self.lives],
+            "rounds": rounds,
+            "run_dir": str(self.run_dir),
+            "load_avg_1min": round(os.getloadavg()[0], 2),
+        }
+
+    @staticmethod
+    def _judge_final(fault: FaultKind, finals: list[TaskEvent], early: bool) -> list[str]:
+        """What is wrong with the task's final events (one, naming the fault)."""
+        wrong = []
+        if fault.event and len(finals) != 1:
+            wrong.append(f"{len(finals)} final events (one expected)")
+        elif not fault.event and len(finals) > 1:
+            wrong.append(f"{len(finals)} final events (at most one expected)")
+        for e in finals[:1] if not early else []:
+            want = fault.outcome
+            if want is not Outcome.ANY and e.event != want.value:
+                wrong.append(f"task {e.event} ({e.reason!r}), expected {want.value}")
+            elif e.event == "failed" and not judge.names_fault(e.reason, fault.reason):
+                wrong.append(f"the reason {e.reason!r} names none of {list(fault.reason)}")
+        return wrong
+
+    def _judge_stop(
+        self,
+        done: Done,
+        truth: list[TruthLine],
+        fault_sim: int,
+        sim: Callable[[int], int],
+        violated: Callable[[Done, str], None],
+        stops: dict[str, list[float]],
+        row: dict[str, Any],
+    ) -> None:
+        """The arm stopped in time after the fault and nothing moved by itself."""
+        fault = done.round.fault
+        recovery = sim(done.recovery_ns)
+        if fault.resumes and fault.sim.get("duration_ms"):  # the fault ends by itself
+            recovery = min(recovery, fault_sim + round(fault.sim["duration_ms"] * 1e6))
+        s = judge.stop_after(truth, fault_sim, recovery, sim(done.next_submit_ns))
+        stop_ms = None if s.stop_ns is None else (s.stop_ns - fault_sim) / 1e6
+        row["stop_ms"] = None if stop_ms is None else round(stop_ms, 1)
+        if stop_ms is not None:
+            stops.setdefault(fault.name, []).append(stop_ms)
+        if s.stop_ns is None or s.stop_ns > recovery:
+            at_rest = "" if stop_ms is None else f" (at rest {stop_ms:.0f} ms after the fault)"
+            violated(done, f"the arm kept moving on a stale command until the recovery{at_rest}")
+            return
+        if s.stop_ns - fault_sim > judge.STOP_LIMIT_NS:
+            limit = judge.STOP_LIMIT_NS / 1e6
+            violated(done, f"at rest only {stop_ms:.0f} ms after the fault (limit {limit:.0f} ms)")
+        if s.resumed_ns is not None:
+            after = (s.resumed_ns - fault_sim) / 1e6
+            violated(done, f"moved by itself {after:.0f} ms after the fault, before the recovery")
+        if fault.resumes:
+            return
+        moved = judge.largest_motion(truth, recovery, sim(done.ready_ns))
+        if moved > judge.RECOVERY_TOL:
+            violated(done, f"moved {np.degrees(moved):.2f} deg during the recovery")
+        if judge.first_motion(truth, sim(done.ready_ns), sim(done.next_submit_ns)) is not None:
+            violated(done, "moved by itself after the recovery, before the next task")
+
+    def _token_gaps(self, service: str) -> list[tuple[int, int]]:
+        """When the soak's node saw ``service``'s token gone, [vanished, back] [wall ns]
+        (a router restart cuts every token: the recorder is not on the bus then)."""
+        with self.w.seen.lock:
+            changes = [(t, up) for name, up, t in self.w.seen.alive if name == service]
+        gaps, down = [], None
+        for t, up in changes:
+            if not up and down is None:
+                down = t
+            elif up and down is not None:
+                gaps.append((down, t))
+                down = None
+        if down is not None:
+            gaps.append((down, 2**63 - 1))
+        return gaps
+
+    def _completeness(self) -> judge.Completeness:
+        recorded: set[tuple[str, bytes]] = set()
+        numbered: list[tuple[str, int, int]] = []
+        process_windows: list[tuple[int, int]] = []
+        windows: list[tuple[int, int]] = []
+        for life in self.lives:
+            path = life.path
+            if life.killed:
+                fixed = path.with_suffix(".recovered.mcap")
+                try:
+                    recover(path, fixed)
+                    path = fixed
+                except Exception as exc:  # judged as lost, not a crash of the soak
+                    self._say(f"cannot recover {path}: {exc}")
+                    continue
+            windows += _cut(
+                life.start_ns, life.end_ns, [*life.pauses, *self._token_gaps("recorder")]
+            )
+            process_windows += _cut(life.start_ns, life.end_ns, life.pauses)
+            with contextlib.suppress(Exception):
+                for rec in Recording(path).messages():
+                    recorded.add((rec.key, digest(rec.payload)))
+                    endpoint = ep.TABLE.get(rec.suffix)
+                    if endpoint is not None and endpoint.owner in SERVICES:
+                        with contextlib.suppress(Exception):
+                            seq = getattr(decode(rec), "seq", None)
+                            if isinstance(seq, int):
+                                numbered.append((rec.key, seq, rec.log_ns))
+        with self.w.seen.lock:
+            samples = list(self.w.seen.samples)
+        gaps = judge.seq_gaps(numbered, process_windows)
+        self.unrecorded = {k.removeprefix("chaos/"): n for k, n in gaps.items()}
+        return judge.completeness(samples, windows, recorded, "chaos")
+
+
+def _cut(start: int, end: int, cuts: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """[start, end] without the ``cuts`` ([a, b] each), as windows."""
+    windows = []
+    for a, b in sorted(cuts):
+        if a > start:
+            windows.append((start, min(a, end)))
+        start = max(start, b)
+    if start < end:
+        windows.append((start, end))
+    return windows
+
+
+def run_soak(run_dir: Path, minutes: float, seed: int, out: IO[str] | None) -> dict[str, Any]:
+    """Run one soak and return its figures (the stack is always stopped)."""
+    soak = Soak(run_dir, minutes, seed, out)
+    try:
+        soak.start()
+        soak.run()
+    finally:
+        soak.stop()
+    figures = soak.figures()
+    (run_dir / "chaos.json").write_text(json.dumps(figures, indent=2) + "\n")
+    return figures
