@@ -51,7 +51,9 @@ def matrix_to_ypr(R: np.ndarray) -> tuple[float, float, float]:
     """
     R = np.asarray(R, dtype=float)
     sp = -R[2, 0]
-    pitch = math.asin(max(-1.0, min(1.0, sp)))
+    # atan2 of sin and cos, not asin: asin loses digits near +-pi/2 (its slope grows
+    # without bound), and a matrix rebuilt from the angles would then differ by 1e-10.
+    pitch = math.atan2(sp, math.hypot(R[0, 0], R[1, 0]))
     if abs(sp) > 1.0 - 1e-12:
         # Gimbal lock: only yaw - roll (pitch = +pi/2) or yaw + roll (-pi/2) is defined.
         yaw = math.atan2(-R[0, 1], R[1, 1])
