@@ -328,43 +328,62 @@ class ControllerCore:
         last = self.last_js
         if last is not None and js.seq <= last.seq and js.stamp_ns <= last.stamp_ns:
             return []  # a duplicate or an old state: already answered
-        # (a lower seq with a newer stamp: a bridge started again; a gap, answered)
+        # A lower seq with a newer stamp is a restarted bridge (its seq starts again at 0):
+        # a gap, answered.
         cfg = self.config
-        # A lower seq with a newer stamp is a restarted bridge (its seq starts again at 0).
         gap = last is not None and (
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
         self.last_js = js
         usable = js.valid and js.mode == "joint"
         if gap or not usable:
-            self.joints.reset()
-            self.grip.reset()
-            self.play.reset()
-            if gap and last is not None and self._outage(js, last) > cfg.max_outage_ms * MS:
-                self._abort_all(
-                    f"joint states interrupted: seq {js.seq} after {last.seq}, "
-                    f"{(js.stamp_ns - last.stamp_ns) / 1e6:.0f} ms apart, more than "
-                    f"max_outage_ms {cfg.max_outage_ms:g} ms (stopped)"
-                )
-            if not usable:
-                self._abort_all(f"joint state not usable (valid={js.valid}, mode {js.mode})")
+            self._interrupted(js, last, gap, usable)
         if not usable:
             return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
-        dt = 0.0 if last is None or gap else (js.stamp_ns - last.stamp_ns) / 1e9
-        applied = js.applied if js.applied_kind == "joint" else _NO_COUNTS
         position = [float(v) for v in js.position]
+        self._estimate(js, position, 0.0 if last is None or gap else js.stamp_ns - last.stamp_ns)
+        if self.arm_error is not None:
+            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
+        jogged = self._jog_cycle(js, gap)
+        if jogged is not None:
+            return jogged
+        return self._goal_cycle(js, position, gap)
+
+    def _interrupted(
+        self, js: JointState, last: JointState | None, gap: bool, usable: bool
+    ) -> None:
+        """A gap in the joint states or an unusable one: the estimates start afresh; a long
+        outage or an unusable state aborts every goal."""
+        cfg = self.config
+        self.joints.reset()
+        self.grip.reset()
+        self.play.reset()
+        if gap and last is not None and self._outage(js, last) > cfg.max_outage_ms * MS:
+            self._abort_all(
+                f"joint states interrupted: seq {js.seq} after {last.seq}, "
+                f"{(js.stamp_ns - last.stamp_ns) / 1e6:.0f} ms apart, more than "
+                f"max_outage_ms {cfg.max_outage_ms:g} ms (stopped)"
+            )
+        if not usable:
+            self._abort_all(f"joint state not usable (valid={js.valid}, mode {js.mode})")
+
+    def _estimate(self, js: JointState, position: list[float], dt_ns: int | float) -> None:
+        """Update the motor, belt and gripper estimates with this snapshot and the
+        increments in flight (``dt_ns``: time since the last state, 0 after a gap)."""
+        dt = dt_ns / 1e9
+        applied = js.applied if js.applied_kind == "joint" else _NO_COUNTS
         motors = self.joints.update(
             dh_to_encoder_list(position), [c * COUNT_RAD_S for c in applied[1:7]], dt
         )
         if self.play.active:
             self.play.update(np.array(motors))
         self.grip.update([js.gripper], [applied[7] * GRIPPER_COUNT_M_S], dt)
-        if self.arm_error is not None:
-            return self._answer(js, np.zeros(6, dtype=np.int64), 0, None, None, None)
+
+    def _goal_cycle(self, js: JointState, position: list[float], gap: bool) -> Output:
+        """The goals' cycle: start a pending goal, the deadman, the trajectory's and the
+        gripper's commands."""
+        cfg = self.config
         snap = js.stamp_ns - cfg.snapshot_age_ns
-        jogged = self._jog_cycle(js, gap)
-        if jogged is not None:
-            return jogged
         q = np.array(position)
         before = self.run
         self._start_pending(snap, q)
