@@ -51,10 +51,11 @@ def matrix_to_ypr(R: np.ndarray) -> tuple[float, float, float]:
     """
     R = np.asarray(R, dtype=float)
     sp = -R[2, 0]
+    cp = math.hypot(R[0, 0], R[1, 0])
     # atan2 of sin and cos, not asin: asin loses digits near +-pi/2 (its slope grows
     # without bound), and a matrix rebuilt from the angles would then differ by 1e-10.
-    pitch = math.atan2(sp, math.hypot(R[0, 0], R[1, 0]))
-    if abs(sp) > 1.0 - 1e-12:
+    pitch = math.atan2(sp, cp)
+    if cp < 1e-9:
         # Gimbal lock: only yaw - roll (pitch = +pi/2) or yaw + roll (-pi/2) is defined.
         yaw = math.atan2(-R[0, 1], R[1, 1])
         return yaw, pitch, 0.0

@@ -218,6 +218,17 @@ class Wiring(Generic[C, O]):
             return [(ans.endpoint.trace(TRACE_PARTS[1]), reply), *self.published(out)]
         return []
 
+    def publishers(self, node: Any) -> Callable[[O], None]:
+        """Declare a publisher per output on a live ``manus.node.Node``; returns the
+        function that publishes what a core returned (checked by :meth:`published`)."""
+        pubs = {s: node.publisher(node.keys(s)) for s in self._outputs}
+
+        def publish(out: O) -> None:
+            for suffix, msg in self.published(out):
+                pubs[suffix].put(msg)
+
+        return publish
+
     def attach(
         self,
         node: Any,
@@ -226,9 +237,14 @@ class Wiring(Generic[C, O]):
         *,
         now: Callable[[], int] | None = None,
         on_reply: ReplyHook | None = None,
+        publish: Callable[[O], None] | None = None,
     ) -> Callable[[O], None]:
         """Declare the map on a live ``manus.node.Node``: a publisher per output, a
         subscription per input, a (mirrored) queryable per answer.
+
+        Callbacks may run as soon as a subscription is declared, before this returns: a
+        shell whose ``sink`` publishes through the returned function declares the
+        publishers first (:meth:`publishers`) and hands them in as ``publish``.
 
         Args:
             node: the service's node.
@@ -238,6 +254,8 @@ class Wiring(Generic[C, O]):
             on_reply: called with (queryable, request, reply, seconds the answer took)
                 after each answer; what it returns is sent (shells log refusals, the
                 planner stamps its compute time).
+            publish: the publishers' function from :meth:`publishers` (default: made
+                here).
 
         Returns:
             The default sink (publishes what a core returned; the shell calls it for the
@@ -246,12 +264,8 @@ class Wiring(Generic[C, O]):
         from manus.node import now_ns  # the node module imports Zenoh: only live shells
 
         clock = now or now_ns
-        pubs = {s: node.publisher(node.keys(s)) for s in self._outputs}
-
-        def publish(out: O) -> None:
-            for suffix, msg in self.published(out):
-                pubs[suffix].put(msg)
-
+        if publish is None:
+            publish = self.publishers(node)
         deliver = sink or publish
         for inp in self.inputs:
             node.subscribe(

@@ -82,12 +82,14 @@ class BridgeShell:
         self.on_state = on_state
         self.node = Node(SERVICE_NAME, settings, session=session, liveliness=False)
         self.lock = self.node.lock
-        self._publish_core = WIRING.attach(self.node, self.core, self._publish, now=clock)
         self.send_errors = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_phase = ""
         self._last_log_ns = 0
+        # Everything a callback uses exists before the first subscription is declared.
+        self._publish_core = WIRING.publishers(self.node)
+        WIRING.attach(self.node, self.core, self._publish, now=clock, publish=self._publish_core)
         self.node.on_bad_payload = self._on_bad_payload
         self.node.announce()  # alive once it listens and answers
 

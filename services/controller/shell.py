@@ -50,7 +50,8 @@ class ControllerShell:
         self.core = ControllerCore(config)
         self.node = Node("controller", settings, session=session, liveliness=False)
         self.sent: Counter[str] = Counter()
-        self._publish = WIRING.attach(self.node, self.core, self._deliver)
+        self._publish = WIRING.publishers(self.node)  # before any callback can use it
+        WIRING.attach(self.node, self.core, self._deliver, publish=self._publish)
         self.node.on_bad_payload = self._on_bad_payload
         self.node.announce()  # alive once it listens and answers
 

@@ -65,7 +65,8 @@ class SequencerShell:
         self._queries: queue.Queue[Query | None] = queue.Queue()
         self._answers: dict[str, Future[SubmitReply]] = {}  # submissions waiting
         self._stop = threading.Event()
-        self._publish = WIRING.attach(self.node, self.core, self._do)
+        self._publish = WIRING.publishers(self.node)  # before any callback can use it
+        WIRING.attach(self.node, self.core, self._do, publish=self._publish)
         self.node.watch_liveliness(self._on_alive)
         self.node.queryable(self.node.keys(ep.SUBMIT), Task, self._on_submit, locked=False)
         self._worker = threading.Thread(target=self._work, name="sequencer-queries", daemon=True)
