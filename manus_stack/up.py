@@ -115,6 +115,13 @@ class StackOptions:
         return self.run_dir / "sim.device"
 
 
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago (for a loopback router)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
 def endpoint_port(endpoint: str) -> tuple[str, int]:
     """``tcp/127.0.0.1:7447`` -> ("127.0.0.1", 7447)."""
     host, _, port = endpoint.split("/", 1)[-1].rpartition(":")

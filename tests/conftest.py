@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -11,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
+from manus_stack.up import free_port
 
 # Fixed seeds everywhere: the same examples on every run and in CI.
 settings.register_profile(
@@ -70,13 +70,6 @@ def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "co
     while not check():
         assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
         time.sleep(0.01)
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 
 from manus_stack.demo import THESIS_MAX_MM, THESIS_MEAN_MM
 from manus_stack.regression import check_controller, check_planner
-from tests.conftest import free_port
+from manus_stack.up import free_port
 
 ROOT = Path(__file__).resolve().parent.parent
 

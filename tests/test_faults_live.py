@@ -25,9 +25,9 @@ import pytest
 
 from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
+from manus_stack.up import free_port
 from schemas import endpoints as ep
 from services.sequencer.taskfile import task_from_args
-from tests.conftest import free_port
 from tests.fault_stack import LEASE_MS, ROOT, SQUARE, FaultStack
 
 pytestmark = pytest.mark.slow

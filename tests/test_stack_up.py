@@ -15,7 +15,8 @@ from pathlib import Path
 import psutil
 import pytest
 
-from tests.conftest import eventually, free_port
+from manus_stack.up import free_port
+from tests.conftest import eventually
 from tests.foxglove_client import collect
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -26,7 +26,6 @@ import json
 import math
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -40,6 +39,7 @@ import numpy as np
 from manus.node import Node
 from manus.protocol import BITRATE
 from manus.session import client_settings, open_session, router_settings
+from manus_stack.up import free_port
 from schemas import endpoints as ep
 from schemas.commands import JointVelocityCommand
 from schemas.state import JointState
@@ -47,12 +47,6 @@ from services.can_bridge.main import GIL_SWITCH_S, open_arm_bus
 from services.can_bridge.shell import BridgeShell
 
 CYCLE_S = 0.060
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _ms(samples_ns: list[int]) -> dict[str, float]:
@@ -221,7 +215,7 @@ def run(quick: bool = False, cycles: int | None = None) -> dict[str, Any]:
     n = cycles or (200 if quick else 5000)
     switch_s = sys.getswitchinterval()
     sys.setswitchinterval(GIL_SWITCH_S)  # as `manus bridge` does
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     load_before = os.getloadavg()
     router = open_session(router_settings(endpoint))
     tmp = tempfile.TemporaryDirectory(prefix="manus-bench-bridge-")

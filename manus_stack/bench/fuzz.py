@@ -14,7 +14,6 @@ was sent on each key it listens to, and the square must run.
 from __future__ import annotations
 
 import json
-import socket
 import tempfile
 import time
 from pathlib import Path
@@ -25,18 +24,12 @@ from manus.session import client_settings
 from manus_stack.fuzz import run_fuzz
 from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
-from manus_stack.up import LocalStack, StackOptions
+from manus_stack.up import LocalStack, StackOptions, free_port
 from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, TaskEvent
 from services.sequencer.taskfile import task_from_args
 
 SQUARE = Path(__file__).resolve().parents[2] / "paths" / "thesis_square.txt"
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def core_figures(quick: bool) -> dict[str, Any]:
@@ -67,7 +60,7 @@ def live_figures(per_endpoint: int) -> dict[str, Any]:
     (run_dir / "sim.json").write_text(json.dumps({"start_pose": "unfolded"}))
     options = StackOptions(
         run_dir=run_dir,
-        endpoint=f"tcp/127.0.0.1:{_free_port()}",
+        endpoint=f"tcp/127.0.0.1:{free_port()}",
         prefix="benchfuzz",
         record=False,
         sim_args=["--config", str(run_dir / "sim.json")],

@@ -29,7 +29,6 @@ import math
 import os
 import random
 import signal
-import socket
 import sys
 import tempfile
 import threading
@@ -46,7 +45,7 @@ from manus.node import Node
 from manus.protocol import FrameId
 from manus.session import client_settings
 from manus_stack.guardian_lockstep import bridge_fault_trial
-from manus_stack.up import LocalStack, StackOptions
+from manus_stack.up import LocalStack, StackOptions, free_port
 from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, Task, TaskEvent, TaskStep
 from schemas.state import BridgeState, SimTruth
@@ -57,12 +56,6 @@ SQUARE = ROOT / "paths" / "thesis_square.txt"
 DEADLINE_MS = 12.0
 REST_RAD_S = math.radians(0.05)
 """At rest: every true joint speed below this [rad/s]."""
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _stats(values: list[float]) -> dict[str, float]:
@@ -191,7 +184,7 @@ def live_figures(trials: int, seed: int = 0) -> dict[str, Any]:
     (run_dir / "sim.json").write_text(json.dumps({"start_pose": "unfolded"}))
     options = StackOptions(
         run_dir=run_dir,
-        endpoint=f"tcp/127.0.0.1:{_free_port()}",
+        endpoint=f"tcp/127.0.0.1:{free_port()}",
         prefix="benchguardian",
         record=False,
         sim_args=["--config", str(run_dir / "sim.json"), "--nodes", "3"],

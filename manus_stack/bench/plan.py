@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import gc
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -30,6 +29,7 @@ from manus.kinematics import ik_batch
 from manus.node import Node, QueryError, freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
+from manus_stack.up import free_port
 from schemas import endpoints as ep
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.core import PlannerCore
@@ -58,12 +58,6 @@ def _timed(fn: Any, runs: int) -> list[float]:
     return out
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
     core = PlannerCore()
     q0 = np.asarray(request.start, dtype=float)
@@ -88,7 +82,7 @@ def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
 
 
 def _over_zenoh(request: PlanRequest, runs: int) -> dict[str, Any]:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     router = open_session(router_settings(endpoint))
     try:
         settings = client_settings(endpoint, prefix="bench")

@@ -22,7 +22,6 @@ planned from where the last left the arm; ``quick``: two paths, else eight). Fig
 
 from __future__ import annotations
 
-import socket
 import tempfile
 import time
 from pathlib import Path
@@ -32,6 +31,7 @@ from manus.session import client_settings, open_session, router_settings
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_runs
 from manus_stack.regression import check_controller
+from manus_stack.up import free_port
 from schemas.base import Message
 from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER
@@ -41,12 +41,6 @@ from services.recorder.shell import RecorderShell
 from services.recorder.writer import RecordingWriter
 
 TARGET_X_REAL_TIME = 1000.0
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _best(fn: Any, repeats: int) -> float:
@@ -67,7 +61,7 @@ def _core_replay(inputs: list[tuple[str, Message]]) -> int:
 
 
 def _recorder_zenoh(path: Path, out: Path) -> dict[str, Any]:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     router = open_session(router_settings(endpoint))
     try:
         settings = client_settings(endpoint, prefix="bench")

@@ -23,7 +23,6 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import socket
 import tempfile
 import threading
 import time
@@ -35,17 +34,11 @@ import psutil
 
 from manus.node import Node
 from manus.session import client_settings
-from manus_stack.up import LocalStack, StackOptions
+from manus_stack.up import LocalStack, StackOptions, free_port
 from schemas.endpoints import BRIDGE_STATE, JOINTS
 from schemas.state import BridgeState, JointState
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "thesis_square.mcap"
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _ms(samples: list[float]) -> dict[str, float]:
@@ -110,11 +103,11 @@ class _Client:
 
 
 def _run_stack(seconds: float, view: bool) -> dict[str, Any]:
-    port = _free_port()
+    port = free_port()
     with tempfile.TemporaryDirectory(prefix="manus-bench-view-") as tmp:
         opts = StackOptions(
             run_dir=Path(tmp),
-            endpoint=f"tcp/127.0.0.1:{_free_port()}",
+            endpoint=f"tcp/127.0.0.1:{free_port()}",
             prefix="benchview",
             record=False,
             flight_ring_s=0.0,

@@ -16,7 +16,6 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import subprocess
 import time
 from collections.abc import Callable
@@ -31,7 +30,7 @@ from manus.session import client_settings
 from manus_stack.chaos import judge
 from manus_stack.chaos.schedule import Action, FaultKind, Outcome, Round, draw
 from manus_stack.chaos.watch import Watcher, digest
-from manus_stack.up import Child, LocalStack, StackOptions, port_in_use
+from manus_stack.up import Child, LocalStack, StackOptions, free_port, port_in_use
 from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
 from schemas.sequencing import SubmitReply, TaskControl, TaskEvent, TaskStatus
@@ -71,13 +70,6 @@ class Done:
     ready_ns: int = 0
     next_submit_ns: int = 0
     note: str = ""
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Soak:
