@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import pytest
 from mcap.reader import make_reader
@@ -237,9 +238,9 @@ def test_the_live_queue_holds_its_share_of_the_cap_in_bytes(
         assert shell.core.config.ring_cap_bytes == cap - cap // 16
         on_sample = shell.core.on_sample
 
-        def stalled(*args: object, **kw: object) -> list[object]:
+        def stalled(key: str, payload: bytes, log_ns: int, publish_ns: int | None = None) -> Any:
             release.wait(10.0)
-            return on_sample(*args, **kw)  # type: ignore[arg-type]
+            return on_sample(key, payload, log_ns, publish_ns)
 
         shell.core.on_sample = stalled  # type: ignore[method-assign]
         try:
