@@ -4,7 +4,10 @@ loaded offline here, so this is a rendering of the same data, not a screenshot o
 The recording goes through the viewer's core (:class:`services.viewer.core.ViewerCore`)
 up to ``at_s``; the arm is drawn from the same link transforms the core publishes on
 ``viz/tf`` (each link's origin, joined in chain order, and the fingers), with the planned
-path and via points of ``viz/planned`` and the executed path of ``viz/executed``.
+path and via points of ``viz/planned``, the executed path of ``viz/executed`` and the
+scene's solids of ``viz/scene`` (:func:`services.viewer.surroundings.solids` of the scene
+the core draws at that time), as wireframes in their colours (planes left out: they are
+unbounded).
 
     python -m manus_stack.view_render tests/data/thesis_square.mcap -o view.png --at 12
 """
@@ -13,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 import matplotlib
 
@@ -24,6 +28,28 @@ from manus.config import ArmConfig, load_arm_config
 from services.recorder.reading import Recording
 from services.viewer.core import ViewerConfig, ViewerCore
 from services.viewer.model import GRIPPER_FRAME, LINK_NAMES, ROOT_FRAME, link_transforms
+from services.viewer.surroundings import Solid, solids
+
+_RING = np.linspace(0.0, 2 * np.pi, 25)
+
+
+def _wireframe(solid: Solid) -> list[np.ndarray]:
+    """Polylines (k, 3) in base_link outlining a cube, sphere or cylinder [m]."""
+    hx, hy, hz = (v / 2 for v in solid.size)
+    if solid.shape == "cube":
+        c = np.array([[x, y, z] for x in (-hx, hx) for y in (-hy, hy) for z in (-hz, hz)])
+        edges = [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5),
+                 (2, 6), (3, 7)]  # fmt: skip
+        local = [c[[a, b]] for a, b in edges]
+    else:
+        circle = np.c_[hx * np.cos(_RING), hy * np.sin(_RING), 0 * _RING]
+        if solid.shape == "sphere":
+            local = [circle, circle[:, [0, 2, 1]], circle[:, [2, 0, 1]]]
+        else:
+            local = [circle + np.array([0, 0, -hz]), circle + np.array([0, 0, hz])]
+            local += [np.array([[x, y, -hz], [x, y, hz]]) for x, y in circle[::6, :2]]
+    R, t = solid.pose[:3, :3], solid.pose[:3, 3]
+    return [pts @ R.T + t for pts in local]
 
 
 def _frames(q: list[float], gripper: float, arm: ArmConfig) -> dict[str, np.ndarray]:
@@ -42,6 +68,20 @@ def _frames(q: list[float], gripper: float, arm: ArmConfig) -> dict[str, np.ndar
         T[:3, :3], T[:3, 3] = R, tf.translation
         world[tf.child] = world[tf.parent] @ T
     return world
+
+
+def _draw_scene(ax: Any, core: ViewerCore) -> list[np.ndarray]:
+    """Wireframes of the scene's solids (planes left out); their points [m]."""
+    points = [np.zeros((0, 3))]
+    for drawn in solids(core.scene) if core.scene is not None else []:
+        for solid in drawn.solids:
+            if solid.size[2] < 0.01:  # a plane's square: unbounded, left out
+                continue
+            r, g, b, a = solid.rgba
+            for line in _wireframe(solid):
+                ax.plot(*line.T, color=(r, g, b, min(1.0, 0.35 + a)), lw=0.8)
+                points.append(line)
+    return points
 
 
 def render(path: str, png: str, at_s: float | None = None) -> ViewerCore:
@@ -81,7 +121,10 @@ def render(path: str, png: str, at_s: float | None = None) -> ViewerCore:
     if len(executed) >= 2:
         E = np.array(executed)
         ax.plot(E[:, 0], E[:, 1], E[:, 2], color="#ff7319", lw=2.2, label="executed")
-    everything = np.vstack([P, *(np.array(x) for x in (planned, executed) if len(x) >= 2)])
+    scene_points = _draw_scene(ax, core)
+    everything = np.vstack(
+        [P, *scene_points, *(np.array(x) for x in (planned, executed) if len(x) >= 2)]
+    )
     centre = (everything.max(0) + everything.min(0)) / 2
     half = (everything.max(0) - everything.min(0)).max() / 2 + 0.05
     ax.set_xlim(centre[0] - half, centre[0] + half)
@@ -94,7 +137,8 @@ def render(path: str, png: str, at_s: float | None = None) -> ViewerCore:
     t = (js.stamp_ns - rec.info.start_ns) / 1e9
     ax.set_title(
         f"{path.rsplit('/', 1)[-1]} at {t:.2f} s: the viewer's base_link frame\n"
-        "(matplotlib rendering of the data manus view sends, not the Foxglove app)"
+        "(matplotlib rendering of the data manus view sends, scene as wireframes; "
+        "not the Foxglove app)"
     )
     ax.legend(loc="upper left")
     fig.tight_layout()

@@ -9,8 +9,9 @@ FoxgloveSink`), with the recorded log times, paced by the replay's clock
 
 The server announces the recording's time range, so the app shows its playback bar: play,
 pause, speed and seek requests go to the same clock (a seek starts the view afresh from
-there: a new core, the executed path from that point on), and the server tells the app
-the current time as it plays.
+there: a new core, the executed path from that point on, the scene as the last scene
+state before that point left it), and the server tells the app the current time as it
+plays.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from foxglove.websocket import (
 )
 
 from manus.config import load_arm_config
+from schemas.endpoints import SCENE_STATE
 from schemas.playback import PlaybackControl
 from services.recorder.playback import Playback
 from services.recorder.reading import Recorded, Recording
@@ -74,12 +76,13 @@ class ViewReplay:
         self.config = ViewerConfig(prefix=self.prefix, arm=load_arm_config())
         self.records: list[Recorded] = list(self.recording.messages())
         self.first_ns = self.records[0].log_ns if self.records else 0
+        self._scene_states = [i for i, r in enumerate(self.records) if r.suffix == SCENE_STATE]
         probe = ViewerCore(self.config)
         self.sink = FoxgloveSink(
             host=host,
             port=port,
             urdf=probe.urdf,
-            describe_topic=probe.topics.robot_description,
+            describe_topics=(probe.topics.robot_description, probe.topics.scene),
             playback_range=(self.first_ns, self.records[-1].log_ns if self.records else 0),
         )
         self._describe = threading.Event()
@@ -189,11 +192,12 @@ class ViewReplay:
                 continue
             rec = self.records[index]
             if core is None or fresh:
-                core = ViewerCore(self.config)
+                core = self._fresh_core(index)
                 self._describe.set()
             if self._describe.is_set():
                 self._describe.clear()
-                self.sink.log(core.robot_description(rec.log_ns))
+                for msg in core.describe(rec.log_ns):
+                    self.sink.log(msg)
             self.stats.samples += 1
             for msg in core.on_sample(rec.key, rec.payload, rec.log_ns):
                 self.sink.log(msg)
@@ -205,6 +209,17 @@ class ViewReplay:
         with self._lock:
             self.sink.server.broadcast_playback_state(self._state(None, False))
         return self.stats
+
+    def _fresh_core(self, index: int) -> ViewerCore:
+        """A new core that knows the scene in use at record ``index`` (the scene states
+        recorded before it), so a seek past a scene change still draws the new scene."""
+        core = ViewerCore(self.config)
+        for i in self._scene_states:
+            if i >= index:
+                break
+            rec = self.records[i]
+            core.on_sample(rec.key, rec.payload, rec.log_ns)
+        return core
 
     def close(self) -> None:
         """Stop the server."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import pytest
 from mcap.reader import make_reader
@@ -210,3 +211,47 @@ def test_manus_record_trigger_asks_a_running_flight_recorder_to_write(
     with path.open("rb") as f:
         meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
     assert "the gripper slipped" in meta["flight"]["triggers"]
+
+
+def test_config_splits_the_cap_between_the_queue_and_the_ring() -> None:
+    config = FlightConfig(cap_bytes=1 << 20, queue_share=1 / 16)
+    assert (config.queue_bytes, config.ring_cap_bytes) == (65536, (1 << 20) - 65536)
+    with pytest.raises(RecordingError, match=r"queue share 0\.9"):
+        FlightConfig(queue_share=0.9)
+    core = FlightCore(config)
+    for k in range(20_000):  # 4 MiB offered
+        core.on_sample("manus/flood", bytes(100) + k.to_bytes(4, "little"), k)
+    assert core.stats.peak_bytes <= config.ring_cap_bytes < config.cap_bytes
+
+
+def test_the_live_queue_holds_its_share_of_the_cap_in_bytes(
+    zenoh_settings: ZenohSettings, tmp_path: Path
+) -> None:
+    """The worker stalls (a slow disk): the queue takes samples until its byte budget is
+    spent, then drops and counts; the ring and the queue together stay within the cap."""
+    import threading
+
+    cap = 256 * 1024
+    release = threading.Event()
+    with FlightShell(zenoh_settings, tmp_path, FlightConfig(cap_bytes=cap)) as shell:
+        assert shell.queue_bytes == cap // 16
+        assert shell.core.config.ring_cap_bytes == cap - cap // 16
+        on_sample = shell.core.on_sample
+
+        def stalled(key: str, payload: bytes, log_ns: int, publish_ns: int | None = None) -> Any:
+            release.wait(10.0)
+            return on_sample(key, payload, log_ns, publish_ns)
+
+        shell.core.on_sample = stalled  # type: ignore[method-assign]
+        try:
+            with Node("pub", zenoh_settings) as node:
+                pub = node.session.declare_publisher(f"{zenoh_settings.prefix}/flood")
+                for k in range(200):  # 200 x (1000 + 200) B = 234 KiB offered, 16 KiB budget
+                    pub.put(bytes(996) + k.to_bytes(4, "little"))
+                eventually(lambda: shell.dropped >= 180, 5.0, "drops")
+            assert shell.queue_peak <= shell.queue_bytes
+            queued = [item for item in list(shell._queue.queue) if item is not None]
+            assert sum(len(item[1]) + ENTRY_OVERHEAD for item in queued) <= shell.queue_bytes
+        finally:
+            release.set()
+    assert shell.stats()["queue_peak_bytes"] == shell.queue_peak

@@ -27,8 +27,10 @@ from manus.config import DEFAULT_ARM
 from manus.kinematics import fk, joint_frames
 from manus.node import Node
 from manus.orientation import rot_z, ypr_to_matrix
+from manus.scene import Scene, default_scene, default_scene_path, parse_scene
 from manus.session import ZenohSettings
 from manus.urdf import build_urdf
+from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
 from schemas.state import JointState
 from services.recorder.reading import Recording, decode
@@ -111,6 +113,116 @@ def _check_links(world: dict[str, np.ndarray], q: list[float]) -> None:
     np.testing.assert_allclose(world[GRIPPER_FRAME], fk(q, DEFAULT_ARM), atol=1e-9)
 
 
+def _entities_by_id(update: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {e["id"]: e for e in update["entities"]}
+
+
+def _pose_of(prim: dict[str, Any]) -> np.ndarray:
+    p, o = prim["pose"]["position"], prim["pose"]["orientation"]
+    return _matrix([p[k] for k in "xyz"], [o[k] for k in "xyzw"])
+
+
+def _versions(update: dict[str, Any]) -> set[str]:
+    """The scene versions in a decoded ``viz/scene`` update's metadata."""
+    return {kv["value"] for e in update["entities"] for kv in e["metadata"]
+            if kv["key"] == "scene_version"}  # fmt: skip
+
+
+def _check_scene(update: dict[str, Any], scene: Scene) -> None:
+    """A decoded ``viz/scene`` update draws every object and zone of ``scene`` where the
+    collision model puts it (mount^-1 pose, in base_link), with its size and version."""
+    assert update["deletions"][0]["type"] == "ALL"  # what was drawn before goes
+    ents = _entities_by_id(update)
+    assert set(ents) == {f"object/{o.name}" for o in scene.objects} | {
+        f"zone/{z.name}" for z in scene.zones
+    }
+    for ent in ents.values():
+        assert ent["frame_id"] == ROOT_FRAME and ent["frame_locked"] is True
+        meta = {kv["key"]: kv["value"] for kv in ent["metadata"]}
+        assert meta["scene_version"] == str(scene.version), ent["id"]
+    inv = np.linalg.inv(scene.mount)
+    for body, entity, cls in [(o.body, f"object/{o.name}", o.cls) for o in scene.objects] + [
+        (z.body, f"zone/{z.name}", z.kind) for z in scene.zones
+    ]:
+        ent = ents[entity]
+        meta = {kv["key"]: kv["value"] for kv in ent["metadata"]}
+        assert cls in (meta.get("class"), meta.get("kind")) and meta["shape"] == body.shape
+        T = inv @ body.pose
+        s = body.size
+        if body.shape == "box":
+            (cube,) = ent["cubes"]
+            np.testing.assert_allclose(_pose_of(cube), T, atol=1e-9, err_msg=entity)
+            np.testing.assert_allclose([cube["size"][k] for k in "xyz"], s, atol=1e-12)
+        elif body.shape == "sphere":
+            (sphere,) = ent["spheres"]
+            np.testing.assert_allclose(_pose_of(sphere), T, atol=1e-9, err_msg=entity)
+            assert [sphere["size"][k] for k in "xyz"] == pytest.approx([2 * s[0]] * 3)
+        elif body.shape in ("cylinder", "capsule"):
+            (cyl,) = ent["cylinders"]
+            np.testing.assert_allclose(_pose_of(cyl), T, atol=1e-9, err_msg=entity)
+            size = [cyl["size"][k] for k in "xyz"]
+            assert size == pytest.approx([2 * s[0], 2 * s[0], s[1]])
+            ends = sorted(tuple(_pose_of(sp)[:3, 3]) for sp in ent["spheres"])
+            want = [] if body.shape == "cylinder" else [
+                tuple(T[:3, 3] + k * T[:3, 2] * s[1] / 2) for k in (-1, 1)
+            ]  # fmt: skip
+            np.testing.assert_allclose(ends, sorted(want), atol=1e-9, err_msg=entity)
+        else:  # a plane: a thin square through its point, z along the normal
+            (cube,) = ent["cubes"]
+            P = _pose_of(cube)
+            np.testing.assert_allclose(P[:3, 3], (inv @ body.pose)[:3, 3], atol=1e-9)
+            np.testing.assert_allclose(P[:3, 2], inv[:3, :3] @ np.asarray(s), atol=1e-9)
+            assert cube["size"]["z"] < 0.01 < cube["size"]["x"]
+        colours = {json.dumps(p["color"], sort_keys=True) for k in ("cubes", "spheres",
+                   "cylinders") for p in ent[k]}  # fmt: skip
+        alpha = json.loads(colours.pop())["a"]
+        assert not colours  # one colour per entity
+        faint = entity.startswith("zone/") or body.shape == "plane"  # the arm shows through
+        assert alpha < 0.5 if faint else alpha > 0.5
+
+
+def test_scene_entities_sit_where_the_default_scene_puts_them() -> None:
+    core = ViewerCore()  # scene setting "": the shipped wheelchair scene
+    msg = core.scene_update(42)
+    assert (msg.topic, msg.schema.name) == ("manus/viz/scene", SceneUpdate.get_schema().name)
+    update = protobuf_decoder(_advert(msg))(msg.data)
+    _check_scene(update, default_scene())
+    ents = _entities_by_id(update)
+    # the file's own numbers: the head (radius 110 mm at (-20, 0, 1230) mm) seen from the
+    # shoulder mounted at (350, -420, 1000) mm: 370 mm behind, 420 mm left, 230 mm up
+    (head,) = ents["object/head"]["spheres"]
+    assert [head["pose"]["position"][k] for k in "xyz"] == pytest.approx([-0.37, 0.42, 0.23])
+    assert head["size"]["x"] == pytest.approx(0.22)
+    (wheel,) = ents["zone/right_wheel"]["cubes"]
+    assert [wheel["pose"]["position"][k] for k in "xyz"] == pytest.approx([-0.425, -0.02, -0.675])
+    assert [wheel["size"][k] for k in "xyz"] == pytest.approx([0.65, 0.22, 0.55])
+    assert ents["object/head"]["cubes"] == [] and len(ents["object/forearm_right"]["spheres"]) == 2
+    assert [d.topic for d in core.describe(5)] == ["manus/viz/robot_description", "manus/viz/scene"]
+    assert ViewerCore(ViewerConfig(scene="none")).scene_update(1).data != msg.data
+
+
+def test_a_scene_state_replaces_every_entity_and_garbage_is_counted() -> None:
+    core = ViewerCore()
+    text = default_scene_path().read_text().replace("[1100, 0, 720]", "[1000, 100, 700]")
+    state = SceneState(version=3, text=text, source="moved table")
+    outs = core.on_sample("manus/planner/scene_state", state.encode(), 77)
+    by_topic = {o.topic: o for o in outs}
+    update = protobuf_decoder(_advert(by_topic["manus/viz/scene"]))(
+        by_topic["manus/viz/scene"].data
+    )
+    moved = parse_scene(text, "moved table")
+    _check_scene(update, Scene(moved.mount, moved.objects, moved.zones, version=3))
+    (table,) = _entities_by_id(update)["object/table"]["cubes"]
+    assert [table["pose"]["position"][k] for k in "xyz"] == pytest.approx([0.65, 0.52, -0.3])
+    log = protobuf_decoder(_advert(by_topic["manus/viz/log"]))(by_topic["manus/viz/log"].data)
+    assert "scene version 3" in log["message"]
+    assert core.scene is not None and core.scene.version == 3
+    bad = SceneState(version=4, text="objects: [", source="bad").encode()
+    outs = core.on_sample("manus/planner/scene_state", bad, 78)
+    assert [o.topic for o in outs] == ["manus/viz/log"]  # a warning; the scene stays
+    assert core.stats.bad_payloads == {"planner/scene_state": 1} and core.scene.version == 3
+
+
 # -- the model -----------------------------------------------------------------------------
 
 
@@ -170,6 +282,9 @@ def test_shipped_layout_is_current() -> None:
     text = LAYOUT_FILE.read_text()
     for topic in ("manus/viz/robot_description", "manus/viz/log", "manus/controller/feedback"):
         assert topic in text
+    three_d = json.loads(text)["content"]["items"][0]["content"]
+    assert three_d["panelType"] == "ThreeDee"
+    assert three_d["config"]["topics"]["manus/viz/scene"] == {"visible": True}
 
 
 # -- the core on a recording ---------------------------------------------------------------
@@ -253,6 +368,12 @@ def test_json_export_holds_the_viewer_channels_so_the_arm_moves(tmp_path: Path) 
     assert info.channels["manus/viz/robot_description"].messages == 1
     assert info.channels["manus/viz/planned"].schema_name == "foxglove.SceneUpdate"
     assert info.channels["manus/state/joints"].message_encoding == "json"  # recorded, once
+    assert info.channels["manus/viz/scene"].messages == 1  # the scene in use; no update
+    with out.open("rb") as f:
+        schema, _, msg = next(iter(make_reader(f).iter_messages(topics=["manus/viz/scene"])))
+    assert schema is not None
+    advert = {"schemaName": schema.name, "schema": base64.b64encode(schema.data).decode()}
+    _check_scene(protobuf_decoder(advert)(msg.data), default_scene())
     valid = [
         js
         for _, js in Recording(SQUARE).decoded(["state/joints"])
@@ -298,7 +419,7 @@ def test_replay_view_serves_a_recording_with_the_arm_moving() -> None:
             got = asyncio.run(
                 collect(
                     f"ws://127.0.0.1:{replay.port}",
-                    [tf_topic, desc],
+                    [tf_topic, desc, "manus/viz/scene"],
                     until=lambda r: len(r.messages.get(tf_topic, [])) >= len(later),
                     timeout=20,
                 )
@@ -307,6 +428,7 @@ def test_replay_view_serves_a_recording_with_the_arm_moving() -> None:
             stop.set()
             player.join()
     assert got.messages[desc]
+    _check_scene(got.messages["manus/viz/scene"][0][1], default_scene())
     tfs = got.messages[tf_topic]
     assert [t for t, _ in tfs] == [m.log_ns for m, _ in later]  # the recorded log times
     last = tfs[-1][1]["transforms"]
@@ -340,7 +462,8 @@ def _publish_recording(session: zenoh.Session, prefix: str, path: Path, suffixes
 def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSettings) -> None:
     prefix = zenoh_settings.prefix
     tf_topic, planned_topic = f"{prefix}/viz/tf", f"{prefix}/viz/planned"
-    joints_topic = f"{prefix}/state/joints"
+    joints_topic, scene_topic = f"{prefix}/state/joints", f"{prefix}/viz/scene"
+    moved_text = default_scene_path().read_text().replace("[1100, 0, 720]", "[1000, 100, 700]")
     published: list[str] = []
     with Node("watcher", zenoh_settings) as watcher, ViewerShell(zenoh_settings, port=0) as viewer:
         # every key seen on the bus, to show that the viewer never publishes
@@ -357,13 +480,20 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
                 len(r.messages.get(tf_topic, [])) >= len(rec_joints)
                 and bool(r.messages.get(planned_topic))
                 and 0 in r.assets
+                and any(_versions(m) == {"1"} for _, m in r.messages.get(scene_topic, []))
             )
 
         async def scenario() -> Received:
             task = asyncio.create_task(
                 collect(
                     url,
-                    [tf_topic, planned_topic, joints_topic, f"{prefix}/viz/robot_description"],
+                    [
+                        tf_topic,
+                        planned_topic,
+                        joints_topic,
+                        scene_topic,
+                        f"{prefix}/viz/robot_description",
+                    ],
                     until=enough,
                     timeout=30,
                     assets=[URDF_URI, "package://nothing/here.urdf"],
@@ -388,6 +518,9 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
                 {"state/joints", "state/status", "controller/result", GOAL_REQUEST},
             )
             assert sent > 600
+            # the planner accepts a moved table: the view follows
+            update = SceneState(version=1, text=moved_text, source="moved table")
+            watcher.session.put(f"{prefix}/planner/scene_state", update.encode())
             return await task
 
         got = asyncio.run(scenario())
@@ -406,6 +539,12 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
     # the preview path arrived
     ent = got.messages[planned_topic][-1][1]["entities"][0]
     assert ent["id"] == "goal" and len(ent["lines"][0]["points"]) > 100
+    # the scene: the shipped one first (sent on subscription), then the planner's update
+    scenes = [m for _, m in got.messages[scene_topic]]
+    assert got.channels[scene_topic]["schemaName"] == SceneUpdate.get_schema().name
+    _check_scene(scenes[0], default_scene())
+    moved = parse_scene(moved_text, "moved table")
+    _check_scene(scenes[-1], Scene(moved.mount, moved.objects, moved.zones, version=1))
     # the URDF is served as an asset; an unknown asset is refused
     assert got.assets[0] == build_visual_urdf(DEFAULT_ARM).encode()
     assert isinstance(got.assets.get(1, "error"), str)

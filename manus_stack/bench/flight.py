@@ -8,8 +8,10 @@ early, and the cost per sample.
 
 ``live``: ``manus record --ring 30`` in its own process on a loopback router while a
 publisher here sends that tenfold traffic in real time: the recorder process's resident
-memory before, at most (sampled every 0.25 s) and after, the bytes it held at most, the
-samples its queue dropped.
+memory before, at most (sampled every 0.25 s) and after, split as the kernel counts it
+(``RssAnon``: its own heap, where the ring lives; ``RssFile``: mapped code; ``RssShmem``:
+shared memory, e.g. Zenoh's pool of another process), the bytes it held at most, the
+samples its queue dropped and the most bytes its queue held.
 """
 
 from __future__ import annotations
@@ -35,6 +37,17 @@ from services.recorder.reading import Recording
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "thesis_square.mcap"
 MIB = 1024 * 1024
+
+
+def _rss_split(pid: int) -> dict[str, float]:
+    """``RssAnon``, ``RssFile`` and ``RssShmem`` of a process [MiB] (Linux)."""
+    out = {}
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            name, _, value = line.partition(":")
+            if name in ("RssAnon", "RssFile", "RssShmem"):
+                out[name] = round(int(value.split()[0]) / 1024, 1)
+    return out
 
 
 def _traffic() -> tuple[list[tuple[str, bytes, int]], int]:
@@ -146,11 +159,13 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
                 proc = psutil.Process(child.pid)
                 time.sleep(1.0)
                 rss0 = proc.memory_info().rss
+                split0 = _rss_split(child.pid)
                 pub_session = open_session(settings)
                 flood = _flood(pub_session, items, span, seconds, proc)
                 sent, elapsed, rss_max, series = flood
                 time.sleep(0.5)
                 rss1 = proc.memory_info().rss
+                split1 = _rss_split(child.pid)
                 rss_max = max(rss_max, rss1)
                 pub_session.close()
             finally:
@@ -172,6 +187,11 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
         "rss_max_mib": round(rss_max / MIB, 1),
         "rss_after_mib": round(rss1 / MIB, 1),
         "rss_every_5s_mib": series,
+        "rss_split_before_mib": split0,
+        "rss_split_after_mib": split1,
+        "queue_mib": round(stats["queue_bytes"] / MIB, 2),
+        "queue_peak_mib": round(stats["queue_peak_bytes"] / MIB, 2),
+        "ring_added_mib": round(split1["RssAnon"] - split0["RssAnon"], 1),
     }
 
 

@@ -178,7 +178,7 @@ def _throughput(passes: int) -> dict[str, Any]:
 
     recs = list(Recording(DATA).messages())
     core = ViewerCore()
-    sink = FoxgloveSink(port=0, urdf=core.urdf, describe_topic=core.topics.robot_description)
+    sink = FoxgloveSink(port=0, urdf=core.urdf, describe_topics=(core.topics.robot_description,))
     for topic, schema, encoding in core.channels():
         sink.advertise(topic, schema, encoding)
     client = _Client(f"ws://127.0.0.1:{sink.port}")

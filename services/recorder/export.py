@@ -74,7 +74,7 @@ class ViewMessage(Protocol):
 class View(Protocol):
     """Turns recorded samples into more channels (``services.viewer.core.ViewerCore``)."""
 
-    def robot_description(self, t_ns: int) -> ViewMessage: ...
+    def describe(self, t_ns: int) -> Iterable[ViewMessage]: ...
 
     def on_sample(self, key: str, payload: bytes, t_ns: int) -> Iterable[ViewMessage]: ...
 
@@ -139,7 +139,8 @@ def export_json(src: str | Path, dst: str | Path, view: View | None = None) -> E
             entry[1][0] += 1
 
         if view is not None:
-            add_view(view.robot_description(rec.info.start_ns))
+            for vm in view.describe(rec.info.start_ns):
+                add_view(vm)
         for msg in rec.messages():
             if view is not None:
                 for vm in view.on_sample(msg.key, msg.payload, msg.log_ns):

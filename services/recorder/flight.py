@@ -143,8 +143,11 @@ class FlightConfig:
         prefix: key prefix of the arm.
         ring_s: seconds kept before a trigger [s].
         after_s: seconds collected after it [s].
-        cap_bytes: most bytes held (ring and a collecting dump each) [B].
+        cap_bytes: most bytes held (ring and a collecting dump each; the live shell's queue
+            included: see ``queue_share``) [B].
         rules: the triggers.
+        queue_share: share of ``cap_bytes`` kept for the live shell's queue (0..0.5; the
+            ring gets the rest: :attr:`ring_cap_bytes`).
     """
 
     prefix: str = "manus"
@@ -152,6 +155,18 @@ class FlightConfig:
     after_s: float = 5.0
     cap_bytes: int = 64 * 1024 * 1024
     rules: TriggerRules = field(default_factory=TriggerRules)
+    queue_share: float = 0.0
+
+    @property
+    def queue_bytes(self) -> int:
+        """The live shell's queue's share of the cap [B]."""
+        return round(self.cap_bytes * self.queue_share)
+
+    @property
+    def ring_cap_bytes(self) -> int:
+        """Most bytes the ring (and a collecting dump) holds: the cap minus the queue's
+        share [B]."""
+        return self.cap_bytes - self.queue_bytes
 
     def __post_init__(self) -> None:
         if not (self.ring_s > 0 and self.after_s >= 0):
@@ -160,6 +175,8 @@ class FlightConfig:
             )
         if self.cap_bytes < 64 * 1024:
             raise RecordingError(f"memory cap {self.cap_bytes} B must be >= 65536 B (64 KiB)")
+        if not 0.0 <= self.queue_share <= 0.5:
+            raise RecordingError(f"queue share {self.queue_share} must be in 0..0.5")
 
 
 @dataclass
@@ -267,7 +284,7 @@ class FlightCore:
             q = self._ring[sample.key] = deque()
             self._bytes[sample.key] = 0
         cost = self._cost(sample)
-        while self.stats.held_bytes + cost > self.config.cap_bytes and self.stats.held:
+        while self.stats.held_bytes + cost > self.config.ring_cap_bytes and self.stats.held:
             biggest = max(self._bytes, key=self._bytes.__getitem__)
             self._forget(biggest, self._ring[biggest])
             self.stats.evicted_by_cap += 1
@@ -289,7 +306,7 @@ class FlightCore:
         dump = self._dump
         assert dump is not None
         cost = self._cost(sample)
-        if dump.bytes + cost > self.config.cap_bytes:
+        if dump.bytes + cost > self.config.ring_cap_bytes:
             dump.truncated += 1
             return
         dump.samples.append(sample)

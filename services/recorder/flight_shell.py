@@ -1,8 +1,11 @@
 """The flight recorder's live shell (``manus record --ring S``) and its files.
 
-Zenoh callbacks stamp each sample and put it in a bounded queue (``queue_size``; when it is
-full the sample is dropped and counted, so neither a flood nor a slow disk grows memory
-past the cap); one worker feeds :class:`~services.recorder.flight.FlightCore`, ticks it
+Zenoh callbacks stamp each sample and put it in a bounded queue: at most ``queue_size``
+samples and :data:`QUEUE_SHARE` of the memory cap in bytes (payload plus
+:data:`~services.recorder.flight.ENTRY_OVERHEAD` each, as the ring counts them); the ring
+gets the rest of the cap, so the queue and the ring together stay within it. When the
+queue is full a sample is dropped and counted, so neither a flood nor a slow disk grows
+memory past the cap. One worker feeds :class:`~services.recorder.flight.FlightCore`, ticks it
 when the bus is quiet, and writes each completed dump with :func:`write_dump` into
 ``out_dir`` as ``flight-<UTC time>-<trigger>.mcap``: an ordinary recording (CRCs,
 summary) that ``manus replay``, ``manus export`` and ``manus plot`` read, with a
@@ -11,6 +14,13 @@ fed to the core as the recorder does (``<prefix>/liveliness``), so a vanished se
 a trigger. It listens only. It runs as the recorder (tokens ``alive/recorder`` and
 ``where/recorder/<host>/<pid>``, the recorder's identity in the deployed access control),
 so a recorder and a flight recorder show as two recorder processes.
+
+Its own session runs without Zenoh's shared-memory transport
+(``transport/shared_memory/enabled: false``): with it on (Zenoh 1.x's default), the first
+message of 3 KiB or more from a process on the same host (a plan reply, a goal request)
+maps that process's 16 MiB shared-memory pool into this one, and the resident size then
+counts it (16 MiB that are not the ring's, measured: README, "Flight recorder"). The
+recorder copies every payload anyway, so shared memory gains it nothing.
 """
 
 from __future__ import annotations
@@ -20,6 +30,7 @@ import logging
 import queue
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import zenoh
@@ -28,13 +39,17 @@ from manus.node import Node, now_ns
 from manus.session import ZenohSettings
 from schemas.endpoints import Service
 from schemas.liveliness import LivelinessChange
-from services.recorder.flight import Dump, FlightConfig, FlightCore
+from services.recorder.flight import ENTRY_OVERHEAD, Dump, FlightConfig, FlightCore
 from services.recorder.writer import RecordingWriter
 
 log = logging.getLogger("manus.recorder.flight")
 
 DEFAULT_QUEUE = 100_000
 """Samples waiting for the worker before new ones are dropped."""
+QUEUE_SHARE = 1 / 16
+"""Share of the memory cap the queue may hold (bytes); the ring gets the rest."""
+NO_SHARED_MEMORY = {"transport/shared_memory/enabled": False}
+"""Zenoh settings of the flight recorder's own session (see the module docstring)."""
 NAME = Service.RECORDER
 """Liveliness name of the flight recorder: the recorder's."""
 
@@ -74,14 +89,15 @@ class FlightShell:
     Args:
         settings: how to reach the bus; its prefix selects the arm.
         out_dir: where the files go (created).
-        config: ring, after-window, memory cap, triggers (its prefix is replaced by the
-            settings').
+        config: ring, after-window, memory cap (the queue's share and the ring's
+            together), triggers (its prefix is replaced by the settings').
         session: an open session to share (not closed by :meth:`close`).
         queue_size: samples buffered before new ones are dropped.
 
     Attributes:
         files: the files written so far.
-        dropped: samples dropped because the queue was full.
+        dropped: samples dropped because the queue was full (in samples or bytes).
+        queue_bytes: the queue's byte budget (its share of the cap).
         write_errors: dumps that could not be written.
     """
 
@@ -96,14 +112,12 @@ class FlightShell:
     ) -> None:
         base = config or FlightConfig()
         self.core = FlightCore(
-            FlightConfig(
-                prefix=settings.prefix,
-                ring_s=base.ring_s,
-                after_s=base.after_s,
-                cap_bytes=base.cap_bytes,
-                rules=base.rules,
-            )
+            replace(base, prefix=settings.prefix, queue_share=base.queue_share or QUEUE_SHARE)
         )
+        self.queue_bytes = self.core.config.queue_bytes
+        self._queued = 0  # bytes in the queue (payload + overhead)
+        self.queue_peak = 0
+        """The most bytes the queue held."""
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.prefix = settings.prefix
@@ -117,6 +131,8 @@ class FlightShell:
         self._closing = False
         self._thread = threading.Thread(target=self._work, name="flight-recorder", daemon=True)
         self._thread.start()
+        if session is None:
+            settings = replace(settings, extra={**settings.extra, **NO_SHARED_MEMORY})
         self.node = Node(NAME, settings, session=session, liveliness=False)
         self._liveliness_key = self.node.keys.liveliness
         self.node.subscribe_raw(self.node.keys.all, self._on_sample)
@@ -124,10 +140,18 @@ class FlightShell:
         self.node.announce()
 
     def _offer(self, item: _Item) -> None:
+        cost = len(item[1]) + ENTRY_OVERHEAD
+        with self._lock:
+            if self._queued + cost > self.queue_bytes:
+                self.dropped += 1
+                return
+            self._queued += cost
+            self.queue_peak = max(self.queue_peak, self._queued)
         try:
             self._queue.put_nowait(item)
         except queue.Full:
             with self._lock:
+                self._queued -= cost
                 self.dropped += 1
 
     def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
@@ -165,6 +189,8 @@ class FlightShell:
                 continue
             if item is None:
                 break
+            with self._lock:
+                self._queued -= len(item[1]) + ENTRY_OVERHEAD
             self._write(self.core.on_sample(*item))
         dump = self.core.flush()
         if dump is not None:
@@ -188,6 +214,8 @@ class FlightShell:
         return {
             **self.core.stats.__dict__,
             "dropped": self.dropped,
+            "queue_bytes": self.queue_bytes,
+            "queue_peak_bytes": self.queue_peak,
             "write_errors": self.write_errors,
             "files": [str(p) for p in self.files],
         }

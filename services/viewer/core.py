@@ -18,6 +18,11 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
 - ``P/viz/executed`` [``foxglove.SceneUpdate``]: the measured gripper path since the last
   goal (forward kinematics of the joint states);
 - ``P/viz/true`` [``foxglove.SceneUpdate``]: the simulator's true path (``sim/truth``);
+- ``P/viz/scene`` [``foxglove.SceneUpdate``]: the scene and protection zones
+  (:mod:`services.viewer.surroundings`: one entity per object and zone, in ``base_link``,
+  the scene's version in each entity's metadata): :meth:`ViewerCore.describe` gives the
+  one in use (the ``scene`` setting at start), and each ``planner/scene_state`` (a scene
+  replaced at run time) replaces every entity;
 - ``P/viz/log`` [``foxglove.Log``]: arm warnings and errors, bridge phases, goals and
   results, task events, e-stops, services appearing and vanishing;
 - ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/1`` ...]: each message of
@@ -32,7 +37,7 @@ from __future__ import annotations
 import base64
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import msgpack
@@ -41,9 +46,11 @@ from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ManusError
 from manus.kinematics import fk
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.trajectory import JointTrajectory
 from schemas import endpoints as ep
 from schemas.base import Message
+from schemas.collision import SceneState
 from schemas.commands import EStop
 from schemas.control import GoalResult, TrajectoryGoal
 from schemas.keys import Keys, channel_type
@@ -55,6 +62,7 @@ from services.viewer import scene
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms, quaternion
 from services.viewer.path import GripperPath
 from services.viewer.scene import SchemaInfo
+from services.viewer.surroundings import solids
 from services.viewer.topics import Topics
 
 JSON_SUFFIXES: tuple[str, ...] = (
@@ -120,6 +128,9 @@ class ViewerConfig:
         path_step_m: a new path point only after the gripper moved this far [m].
         path_every: publish a path after this many new points.
         preview_dt_s: sampling step [s] of a goal's path when it has no preview.
+        scene: the scene drawn until the planner publishes another, as every service's
+            ``scene`` setting (``""``: ``$MANUS_SCENE`` or the shipped one; ``default``;
+            ``none``; a file: :func:`manus.scene.scene_from_setting`).
     """
 
     prefix: str = "manus"
@@ -128,6 +139,7 @@ class ViewerConfig:
     path_step_m: float = 0.0005
     path_every: int = 3
     preview_dt_s: float = 0.05
+    scene: str = ""
 
     def __post_init__(self) -> None:
         if self.path_points < 2 or self.path_every < 1:
@@ -190,6 +202,8 @@ class ViewerCore:
         self.planned: tuple[list[list[float]], list[list[float]]] = ([], [])
         """The newest goal's path and via points [m] (what ``viz/planned`` shows)."""
         self._urdf = build_visual_urdf(self.config.arm)
+        self.scene: Scene | None = scene_from_setting(self.config.scene)
+        """The scene drawn now (None: none)."""
         self._handlers = {
             ep.JOINTS: self._joints,
             ep.STATUS: self._arm_status,
@@ -199,6 +213,7 @@ class ViewerCore:
             ep.ESTOP: self._estop,
             ep.SIM_TRUTH: self._truth,
             ep.LIVELINESS: self._liveliness,
+            ep.SCENE_STATE: self._scene_state,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
@@ -222,6 +237,7 @@ class ViewerCore:
             (self.topics.via_poses, PosesInFrame),
             (self.topics.executed, SceneUpdate),
             (self.topics.true, SceneUpdate),
+            (self.topics.scene, SceneUpdate),
             (self.topics.log, Log),
         ]
         out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
@@ -238,6 +254,18 @@ class ViewerCore:
         return FoxMessage(
             self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json", data, t_ns
         )
+
+    def scene_update(self, t_ns: int) -> FoxMessage:
+        """The scene in use on ``P/viz/scene``: every entity before it deleted, then one
+        per object and zone (none without a scene)."""
+        drawn = solids(self.scene) if self.scene is not None else []
+        ents = [scene.solid_entity(d, ROOT_FRAME, t_ns) for d in drawn]
+        return self._proto(self.topics.scene, scene.scene_update(ents, t_ns, clear=True), t_ns)
+
+    def describe(self, t_ns: int) -> list[FoxMessage]:
+        """What a new subscriber needs before the stream makes sense: the robot
+        description and the scene in use."""
+        return [self.robot_description(t_ns), self.scene_update(t_ns)]
 
     def on_sample(self, key: str, payload: bytes, t_ns: int) -> list[FoxMessage]:
         """Messages to show for one bus sample.
@@ -424,6 +452,20 @@ class ViewerCore:
         reason = f": {msg.reason}" if msg.reason else ""
         return [self._log("error" if msg.engaged else "info", msg.source or "estop",
                           f"e-stop {what}{reason}", t_ns)]  # fmt: skip
+
+    def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, SceneState)
+        try:
+            parsed = parse_scene(msg.text, msg.source or "<scene update>")
+        except SceneError as exc:  # the planner validated it: another stack's, or garbage
+            self._bad(ep.SCENE_STATE)
+            return [self._log("warning", "planner", f"scene {msg.version} not drawn: {exc}", t_ns)]
+        self.scene = replace(parsed, version=msg.version)
+        text = (
+            f"scene version {msg.version} ({parsed.source}): {len(parsed.objects)} objects, "
+            f"{len(parsed.zones)} zones"
+        )
+        return [self.scene_update(t_ns), self._log("info", "planner", text, t_ns)]
 
     def _liveliness(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, LivelinessChange)

@@ -6,9 +6,10 @@ FILE`` writes it again). Import it in the app (Layouts, Import from file) after 
 the connection ``ws://127.0.0.1:8765`` or a file written by ``manus export --json``.
 
 Left: the 3D panel in ``base_link`` with the URDF read from the robot description topic
-(the arm moves with ``viz/tf``), the planned and executed paths, the via poses and the
-true path. Right: joint tracking errors, commanded increments (the 20-speed counts), the
-gripper path error, bridge health, and the log (arm warnings, phases, goals, task events).
+(the arm moves with ``viz/tf``), the planned and executed paths, the via poses, the
+scene and protection zones (``viz/scene``) and the true path (hidden; tick it). Right:
+joint tracking errors, commanded increments (the 20-speed counts), the gripper path
+error, bridge health, and the log (arm warnings, phases, goals, task events).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ def build_layout(prefix: str = "manus") -> fl.Layout:
                 f"{viz}/executed": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 f"{viz}/true": fl.BaseRendererSceneUpdateTopicSettings(visible=False),
                 f"{viz}/via_poses": fl.BaseRendererPosesTopicSettings(visible=True),
+                f"{viz}/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
             },
         ),
     )

@@ -32,6 +32,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
     parser.add_argument("--layout", metavar="FILE", help="write the Foxglove layout and exit")
+    parser.add_argument(
+        "--scene",
+        default="",
+        help="scene drawn until the planner publishes another (default: $MANUS_SCENE, else "
+        "the shipped one; 'none'; a file)",
+    )
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     add_bus_arguments(parser)
 
@@ -51,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
         queue_size=max(1, args.queue),
         backlog=max(1, args.backlog),
         arm=load_arm_config(args.arm_config),
+        scene=args.scene,
     )
     try:
         freeze_startup_heap()

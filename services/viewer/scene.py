@@ -14,8 +14,11 @@ from typing import Any, NamedTuple, Protocol
 
 from foxglove.messages import (
     Color,
+    CubePrimitive,
+    CylinderPrimitive,
     FrameTransform,
     FrameTransforms,
+    KeyValuePair,
     LinePrimitive,
     LinePrimitiveLineType,
     Log,
@@ -34,7 +37,8 @@ from foxglove.messages import (
     Vector3,
 )
 
-from services.viewer.model import Transform
+from services.viewer.model import Transform, quaternion
+from services.viewer.surroundings import Drawn
 
 LEVELS = {"debug": LogLevel.Debug, "info": LogLevel.Info, "warning": LogLevel.Warning,
           "error": LogLevel.Error}  # fmt: skip
@@ -168,6 +172,36 @@ def path_entity(
         lines=lines,
         spheres=spheres,
         texts=texts,
+    )
+
+
+def solid_entity(drawn: Drawn, frame: str, t_ns: int) -> SceneEntity:
+    """A scene object or zone (:func:`services.viewer.surroundings.solids`) as an entity
+    in ``frame``, frame-locked (it moves with the frame, not left where it was drawn), its
+    metadata the object's."""
+    cubes, spheres, cylinders = [], [], []
+    for solid in drawn.solids:
+        pose = _pose([float(v) for v in solid.pose[:3, 3]], quaternion(solid.pose[:3, :3]))
+        size = Vector3(x=solid.size[0], y=solid.size[1], z=solid.size[2])
+        if solid.shape == "cube":
+            cubes.append(CubePrimitive(pose=pose, size=size, color=color(solid.rgba)))
+        elif solid.shape == "sphere":
+            spheres.append(SpherePrimitive(pose=pose, size=size, color=color(solid.rgba)))
+        else:
+            cylinders.append(
+                CylinderPrimitive(
+                    pose=pose, size=size, bottom_scale=1.0, top_scale=1.0, color=color(solid.rgba)
+                )
+            )
+    return SceneEntity(
+        timestamp=stamp(t_ns),
+        frame_id=frame,
+        id=drawn.entity,
+        frame_locked=True,
+        metadata=[KeyValuePair(key=k, value=v) for k, v in drawn.metadata.items()],
+        cubes=cubes,
+        spheres=spheres,
+        cylinders=cylinders,
     )
 
 

@@ -5,7 +5,8 @@ SDK context, creates one channel per topic the first time a :class:`~services.vi
 FoxMessage` names it (schema and encoding from the message) and logs each message with its
 log time. It serves the URDF as an asset (``package://manus/urdf/manus.urdf``, the
 ``assets`` capability of the Foxglove WebSocket protocol) and sends the robot description
-again whenever a client subscribes to it, so a client that connects late still sees the arm.
+and the scene again whenever a client subscribes to either, so a client that connects late
+still sees the arm and what is around it.
 
 What clients send is never trusted: the SDK answers a message it cannot parse, a
 subscription to an unknown channel or a client publication (this server does not offer
@@ -82,14 +83,15 @@ def _install_sdk_logging() -> ClientProblemCounter:
 
 
 class _Listener(ServerListener):
-    """Counts what clients do; asks for the robot description on a subscription to it."""
+    """Counts what clients do; asks for the robot description and the scene again on a
+    subscription to either."""
 
     def __init__(self, sink: FoxgloveSink) -> None:
         self.sink = sink
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         self.sink.client_events["subscribe"] += 1
-        if channel.topic == self.sink.describe_topic and self.sink.on_describe is not None:
+        if channel.topic in self.sink.describe_topics and self.sink.on_describe is not None:
             self.sink.on_describe()
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
@@ -116,7 +118,8 @@ class FoxgloveSink:
         host: address to listen on (loopback by default).
         port: TCP port (0: any free one; see :attr:`port`).
         urdf: the URDF text served at :data:`URDF_URI`.
-        describe_topic: the robot description topic (re-sent on each subscription).
+        describe_topics: the topics whose messages are re-sent on each subscription to one
+            of them (the robot description, the scene).
         backlog: messages buffered per client before its oldest are dropped.
         name: server name shown in the app.
         playback_range: for a recording, its first and last log time [ns]: the app then
@@ -129,7 +132,7 @@ class FoxgloveSink:
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         urdf: str = "",
-        describe_topic: str = "",
+        describe_topics: tuple[str, ...] = (),
         backlog: int = DEFAULT_BACKLOG,
         name: str = "manus",
         playback_range: tuple[int, int] | None = None,
@@ -137,7 +140,7 @@ class FoxgloveSink:
         self.problems = _install_sdk_logging()
         self._problems_at_start = self.problems.count
         self.context = foxglove.Context()
-        self.describe_topic = describe_topic
+        self.describe_topics = describe_topics
         self.on_describe: Callable[[], None] | None = None
         self.on_playback: Callable[[PlaybackControlRequest], PlaybackState | None] | None = None
         self.client_events: Counter[str] = Counter()

@@ -45,6 +45,8 @@ class ViewerShell:
         queue_size: samples buffered before new ones are dropped.
         backlog: messages buffered per Foxglove client.
         arm: the arm's geometry (forward kinematics, URDF).
+        scene: the scene drawn until the planner publishes another (``""``:
+            ``$MANUS_SCENE`` or the shipped one, as every service; ``none``; a file).
 
     Attributes:
         received: samples received from the bus.
@@ -62,13 +64,14 @@ class ViewerShell:
         queue_size: int = DEFAULT_QUEUE,
         backlog: int = DEFAULT_BACKLOG,
         arm: ArmConfig = DEFAULT_ARM,
+        scene: str = "",
     ) -> None:
-        self.core = ViewerCore(ViewerConfig(prefix=settings.prefix, arm=arm))
+        self.core = ViewerCore(ViewerConfig(prefix=settings.prefix, arm=arm, scene=scene))
         self.sink = FoxgloveSink(
             host=host,
             port=port,
             urdf=self.core.urdf,
-            describe_topic=self.core.topics.robot_description,
+            describe_topics=(self.core.topics.robot_description, self.core.topics.scene),
             backlog=backlog,
         )
         self.sink.on_describe = self._describe_later
@@ -131,7 +134,8 @@ class ViewerShell:
                 item = None
             if self._describe.is_set():
                 self._describe.clear()
-                self.sink.log(self.core.robot_description(now_ns()))
+                for msg in self.core.describe(now_ns()):
+                    self.sink.log(msg)
             if item is None:
                 continue
             try:

@@ -19,6 +19,7 @@ class Topics:
         self.via_poses = f"{viz}/via_poses"
         self.executed = f"{viz}/executed"
         self.true = f"{viz}/true"
+        self.scene = f"{viz}/scene"
         self.log = f"{viz}/log"
         self._json: dict[type[Message], SchemaInfo] = {}
 
