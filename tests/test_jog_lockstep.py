@@ -107,6 +107,23 @@ def test_deadman_stops_the_arm_within_two_cycles_and_nothing_resumes_without_a_r
     assert not arm.samples[-1].at_rest
 
 
+@pytest.mark.parametrize(("hz", "stops"), [(10.0, False), (7.0, True)])
+def test_a_10_hz_stream_with_jitter_keeps_jogging_and_a_7_hz_one_trips_the_deadman(
+    hz: float, stops: bool
+) -> None:
+    """Commands are dated on the joint states' 60 ms grid, so every gap up to two cycles
+    (120 ms) passes whatever its phase: 10 Hz with +-20 ms of jitter jogs on; 7 Hz
+    (143 ms gaps) leaves a joint state 180 ms after the newest command's and stops."""
+    arm = _arm(1)  # 30 mm/s: 3 s stay inside the workspace
+    rng = np.random.default_rng(7)
+    end = arm.ls.t_ns + 3_000_000_000
+    while arm.ls.t_ns < end:
+        arm.send(units="unitless", linear=X)
+        arm.run(1.0 / hz + float(rng.uniform(-0.02, 0.02)))
+    assert (arm.core.jog.deadman_stops > 0) == stops, arm.core.jog.reason
+    assert arm.samples[-1].at_rest == stops
+
+
 def test_a_zero_command_stops_at_once() -> None:
     arm = _arm(5)
     arm.stream(0.6, units="unitless", linear=X)

@@ -9,6 +9,12 @@ lock-step simulator, bridge and controller cores, a jog sender publishing at 20 
 - ``stop_latency_ms``: from the deadman's expiry (the last command + ``jog_timeout``) or
   from a zero command's publication to the arm at rest (every motor under 0.5 deg/s);
   ``zeros_acting_ms``: from the expiry to the moment the first zero command acts;
+  ``stop_floor_ms``: what no PC program can beat on this arm, per trial: the wait from
+  the trigger to the next sync (the arm takes one reply per 60 ms cycle), the 20 ms
+  until the reply acts, and the drives' first-order lag (tau ``transient_tau_ms``) from
+  the true motor speed at that moment down to 0.5 deg/s; ``over_floor_ms``: the stop
+  latency minus that floor (negative for the deadman when it is judged before the
+  nominal expiry: commands are dated on the 60 ms grid of the joint states);
 - ``straight_line_drift_mm`` and ``orientation_drift_deg`` per speed level: a unitless
   x jog in the base frame until the true gripper has moved 100 mm; the largest true
   distance from the line, and the largest true change of orientation;
@@ -33,7 +39,7 @@ import numpy as np
 
 from manus.orientation import ypr_to_matrix
 from manus.protocol import XYZ_UNIT_MM, FrameId, MoveCommand, move_frame
-from manus_stack.jog_lockstep import JogArm, TruthSample, line_drift
+from manus_stack.jog_lockstep import REST_DEG_S, JogArm, TruthSample, line_drift
 from schemas import endpoints as ep
 from schemas.jog import JogLevel
 from services.simulator.config import SimConfig
@@ -42,6 +48,7 @@ from services.simulator.scripted import ScriptedPc
 
 TARGETS = {
     "stop_latency_max_ms": 120.0,
+    "over_floor_max_ms": 10.0,  # two truth samples (5 ms each)
     "straight_line_drift_mm": 1.0,
     "orientation_drift_deg": 0.5,
 }
@@ -78,9 +85,22 @@ def _phase_to(arm: JogArm, phase_ms: float) -> None:
     arm.run((target - arm.ls.t_ns) / 1e9)
 
 
+def stop_floor_ms(arm: JogArm, trigger_ns: int) -> float:
+    """The fastest stop any PC program could give from ``trigger_ns`` (module docstring):
+    next sync, + 20 ms until the reply acts, + the drives' lag down to rest."""
+    sync = next(f.t_ns for f in arm.ls.arm_frames if f.id == FrameId.SYNC and f.t_ns >= trigger_ns)
+    acts = sync + 20 * MS
+    speed = next(s.speed for s in arm.samples if s.t_ns >= acts)
+    tau_ms = arm.ls.sim.config.transient_tau_ms
+    fall_ms = tau_ms * math.log(speed / REST_DEG_S) if speed > REST_DEG_S else 0.0
+    return (acts - trigger_ns) / 1e6 + fall_ms
+
+
 def latencies(trials: int) -> dict[str, Any]:
     """Start and stop latencies over ``trials`` phases of the cycle."""
     starts, deadman, release, acting = [], [], [], []
+    floors: dict[str, list[float]] = {"deadman": [], "release": []}
+    over: dict[str, list[float]] = {"deadman": [], "release": []}
     arm = _arm()
     for k in range(trials):
         phase = 60.0 * (k + 0.37) / trials
@@ -101,6 +121,8 @@ def latencies(trials: int) -> dict[str, Any]:
             acting.append((first_zero + 20 * MS - expiry) / 1e6)
             assert rest is not None
             deadman.append((rest - expiry) / 1e6)
+            floors["deadman"].append(stop_floor_ms(arm, expiry))
+            over["deadman"].append(deadman[-1] - floors["deadman"][-1])
             arm.stream(0.2)  # release, so the next trial may move
         else:
             _phase_to(arm, (phase * 7.0) % 60.0)
@@ -109,10 +131,14 @@ def latencies(trials: int) -> dict[str, Any]:
             rest = arm.rest_from(t1)
             assert rest is not None
             release.append((rest - t1) / 1e6)
+            floors["release"].append(stop_floor_ms(arm, t1))
+            over["release"].append(release[-1] - floors["release"][-1])
     return {
         "start_latency_ms": _stats(starts),
         "stop_latency_ms": {"deadman": _stats(deadman), "release": _stats(release)},
         "zeros_acting_ms": _stats(acting),
+        "stop_floor_ms": {k: _stats(v) for k, v in floors.items()},
+        "over_floor_ms": {k: _stats(v) for k, v in over.items()},
     }
 
 
@@ -221,6 +247,8 @@ def run(quick: bool = False) -> dict[str, Any]:
     out["targets"] = TARGETS
     out["met"] = {
         "stop_latency": out["stop_latency_ms"]["deadman"]["max"] <= TARGETS["stop_latency_max_ms"],
+        "stop_at_floor": max(v["max"] for v in out["over_floor_ms"].values())
+        <= TARGETS["over_floor_max_ms"],
         "straight_line": max(out["straight_line_drift_mm"].values())
         <= TARGETS["straight_line_drift_mm"],
         "orientation": max(out["orientation_drift_deg"].values())

@@ -23,8 +23,9 @@ class JogConfig:
     Attributes:
         timeout_ms: deadman: a jog command older than this (judged on the joint states'
             stamps: a command is as old as the newest joint state before it) stops the
-            arm [ms]. The stream must come faster than ``timeout_ms`` minus one cycle
-            (150 ms: every 90 ms, 11 Hz or more).
+            arm [ms]. Ages are multiples of the 60 ms cycle, so 150 ms stops at the third
+            joint state without a newer command: any gap up to 120 ms passes whatever its
+            phase (10 Hz with +-20 ms of jitter), a gap over 180 ms never does.
         levels: number of speed levels (level ``levels`` runs at the caps).
         default_level: level at start.
         max_linear: Cartesian speed cap of the gripper origin at the top level [m/s]
