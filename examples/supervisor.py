@@ -12,7 +12,12 @@ positions in metres). It
 3. prints the task's events (``<prefix>/sequencer/events``) until it ends, and can
    pause it after a while and resume it (``<prefix>/sequencer/control``),
 4. watches the sequencer's liveliness token (``<prefix>/alive/sequencer``): when it
-   vanishes, the sequencer died and no final event will come, so it stops waiting;
+   vanishes while this client is still linked to its router, the sequencer died or hangs
+   and no final event may come, so it stops waiting; when it vanished with this client's
+   own link (a router restart), it waits for the token to come back and reads the task's
+   record in ``<prefix>/sequencer/history``: the final event published while the link
+   was down is there (``final``), exactly as published (docs/architecture.md, Learning
+   how a task ended);
 5. with ``--scene FILE``, first replaces the scene every plan is checked against
    (``<prefix>/planner/scene``: a SceneUpdate with the file's YAML text; the reply is a
    SceneReply: the new version, or the error naming line and field).
@@ -104,6 +109,17 @@ def open_session(endpoint: str) -> zenoh.Session:
 
 GONE: dict[str, Any] = {"event": "sequencer_gone"}
 """Put in the event queue when the sequencer's liveliness token vanishes."""
+BACK: dict[str, Any] = {"event": "sequencer_back"}
+"""Put in the event queue when the sequencer's liveliness token appears again."""
+LINK_SETTLE_S, LINK_WAIT_S, RECHECK_S = 0.25, 30.0, 1.0
+"""After the token vanished: how long to look whether our own link went down with it;
+how long to wait for link and token to come back; then how often to read the task's
+record until it has ended [s]."""
+
+
+def link_up(session: zenoh.Session) -> bool:
+    """Whether the session is linked to a router (or a peer) now."""
+    return bool(session.info.routers_zid() or session.info.peers_zid())
 
 
 class Sequencer:
@@ -117,11 +133,11 @@ class Sequencer:
             f"{prefix}/sequencer/events",
             lambda s: self.events.put(msgpack.unpackb(s.payload.to_bytes(), raw=False)),
         )
-        # The sequencer's token vanishing (a DELETE sample) means it died: no final event
-        # will come for the task it ran.
+        # The sequencer's token vanishing (a DELETE sample): it died or hangs, or our own
+        # link went down; appearing again (PUT): read the task's record.
         session.liveliness().declare_subscriber(
             f"{prefix}/alive/sequencer",
-            lambda s: self.events.put(GONE) if s.kind == zenoh.SampleKind.DELETE else None,
+            lambda s: self.events.put(GONE if s.kind == zenoh.SampleKind.DELETE else BACK),
         )
 
     def alive(self) -> set[str]:
@@ -147,6 +163,52 @@ class Sequencer:
         """``sequencer/control``: pause, resume, cancel or status of a task."""
         return self.ask("sequencer/control", {"action": action, "task_id": task_id})
 
+    def link_cut(self) -> bool:
+        """The token just vanished: did our own link go down (rather than the sequencer)?"""
+        end = time.monotonic() + LINK_SETTLE_S
+        while link_up(self.session):
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.02)
+        return True
+
+    def recorded_final(self, task_id: str) -> dict[str, Any] | bool | None:
+        """The task's final event from ``sequencer/history``: the event, None (it still
+        runs, or no answer) or False (this sequencer does not know the task)."""
+        try:
+            history = self.ask("sequencer/history", {"limit": 100}, timeout=2.0)
+        except RuntimeError:
+            return None
+        for record in history["tasks"]:
+            if record["task_id"] == task_id:
+                final: dict[str, Any] | None = record["final"]
+                return final
+        return False
+
+
+def from_record(seq: Sequencer, task_id: str) -> int | None:
+    """The exit status when the task's record says it ended (its final event is printed),
+    or the sequencer does not know it; None: it still runs."""
+    final = seq.recorded_final(task_id)
+    if final is False:
+        print(f"sequencer gone: the sequencer back on {seq.prefix}/alive/sequencer "
+              f"does not know task {task_id}", flush=True)  # fmt: skip
+        return 1
+    if final is None or final is True:
+        return None
+    print("the final event was lost on the way: read from sequencer/history", flush=True)
+    return show(final)
+
+
+def show(event: dict[str, Any]) -> int | None:
+    """Print one event; the exit status when it is final."""
+    reason = f": {event['reason']}" if event["reason"] else ""
+    print(f"event: {event['event']} step {event['step']}/{event['total']}{reason}",
+          flush=True)  # fmt: skip
+    if event["event"] in ("succeeded", "failed", "cancelled"):
+        return 0 if event["event"] == "succeeded" else 1
+    return None
+
 
 def unfold_first(seq: Sequencer, task: dict[str, Any]) -> dict[str, Any] | None:
     """Submit ``task`` with the arm's own fold-out first; the reply if accepted (None: not)."""
@@ -162,7 +224,18 @@ def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
     """Print the task's events (pausing and resuming it if asked) until it ends: exit status."""
     start = time.monotonic()
     paused_at: float | None = None
+    cut_at: float | None = None  # our link went down (the token with it) at
+    recheck: float | None = None  # read the task's record again at
     while time.monotonic() - start < args.timeout:
+        if cut_at is not None and time.monotonic() - cut_at > LINK_WAIT_S:
+            print(f"no sequencer for {LINK_WAIT_S:g} s after the link went down: "
+                  f"task {task_id}'s outcome is unknown", flush=True)  # fmt: skip
+            return 1
+        if recheck is not None and time.monotonic() >= recheck:
+            status = from_record(seq, task_id)
+            if status is not None:
+                return status
+            recheck = time.monotonic() + RECHECK_S
         now = time.monotonic() - start
         if args.pause_after is not None and paused_at is None and now >= args.pause_after:
             status = seq.control("pause", task_id)
@@ -176,17 +249,24 @@ def follow(seq: Sequencer, task_id: str, args: argparse.Namespace) -> int:
             event = seq.events.get(timeout=0.1)
         except queue.Empty:
             continue
+        if event is GONE and seq.link_cut():
+            print("the link to the router went down: waiting for it and the sequencer",
+                  flush=True)  # fmt: skip
+            cut_at = time.monotonic()
+            continue
         if event is GONE:
             print(f"sequencer gone: its liveliness token {seq.prefix}/alive/sequencer vanished "
-                  f"while task {task_id} ran; its outcome is unknown", flush=True)  # fmt: skip
+                  f"(it died or hangs) while task {task_id} ran; its outcome is unknown",
+                  flush=True)  # fmt: skip
             return 1
+        if event is BACK:
+            cut_at, recheck = None, time.monotonic()
+            continue
         if event["task_id"] != task_id or event["event"] == "step_progress":
             continue
-        reason = f": {event['reason']}" if event["reason"] else ""
-        print(f"event: {event['event']} step {event['step']}/{event['total']}{reason}",
-              flush=True)  # fmt: skip
-        if event["event"] in ("succeeded", "failed", "cancelled"):
-            return 0 if event["event"] == "succeeded" else 1
+        status = show(event)
+        if status is not None:
+            return status
     print("timeout: cancelling", flush=True)
     seq.control("cancel", task_id)
     return 1

@@ -55,6 +55,16 @@ LAB_PATH_KEYS = (
 )
 """Config entries that name lab files (moved by ``lab_dir``)."""
 
+BLOCK_CLOSE_US = 50_000
+"""How long a session (a router above all) waits for room in the queue of one link before
+it closes that link [us] (Zenoh's default: 5 s). Every publisher of the stack uses
+blocking congestion control, so that no live subscriber (the recorder) loses a message;
+a subscriber that stops reading (SIGSTOP, a hung process) would otherwise hold the
+router's delivery of those publishers to everyone else for up to 5 s: the heartbeat
+comes late and the controller aborts the move. After 50 ms with a full queue (megabytes
+behind) the stopped one is cut off, its tokens vanish, and it reconnects when it runs
+again (``tests/test_stalled_subscriber.py``)."""
+
 MODES = ("client", "peer", "router")
 _PREFIX_RE = re.compile(r"^[A-Za-z0-9_\-]+(/[A-Za-z0-9_\-]+)*$")
 
@@ -188,6 +198,10 @@ def build_config(settings: ZenohSettings) -> zenoh.Config:
         config.insert_json5("scouting/gossip/enabled", "false")
     config.insert_json5("transport/link/tx/lease", str(settings.lease_ms))
     config.insert_json5("transport/link/tx/keep_alive", "4")
+    config.insert_json5(
+        "transport/link/tx/queue/congestion_control/block/wait_before_close",
+        str(BLOCK_CLOSE_US),
+    )
     for key, value in settings.extra.items():
         config.insert_json5(key, json.dumps(value))
     _apply_identity(config, settings)

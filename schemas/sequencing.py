@@ -180,6 +180,12 @@ class TaskRecord(Message):
     reason: str = field("why it failed or was cancelled ('' otherwise)")
     started_ns: int = field("sequencer clock when it started", unit="ns")
     ended_ns: int = field("sequencer clock when it ended (0: not yet)", unit="ns")
+    final: TaskEvent | None = field(
+        "its final event (succeeded, failed, cancelled) exactly as published on "
+        "sequencer/events; null while it runs. A client that missed it on the bus (a link "
+        "cut, a sequencer whose session was down) reads it here",
+        default=None,
+    )
 
 
 @dataclass(frozen=True)

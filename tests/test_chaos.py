@@ -182,10 +182,8 @@ OPEN: dict[tuple[str, str], str] = {
     "after a restart the next task's fold step races the bridge's phase",
     ("bridge_sigstop", "*"): "issue 19: nor one whose bridge hangs; the task's reason blames "
     "the link; a bridge continued after a SIGSTOP finishes the fold of a failed task",
-    ("router_restart", "*"): "the final event is published during the cut and lost; a fold "
-    "goes on (the bridge holds it without the link)",
-    ("sequencer_sigstop", "*"): "the final event is lost while the sequencer's session "
-    "comes back; a fold goes on",
+    ("router_restart", "*"): "a fold goes on (the bridge holds it without the link)",
+    ("sequencer_sigstop", "*"): "a fold goes on",
     **{
         ("sequencer_sigkill", step): "a fold goes on; a gripper goal has no deadman"
         for step in (*FOLDS, "gripper")

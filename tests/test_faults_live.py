@@ -272,3 +272,58 @@ def test_clients_notice_the_sequencer_dying_mid_task(stack: FaultStack, tmp_path
         stack.stack._spawn("sequencer", [])
         stack.wait("a sequencer", lambda: "sequencer" in stack.node.alive_services(0.5), 20.0)  # type: ignore[union-attr]
         time.sleep(1.0)  # the controller's aborted goal has stopped the arm
+
+
+def _restart_router(stack: FaultStack, down_s: float) -> None:
+    """Kill the router (every link cut), start it again ``down_s`` later."""
+    router = stack.child("router")
+    os.kill(router.proc.pid, signal.SIGKILL)
+    router.proc.wait(timeout=5.0)
+    time.sleep(down_s)
+    router.stream.close()
+    index = stack.stack.children.index(router)
+    stack.stack.children.remove(router)
+    new = stack.stack._spawn("router", router.argv[4:])
+    stack.stack.children.remove(new)
+    stack.stack.children.insert(index, new)  # the stop order stays the start order
+
+
+def test_clients_learn_how_a_task_ended_through_a_router_restart(
+    stack: FaultStack, tmp_path: Path
+) -> None:
+    """A router restart mid-task (every link cut; the task fails while the clients' links
+    are down, its final event reaches nobody): ``manus run`` and examples/supervisor.py
+    each wait for the link and the sequencer's token, read the final event from
+    ``sequencer/history`` and exit 1 with it, shown once; neither takes the cut for the
+    sequencer's death."""
+    path = tmp_path / "back_and_forth.txt"
+    path.write_text(BACK_AND_FORTH)
+    endpoint, prefix = stack.options.endpoint, stack.options.prefix
+    run = [sys.executable, "-m", "manus_stack.cli", "run", "--plain", "--connect", endpoint]
+    sup = [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", endpoint]
+    assert stack.node is not None
+    node = stack.node
+    for name, head in (("manus run", run), ("supervisor", sup)):
+        stack.wait("the stack", lambda: "sequencer" in node.alive_services(0.5), 30.0)
+        stack.wait("bridge running", lambda: stack.watch.bridge[-1].phase == "running", 30.0)
+        argv = [*head, "--prefix", prefix, str(path)]
+        proc = subprocess.Popen(argv, cwd=ROOT, stdout=PIPE, stderr=PIPE, text=True)
+        try:
+            stack.wait_moving()
+            assert proc.poll() is None, proc.communicate()
+            t_cut = time.monotonic()
+            _restart_router(stack, down_s=1.0)
+            out, err = proc.communicate(timeout=45.0)
+            took = time.monotonic() - t_cut
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        _report(f"router restart, {name}", exited_after=took * 1e3)
+        text = out + err
+        assert proc.returncode == 1, (out, err)
+        assert "sequencer is gone" not in text and "sequencer gone" not in text, (out, err)
+        assert "sequencer/history" in text, (out, err)
+        finals = [li for li in out.splitlines() if "failed" in li and "step_failed" not in li]
+        assert len(finals) == 1, (out, err)  # shown once
+        assert any(word in finals[0] for word in ("link", "heartbeat", "gone")), finals

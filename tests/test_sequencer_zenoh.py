@@ -299,11 +299,14 @@ def test_history_lists_the_recent_tasks_newest_first(
     assert stack.client.history().tasks == []
     stack.controller.refuse = "another goal is active"
     failed = stack.client.submit(task_from_args([SQUARE], name="first"))
-    stack.events(failed.task_id)
+    failed_events = stack.events(failed.task_id)
     stack.controller.refuse = ""
     done = stack.client.submit(task_from_args([SQUARE, "40"], name="second"))
-    stack.events(done.task_id)
+    done_events = stack.events(done.task_id)
     tasks = stack.client.history().tasks
+    # each record keeps its task's final event exactly as it was published
+    assert [t.final for t in tasks] == [done_events[-1], failed_events[-1]]
+    assert [e.event for e in (done_events[-1], failed_events[-1])] == ["succeeded", "failed"]
     assert [(t.task_id, t.name, t.state) for t in tasks] == [
         (done.task_id, "second", "succeeded"),
         (failed.task_id, "first", "failed"),

@@ -386,6 +386,8 @@ class Soak:
             if fault.stops and not (early and early[0].event != "succeeded"):
                 self._judge_stop(done, truth, fault_sim, sim, violated, stops, row)
             row["final"] = [f"{e.event}: {e.reason}" for e in finals]
+            if w.recovered(done.task_id):
+                row["final_from_history"] = True
             for what in self._judge_final(fault, finals, bool(early)):
                 violated(done, what)
         rec = self._completeness()

@@ -7,7 +7,12 @@
 - each ``sim/truth`` (the simulator's clock and true joint angles) with its receive time,
   which also gives the offset from wall clock to simulator clock;
 - the sequencer's task events and the bridge's states;
-- every liveliness change (service, up, wall ns).
+- every liveliness change (service, up, wall ns);
+- the final events it learnt from ``sequencer/history`` rather than on the bus: like any
+  client (docs/architecture.md, Learning how a task ended), once the sequencer's token is
+  back after vanishing it reads the tasks' records for a while, and a final event that
+  was published while a link or the sequencer's session was down is taken from there.
+  :meth:`Watcher.events_of` adds it only to a task of which no final event was received.
 """
 
 from __future__ import annotations
@@ -19,10 +24,10 @@ from dataclasses import dataclass, field
 
 import zenoh
 
-from manus.node import Node
+from manus.node import Node, QueryError
 from manus.session import ZenohSettings
 from schemas import endpoints as ep
-from schemas.sequencing import TaskEvent
+from schemas.sequencing import FINAL_EVENTS, HistoryRequest, TaskEvent, TaskHistory
 from schemas.state import BridgeState, SimTruth
 
 
@@ -41,6 +46,11 @@ class Seen:
     events: list[TaskEvent] = field(default_factory=list)
     bridge: list[BridgeState] = field(default_factory=list)
     alive: list[tuple[str, bool, int]] = field(default_factory=list)
+    recovered: dict[str, TaskEvent] = field(default_factory=dict)
+
+
+RECOVER_S = 15.0
+"""How long after the sequencer's token came back its history is read [s]."""
 
 
 class Watcher:
@@ -59,6 +69,11 @@ class Watcher:
         self._bridge = keys(ep.BRIDGE_STATE)
         self._liveliness = keys.liveliness
         self.node.subscribe_raw(keys.all, self._on_sample)
+        self._sequencer_seen = False
+        self._recover_until = 0.0  # monotonic [s]
+        self._closing = threading.Event()
+        self._reader = threading.Thread(target=self._read_history, name="chaos-history")
+        self._reader.start()
         self.node.watch_liveliness(self._on_alive)
 
     def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
@@ -89,6 +104,27 @@ class Watcher:
     def _on_alive(self, service: str, up: bool) -> None:
         with self.seen.lock:
             self.seen.alive.append((service, up, time.time_ns()))
+        if service == "sequencer" and up:
+            if self._sequencer_seen:  # back after vanishing
+                self._recover_until = time.monotonic() + RECOVER_S
+            self._sequencer_seen = True
+
+    def _read_history(self) -> None:
+        """Every 0.5 s while :data:`RECOVER_S` has not passed since the sequencer's
+        token came back: keep the final events of its records."""
+        while not self._closing.wait(0.5):
+            if time.monotonic() > self._recover_until:
+                continue
+            try:
+                history = self.node.query(
+                    self.node.keys(ep.HISTORY), HistoryRequest(limit=100), TaskHistory, timeout=2.0
+                )
+            except QueryError:
+                continue
+            with self.seen.lock:
+                for record in history.tasks:
+                    if record.final is not None:
+                        self.seen.recovered.setdefault(record.task_id, record.final)
 
     def sim_offset_ns(self) -> int:
         """Wall clock minus simulator clock [ns]: the smallest (receive time - stamp) of
@@ -110,10 +146,24 @@ class Watcher:
             return self.seen.bridge[-1].phase if self.seen.bridge else ""
 
     def events_of(self, task_id: str) -> list[TaskEvent]:
-        """The events of one task."""
+        """The events of one task received on the bus, and its final event read from
+        the sequencer's history when none of them is final."""
         with self.seen.lock:
-            return [e for e in self.seen.events if e.task_id == task_id]
+            events = [e for e in self.seen.events if e.task_id == task_id]
+            recovered = self.seen.recovered.get(task_id)
+        if recovered is not None and not any(e.event in FINAL_EVENTS for e in events):
+            events.append(recovered)
+        return events
+
+    def recovered(self, task_id: str) -> bool:
+        """Whether the task's final event came from the history, not the bus."""
+        with self.seen.lock:
+            recovered = task_id in self.seen.recovered
+            live = any(e.task_id == task_id and e.event in FINAL_EVENTS for e in self.seen.events)
+        return recovered and not live
 
     def close(self) -> None:
         """Leave the bus."""
+        self._closing.set()
+        self._reader.join()
         self.node.close()

@@ -305,7 +305,7 @@ class SequencerCore:
             records.insert(0, self._record(0))
         return TaskHistory(tasks=records[:limit])
 
-    def _record(self, ended_ns: int) -> TaskRecord:
+    def _record(self, ended_ns: int, final: TaskEvent | None = None) -> TaskRecord:
         assert self.task is not None
         return TaskRecord(
             task_id=self.task_id,
@@ -316,12 +316,16 @@ class SequencerCore:
             reason=self.reason,
             started_ns=self._started_ns,
             ended_ns=ended_ns,
+            final=final,
         )
 
-    def _end(self) -> None:
-        """The task has just ended: remember it (at most ``config.history``)."""
-        self._history.append(self._record(self.now))
+    def _end(self, final: Publish) -> list[Action]:
+        """The task has just ended with ``final``: remember it, with its final event
+        (at most ``config.history``); the event to publish."""
+        assert isinstance(final.message, TaskEvent)
+        self._history.append(self._record(self.now, final.message))
         del self._history[: -self.config.history]
+        return [final]
 
     def start(self, task_id: str, task: Task, now_ns: int) -> list[Action]:
         """Start a validated task (:meth:`submit` does it; a caller of its own checked
@@ -519,8 +523,7 @@ class SequencerCore:
             self.state = TaskState.SUCCEEDED
             self.step = len(self.task.steps) - 1
             self.step_progress = 1.0
-            self._end()
-            return [self._event(TaskEventKind.SUCCEEDED, step=-1, progress=1.0)]
+            return self._end(self._event(TaskEventKind.SUCCEEDED, step=-1, progress=1.0))
         if self.pause_requested:
             return self.paused()
         spec = self.task.steps[self.step]
@@ -598,10 +601,9 @@ class SequencerCore:
         self.reason = reason
         self._await = None
         self._deadline = None
-        self._end()
         progress = self._task_progress()
-        return [self._event(TaskEventKind.CANCELLED, step=self.step, progress=progress,
-                            reason=reason)]  # fmt: skip
+        return self._end(self._event(TaskEventKind.CANCELLED, step=self.step,
+                                     progress=progress, reason=reason))  # fmt: skip
 
     def fail(self, reason: str) -> list[Action]:
         """The task fails (what the running step started is stopped)."""
@@ -615,11 +617,9 @@ class SequencerCore:
         self.reason = full
         self._await = None
         self._deadline = None
-        self._end()
         progress = self._task_progress()
-        out.append(self._event(TaskEventKind.FAILED, step=self.step, progress=progress,
-                               reason=full))  # fmt: skip
-        return out
+        return out + self._end(self._event(TaskEventKind.FAILED, step=self.step,
+                                           progress=progress, reason=full))  # fmt: skip
 
     # -- outputs -------------------------------------------------------------------------------
 

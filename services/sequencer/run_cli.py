@@ -6,8 +6,11 @@
 Submits the task to the running sequencer (or, when none is up, runs one in this
 process), shows a progress bar for the task and one for the current step, and exits 0
 when the task succeeds; 1 with the failure reason when it fails or is cancelled, or when
-the sequencer's liveliness token vanishes while the task runs (the sequencer died: no
-final event will come; named on stderr, within the token's loss); 2 when it is refused
+the sequencer's liveliness token vanishes while the task runs and this client's link is
+up (the sequencer died or hangs: no final event may come; named on stderr, within the
+token's loss); 2 when it is refused. A final event lost on the way (a router restart, a
+sequencer whose session was down) is read from ``sequencer/history`` once the
+sequencer's token is back, and said so
 (every validation problem is printed, with its location). Ctrl-C cancels the task (the
 arm decelerates and stops) and exits 130.
 """
@@ -22,7 +25,7 @@ import threading
 from manus.node import Node, QueryError, wait_for_signal
 from manus.session import settings_from_env
 from schemas.sequencing import StepKind, Task, TaskAction, TaskEvent, TaskEventKind, TaskStep
-from services.sequencer.client import TaskClient
+from services.sequencer.client import LINK_WAIT_S, TaskClient
 from services.sequencer.config import REQUIRED_SERVICES
 from services.sequencer.progress import ProgressView
 from services.sequencer.shell import SequencerShell
@@ -152,10 +155,21 @@ def _outcome(
     if final is None and client.sequencer_gone.is_set():
         _err(
             f"manus run: the sequencer is gone (its liveliness token alive/sequencer "
-            f"vanished) while task {task_id} ran: its outcome is unknown; the "
-            "controller's deadman stops the arm"
+            f"vanished: it died or hangs) while task {task_id} ran: its outcome is "
+            "unknown; the controller's deadman stops the arm"
         )
         return 1
+    if final is None and client.link_lost:
+        _err(
+            f"manus run: no link to the router for {LINK_WAIT_S:g} s while task {task_id} "
+            "ran: its outcome is unknown (`manus task history` tells it once the link is back)"
+        )
+        return 1
+    if final is not None and final is client.recovered:
+        _err(
+            f"manus run: the final event of task {task_id} was lost on the way (a link or "
+            "the sequencer's session was down): read from sequencer/history"
+        )
     if final is None:
         why = "interrupted" if stop.is_set() else f"no end within {timeout:g} s"
         _err(f"manus run: {why}: cancelling task {task_id}")
