@@ -51,7 +51,9 @@ class BridgeConfig:
         fold_missed_cycles_to_stop: a fold with a deadman (``ArmCommand.heartbeat_timeout``
             > 0) answers a clean sync whose cycle gave no joint state or whose joint state
             the controller has not answered with zeros (the arm pauses); this many such
-            syncs in a row stop it (phase ``stopped``) [cycles].
+            syncs in a row stop it (phase ``stopped``; 5 = 300 ms, the controller's
+            ``max_outage_ms``: a controller late under load pauses the fold, one that
+            stays silent stops it) [cycles].
         max_field_step: largest plausible change of a position field per cycle; a larger
             jump marks the frame garbled [0.1 deg or 0.1 mm per cycle].
     """
@@ -65,7 +67,7 @@ class BridgeConfig:
     power_up_timeout_ms: float = 3000.0
     silence_timeout_ms: float = 200.0
     fold_timeout_s: float = 90.0
-    fold_missed_cycles_to_stop: int = 2
+    fold_missed_cycles_to_stop: int = 5
     max_field_step: int = 60
 
     def __post_init__(self) -> None:
