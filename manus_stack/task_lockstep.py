@@ -41,11 +41,15 @@ class TaskLockStep:
 
     Args:
         sim: simulator settings.
+        controller: the controller core (default: a new one; tests pass one they can
+            kill).
     """
 
-    def __init__(self, sim: SimConfig | None = None) -> None:
+    def __init__(
+        self, sim: SimConfig | None = None, controller: ControllerCore | None = None
+    ) -> None:
         self.ls = LockStep(sim)
-        self.controller = ControllerCore()
+        self.controller = controller or ControllerCore()
         self.planner = PlannerCore()
         self.seq = SequencerCore()
         self.events: list[TaskEvent] = []

@@ -78,6 +78,16 @@ class ArmCommand(Message):
 
     action: str = field("what to do", choices=ArmAction)
     source: str = field("who asks", default="")
+    heartbeat_timeout: float = field(
+        "a fold's deadman: the fold frame goes out only while the newest Heartbeat "
+        "refers to a joint state no older than this (judged on joint-state stamps) and "
+        "the controller answers the joint states; otherwise the fold stops "
+        "(0: no deadman; ignored by stop and clear)",
+        unit="s",
+        default=0.0,
+        minimum=0.0,
+        maximum=10.0,
+    )
 
 
 @dataclass(frozen=True)

@@ -132,6 +132,14 @@ class GripperGoal(Message):
     opening: float = field("target opening", unit="m", minimum=0.0, maximum=0.09)
     tolerance: float = field("done when within this of the target", unit="m", default=0.001)
     timeout: float = field("abort if not reached within this time", unit="s", default=10.0)
+    heartbeat_timeout: float = field(
+        "deadman: abort (zeros) when the newest Heartbeat refers to a joint state older than "
+        "this, judged on joint-state stamps (0: no heartbeat needed)",
+        unit="s",
+        default=0.0,
+        minimum=0.0,
+        maximum=10.0,
+    )
 
 
 @dataclass(frozen=True)

@@ -20,8 +20,9 @@ from manus.errors import ConfigError
 from manus.protocol import FrameId, decode_move
 from manus_stack.controlled import ControlledArm, controller_input
 from manus_stack.task_lockstep import TaskLockStep
+from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.control import CancelGoal, GoalResult, Heartbeat, TrajectoryGoal
+from schemas.control import CancelGoal, GoalResult, GripperGoal, Heartbeat, TrajectoryGoal
 from schemas.state import BridgeState, JointState
 from services.controller.core import ControllerCore, Output
 from services.sequencer.config import SequencerConfig
@@ -239,3 +240,38 @@ def test_sequencer_config_checks_its_deadman_settings() -> None:
         SequencerConfig(heartbeat_timeout_s=-1.0)
     with pytest.raises(ConfigError, match=r"link_timeout_s = 0\.01"):
         SequencerConfig(link_timeout_s=0.01)
+
+
+def test_a_gripper_goal_has_the_deadman_too() -> None:
+    """A gripper goal with ``heartbeat_timeout`` stops (zeros, aborted) when the supervisor's
+    heartbeats stop, judged on the stamps like a trajectory's; without it, it goes on."""
+    arm = ControlledArm(SimConfig(start_pose="unfolded"))
+    arm.start()
+    link = Link()
+    beats = iter(range(1, 1_000_000))
+
+    def supervisor(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
+        assert isinstance(msg, JointState)
+        if not link.up:
+            return []
+        hb = Heartbeat(stamp_ns=t_ns, seq=next(beats), source="test", ref_seq=msg.seq,
+                       ref_stamp_ns=msg.stamp_ns)  # fmt: skip
+        return [("heartbeat", hb)]
+
+    arm.ls.subscribe("state/joints", supervisor)
+    goal = GripperGoal(goal_id="g", opening=0.08, heartbeat_timeout=0.1)
+    assert arm.query(ep.GRIPPER_GOAL, goal).accepted
+    arm.ls.run_for(0.3)
+    assert arm.results("g") == []  # heartbeats keep it going
+    link.up = False
+    cut = arm.ls.t_ns
+    result = arm.run_until_result("g", timeout_s=1.0)
+    assert result.status == "aborted"
+    assert result.reason.startswith("lost the supervisor's heartbeat"), result.reason
+    grips = [decode_move(f.id, f.data).gripper for f in arm.ls.bridge_frames
+             if f.id == FrameId.JOINT and f.t_ns >= cut]  # fmt: skip
+    assert grips[:2] != [0, 0] and grips[3:] == [0] * len(grips[3:])  # zeros after 2 cycles
+    # no deadman asked: the old behaviour, the goal goes on without heartbeats
+    assert arm.query(ep.GRIPPER_GOAL, GripperGoal(goal_id="h", opening=0.085)).accepted
+    arm.ls.run_for(0.5)
+    assert arm.results("h") == []

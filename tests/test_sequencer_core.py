@@ -6,6 +6,7 @@ scripted here (their messages, as the schemas define them).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path as FilePath
 
@@ -23,6 +24,7 @@ from schemas.control import (
     GripperGoal,
     TrajectoryGoal,
 )
+from schemas.guardian import GuardianReport
 from schemas.planning import PlanRequest
 from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
 from schemas.state import BridgeState, JointState
@@ -562,3 +564,66 @@ def test_a_path_from_the_folded_arm_says_to_unfold_it_first() -> None:
                               "`manus run --fold-out ...` for the thesis form)")  # fmt: skip
     unfolded_first = Task(steps=[TaskStep(kind="fold_out"), *task_from_args([SQUARE]).steps])
     assert validate(unfolded_first, start=folded).errors == []
+
+
+def test_a_bridge_state_published_late_does_not_end_a_fold() -> None:
+    """The bridge publishes from two threads: its loop's 'running' (seq 4) may reach the bus
+    after the 'folding_out' its fold request made (seq 5). Taken as the fold's end, the
+    next step started while the arm was still folding (the chaos soak: 'bridge phase
+    folding_out' right after the fold step)."""
+    rig = Rig()
+    rig.start(Task(steps=[TaskStep(kind="fold_out"), TaskStep(kind="gripper", opening=0.04)]))
+    rig.feed(rig.core.on_bridge_state(bridge_state("folding_out", 5), 1))
+    rig.feed(rig.core.on_bridge_state(bridge_state("running", 4), 2))  # late
+    assert rig.core.step == 0 and rig.core.bridge_phase == "folding_out"
+    rig.feed(rig.core.on_bridge_state(bridge_state("running", 6, "fold_out complete"), 3))
+    assert rig.core.step == 1
+    # a restarted bridge counts from 0 again, with newer stamps: taken
+    restarted = dataclasses.replace(bridge_state("stopped", 0), stamp_ns=10)
+    rig.core.on_bridge_state(restarted, 4)
+    assert rig.core.bridge_phase == "stopped"
+
+
+def test_a_fold_stopped_by_its_deadman_fails_the_task_with_the_bridge_detail() -> None:
+    rig = Rig()
+    rig.start(Task(steps=[TaskStep(kind="fold_in")]))
+    fold = next(q.request for q in rig.sent if isinstance(q.request, ArmCommand))
+    assert isinstance(fold, ArmCommand) and fold.heartbeat_timeout == pytest.approx(0.1)
+    rig.feed(rig.core.on_bridge_state(bridge_state("folding_in", 2), 0))
+    detail = "fold_in stopped: no command from the controller answering the newest joint state"
+    rig.feed(rig.core.on_bridge_state(bridge_state("stopped", 3, detail), 0))
+    assert rig.core.state == "failed"
+    assert rig.core.reason.endswith(f"can_bridge: phase stopped: {detail}")
+
+
+def _guardian(engaged: bool, seq: int = 0) -> GuardianReport:
+    return GuardianReport(stamp_ns=0, seq=seq, action="stop_sent" if engaged else "counts",
+                          sync_age_ms=12.0 if engaged else 0.0, syncs=100, answered=90,
+                          stops_sent=10, late=0, engaged=engaged)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("reports", "named"),
+    [
+        ("engaged", "can_bridge stopped answering the arm"),
+        ("counts", "can_bridge publishes none, though the arm computer is heard"),
+        ("none", "the link to it is down"),
+        ("before", "the link to it is down"),  # heard just before the cut: proves nothing
+    ],
+)
+def test_joint_states_stopping_names_the_bridge_when_the_arm_computer_is_heard(
+    reports: str, named: str
+) -> None:
+    rig = Rig()
+    rig.start(square_task())
+    last = rig.now
+    if reports == "before":
+        rig.feed(rig.core.on_guardian_report(_guardian(False), last + 50_000_000))
+    for k in range(1, 10):
+        rig.now = last + k * 60_000_000
+        if reports in ("engaged", "counts") and (reports == "engaged" or k == 5):
+            rig.feed(rig.core.on_guardian_report(_guardian(reports == "engaged", k), rig.now))
+        rig.feed(rig.core.on_tick(rig.now))
+    assert rig.core.state == "failed"
+    assert "no joint states from the arm for 540 ms" in rig.core.reason
+    assert named in rig.core.reason, rig.core.reason

@@ -48,6 +48,12 @@ class BridgeConfig:
             (and is a fault while running) [ms].
         fold_timeout_s: a fold not reported complete after this long ends in
             ``arm_error`` [s].
+        fold_missed_cycles_to_stop: a fold with a deadman (``ArmCommand.heartbeat_timeout``
+            > 0) answers a clean sync whose cycle gave no joint state or whose joint state
+            the controller has not answered with zeros (the arm pauses); this many such
+            syncs in a row stop it (phase ``stopped``; 5 = 300 ms, the controller's
+            ``max_outage_ms``: a controller late under load pauses the fold, one that
+            stays silent stops it) [cycles].
         max_field_step: largest plausible change of a position field per cycle; a larger
             jump marks the frame garbled [0.1 deg or 0.1 mm per cycle].
     """
@@ -61,6 +67,7 @@ class BridgeConfig:
     power_up_timeout_ms: float = 3000.0
     silence_timeout_ms: float = 200.0
     fold_timeout_s: float = 90.0
+    fold_missed_cycles_to_stop: int = 5
     max_field_step: int = 60
 
     def __post_init__(self) -> None:
@@ -91,6 +98,13 @@ class BridgeConfig:
         _range("power_up_timeout_ms", self.power_up_timeout_ms, 0.0, 600_000.0)
         _range("silence_timeout_ms", self.silence_timeout_ms, 70.0, 60_000.0)
         _range("fold_timeout_s", self.fold_timeout_s, 1.0, 3600.0)
+        if not isinstance(self.fold_missed_cycles_to_stop, int) or not (
+            1 <= self.fold_missed_cycles_to_stop <= 100
+        ):
+            raise ConfigError(
+                "bridge config: `fold_missed_cycles_to_stop` must be an integer in [1, 100], "
+                f"got {self.fold_missed_cycles_to_stop!r}"
+            )
         if not isinstance(self.max_field_step, int) or not 1 <= self.max_field_step <= 32767:
             raise ConfigError(
                 "bridge config: `max_field_step` must be an integer in [1, 32767], "

@@ -37,6 +37,7 @@ from manus.quantize import Quantizer, RoundingQuantizer
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
+from schemas.control import Heartbeat
 from schemas.state import CanFrame
 from services.can_bridge.commands import CommandError, PendingCommand, is_fresh, to_move
 from services.can_bridge.config import BridgeConfig
@@ -98,6 +99,9 @@ class BridgeCore:
         self._status: tuple[int, Frame] | None = None  # (cycle index, accepted 0x350)
         self._ref: tuple[tuple[int, ...], int] | None = None  # plausible fields, cycle
         self._rejected: tuple[tuple[int, ...], int] | None = None
+        self._echo_ns: int | None = None  # joint-state stamp the newest heartbeat echoes
+        self._state_cycle = -1  # index of the cycle of the newest joint state
+        self._report_ns = 0  # stamp of the newest bridge state (kept monotonic)
 
     @property
     def phase(self) -> str:
@@ -174,6 +178,13 @@ class BridgeCore:
         self.phases.on_estop(msg)
         self._report(rx_ns, out)
         return out
+
+    def on_heartbeat(self, hb: Heartbeat, rx_ns: int) -> Outputs:
+        """The supervisor's deadman heartbeat: the newest joint state it echoes is judged
+        at the next joint state of a fold with a deadman (:mod:`.fold_deadman`)."""
+        if self._echo_ns is None or hb.ref_stamp_ns > self._echo_ns:
+            self._echo_ns = hb.ref_stamp_ns
+        return Outputs()
 
     def on_arm_command(self, req: ArmCommand, rx_ns: int) -> tuple[ArmCommandReply, Outputs]:
         """``stop``, ``fold_in`` / ``fold_out`` or ``clear`` (the bridge/command queryable)."""
@@ -284,7 +295,12 @@ class BridgeCore:
             applied_seq=applied_seq,
         )
         self.newest_state_seq = seq
+        self._state_cycle = cycle.index
         out.messages.insert(0, (ep.JOINTS, js))
+        deadman = self.phases.fold_deadman
+        lost = deadman.on_joint_state(frame.t_ns, seq, self._echo_ns) if deadman else None
+        if lost is not None:
+            self.phases.stop_fold(lost)
 
     def _plausible(self, fields: tuple[int, ...], cycle: Cycle) -> bool:
         """Position fields may move at most ``max_field_step`` per cycle from the last
@@ -318,6 +334,14 @@ class BridgeCore:
         if p.accepted and self.assembler.last_sync_period_ns is not None:
             self.health.period(self.assembler.last_sync_period_ns)
         clean = bool(p.closed) and p.closed[-1].clean and p.closed[-1].sync is frame
+        deadman = self.phases.fold_deadman
+        if deadman is not None and clean:
+            go, why = deadman.on_sync(
+                self._state_cycle == p.closed[-1].index, self._fresh(frame.t_ns)
+            )
+            if why is not None:
+                self.phases.stop_fold(why)
+            clean = go  # a refused sync is answered as a faulty one: zeros, the arm pauses
         reply = self.phases.on_sync(frame.t_ns, clean, lambda: self._command_reply(frame.t_ns))
         if reply is not None:
             self._last_reply_sync_ns = frame.t_ns
@@ -326,17 +350,22 @@ class BridgeCore:
             self.health.replies += 1
             self.health.reply_sent(frame.t_ns, now_ns)
 
-    def _command_reply(self, sync_ns: int) -> Reply:
-        """The newest command if it is fresh, else zeros (counted stale)."""
+    def _fresh(self, sync_ns: int) -> bool:
+        """The newest command is fresh for the sync at ``sync_ns`` (the freshness rule)."""
         pending = self.pending
         cfg = self.config
-        if pending is not None and is_fresh(
+        return pending is not None and is_fresh(
             pending,
             newest_state_seq=self.newest_state_seq,
             max_age_cycles=cfg.command_max_age_cycles,
             sync_ns=sync_ns,
             timeout_ns=round(cfg.command_timeout_ms * MS),
-        ):
+        )
+
+    def _command_reply(self, sync_ns: int) -> Reply:
+        """The newest command if it is fresh, else zeros (counted stale)."""
+        pending = self.pending
+        if pending is not None and self._fresh(sync_ns):
             return move_frame(pending.move), pending.cmd.seq
         self.health.stale_commands += 1
         return move_frame(ZERO_JOINT_MOVE), -1
@@ -361,9 +390,12 @@ class BridgeCore:
         self.phases.changed = False
         seq = self._seq[ep.BRIDGE_STATE]
         self._seq[ep.BRIDGE_STATE] += 1
+        # Stamps never go back (inputs of two threads carry times taken before the lock),
+        # so a state published late is known as older by its seq and its stamp.
+        self._report_ns = max(self._report_ns, now_ns)
         ph = self.phases
         state = self.health.state(
-            stamp_ns=now_ns, seq=seq, phase=ph.phase, estop=ph.estop, detail=ph.detail
+            stamp_ns=self._report_ns, seq=seq, phase=ph.phase, estop=ph.estop, detail=ph.detail
         )
         out.messages.append((ep.BRIDGE_STATE, state))
 

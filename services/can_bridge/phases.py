@@ -13,6 +13,8 @@ Phases (:data:`schemas.state.BRIDGE_PHASES`) and the reply to each current 0x37F
 - ``folding_out`` / ``folding_in``: 0x375 / 0x376 at every clean sync (zeros at a faulty
   one) until the arm reports "arm unfolded" / "arm folded"; then 0x370, then zero 0x374
   until joint mode, then ``running`` with detail "fold_out complete" / "fold_in complete".
+  A fold with a deadman (:mod:`.fold_deadman`) also answers zeros at a sync the deadman
+  refuses, and ends in ``stopped`` when it gives up (:meth:`PhaseMachine.stop_fold`).
 - ``stopped``, ``arm_error``: 0x370 at every sync until ``clear``.
 - ``estopped``: zeros at the first sync, 0x370 at every later one, until released.
 - shutting down (any phase): zeros, then 0x370, then phase ``shutdown`` and silence.
@@ -45,6 +47,7 @@ from manus.protocol import (
 from schemas.commands import ArmCommand, EStop
 from services.can_bridge.config import BridgeConfig
 from services.can_bridge.cycle import Cycle
+from services.can_bridge.fold_deadman import FoldDeadman
 from services.can_bridge.health import Health
 from services.can_bridge.reports import mode_name
 
@@ -73,6 +76,7 @@ class _Fold:
     start_ns: int
     stage: str = "folding"  # then "stopping" (0x370 next), "rejoining" (zero 0x374)
     zero_sent_ns: int | None = None
+    deadman: FoldDeadman | None = None
 
 
 class PhaseMachine:
@@ -115,6 +119,12 @@ class PhaseMachine:
     def finished(self) -> bool:
         """Shutdown is complete: zeros and 0x370 have been sent."""
         return self._shutdown_stage == 3
+
+    @property
+    def fold_deadman(self) -> FoldDeadman | None:
+        """The deadman of a fold still driving the arm (None: none, or no fold)."""
+        fold = self._fold
+        return fold.deadman if fold is not None and fold.stage == "folding" else None
 
     # -- events ---------------------------------------------------------------------------
 
@@ -201,7 +211,7 @@ class PhaseMachine:
         if req.action == "stop":
             return self._request_stop(who)
         if req.action in ("fold_in", "fold_out"):
-            return self._request_fold(req.action, rx_ns, who)
+            return self._request_fold(req.action, rx_ns, who, req.heartbeat_timeout)
         return self._request_clear(who)
 
     def on_tick(self, now_ns: int, last_frame_ns: int | None) -> None:
@@ -220,6 +230,14 @@ class PhaseMachine:
             self._set(
                 "arm_error", f"{fold.kind} not complete after {self.config.fold_timeout_s:g} s"
             )
+
+    def stop_fold(self, why: str) -> None:
+        """The fold's deadman gave up: ``stopped`` (0x370 at every sync until ``clear``)."""
+        fold = self._fold
+        if fold is None:
+            return
+        self._fold = None
+        self._set("stopped", f"{fold.kind} stopped: {why}")
 
     def begin_shutdown(self) -> None:
         """Zeros at the next sync, 0x370 at the one after, then silence."""
@@ -246,7 +264,7 @@ class PhaseMachine:
         self._set("stopped", f"stop requested by {who}")
         return True, "0x370 at every sync until clear"
 
-    def _request_fold(self, action: str, rx_ns: int, who: str) -> tuple[bool, str]:
+    def _request_fold(self, action: str, rx_ns: int, who: str, timeout: float) -> tuple[bool, str]:
         if self.estop:
             return False, "e-stop latched: release it first"
         if self.phase == "arm_error":
@@ -254,8 +272,14 @@ class PhaseMachine:
         if self.phase in START_UP:
             return False, f"the bridge is not ready yet (phase {self.phase})"
         self._fold = _Fold(action, rx_ns)
+        deadman = ""
+        if timeout > 0.0:
+            self._fold.deadman = FoldDeadman(timeout, self.config.fold_missed_cycles_to_stop)
+            deadman = (
+                f" while the heartbeat (timeout {timeout * 1000:.0f} ms) and the controller last"
+            )
         self._set(f"folding_{action[5:]}", f"{action} requested by {who}")
-        return True, f"{action} held until the arm reports completion"
+        return True, f"{action} held until the arm reports completion{deadman}"
 
     def _request_clear(self, who: str) -> tuple[bool, str]:
         phase = self.phase

@@ -2,7 +2,8 @@
 
 The CAN side (frames, ticks, the shutdown) is the shell's own loop; this map drives the
 Zenoh side of the live shell (:mod:`.shell`) and of the lock-step harness
-(``manus_stack.lockstep``): velocity commands, e-stops and ``bridge/command``.
+(``manus_stack.lockstep``): velocity commands, e-stops, the supervisor's heartbeat (a
+fold's deadman) and ``bridge/command``.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ WIRING: Wiring[BridgeCore, Outputs] = Wiring(
     inputs=(
         Input(ep.JOINT_VELOCITY, lambda core, cmd, t: core.on_command(cmd, t)),
         Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
+        Input(ep.HEARTBEAT, lambda core, hb, t: core.on_heartbeat(hb, t)),
     ),
     answers=(Answer(ep.BRIDGE_COMMAND, lambda core, req, t: core.on_arm_command(req, t)),),
 )

@@ -13,7 +13,7 @@ Contract (docs/architecture.md, Time; Freshness and safety rules):
   gap over ``max_stamp_gap_ms``) is answered with zeros (nothing is extrapolated) and
   the running trajectory's time waits over it; a gap longer than ``max_outage_ms``
   aborts every goal. A cancel decelerates at ``cancel_decel`` to rest, then reports.
-- Deadman: a trajectory goal with ``heartbeat_timeout`` > 0 runs only while the
+- Deadman: a trajectory or gripper goal with ``heartbeat_timeout`` > 0 runs only while the
   supervisor's :class:`~schemas.control.Heartbeat` keeps coming. Each heartbeat echoes the
   newest joint state its sender received; at every joint state the age of the newest echo
   (or of the goal's first joint state, before any) is judged on the bridge's stamps, and
@@ -259,15 +259,31 @@ class ControllerCore:
         return []
 
     def _heartbeat_lost(self, js: JointState) -> str | None:
-        """Why the running goal must stop for want of heartbeats (None: it need not)."""
-        run = self.run
-        if run is None or run.goal.heartbeat_timeout <= 0.0:
-            return None
-        ref = self.heartbeat_since_ns
+        """Why the running goals must stop for want of heartbeats (None: they need not).
+
+        Each goal with a deadman (trajectory or gripper) is judged from its first joint
+        state until a heartbeat newer than that arrives."""
+        deadmen: list[tuple[float, int]] = []
+        run, grip = self.run, self.gripper
+        if run is not None and run.goal.heartbeat_timeout > 0.0:
+            deadmen.append((run.goal.heartbeat_timeout, self.heartbeat_since_ns))
+        if grip is not None and grip.goal.heartbeat_timeout > 0.0:
+            if grip.heartbeat_since_ns is None:
+                grip.heartbeat_since_ns = js.stamp_ns
+            deadmen.append((grip.goal.heartbeat_timeout, grip.heartbeat_since_ns))
+        for limit, since in deadmen:
+            lost = self._echo_too_old(js, limit, since)
+            if lost is not None:
+                return lost
+        return None
+
+    def _echo_too_old(self, js: JointState, limit: float, since_ns: int) -> str | None:
+        """Why a goal with ``heartbeat_timeout`` ``limit`` [s], judged from the joint state
+        stamped ``since_ns``, must stop at ``js`` (None: it need not)."""
+        ref = since_ns
         if self.heartbeat_ref_ns is not None and self.heartbeat_ref_ns > ref:
             ref = self.heartbeat_ref_ns
         age_ns = js.stamp_ns - ref
-        limit = run.goal.heartbeat_timeout
         if age_ns <= limit * 1e9:
             return None
         return (

@@ -26,11 +26,14 @@ class GripperRun:
         goal: the goal.
         start_ns: snapshot time of its first cycle [ns] (None before it starts).
         cancelled: a cancel came in; the next cycle commands zero and ends it.
+        heartbeat_since_ns: stamp of the first joint state its deadman judged [ns] (the
+            deadman's reference until a newer heartbeat; None before).
     """
 
     goal: GripperGoal
     start_ns: int | None = None
     cancelled: bool = False
+    heartbeat_since_ns: int | None = None
 
 
 def gripper_command(

@@ -22,15 +22,20 @@ Steps (docs/protocol.md, Thesis task form), one class per kind in :mod:`services
 - **move / pose**: plan from the newest joint state (``planner/plan`` with an explicit
   ``start``), send the trajectory (``controller/goal``), wait for its ``GoalResult``.
 - **gripper**: ``controller/gripper``, wait for the result.
-- **fold_in / fold_out**: ``bridge/command``; wait for ``state/bridge`` to show the fold
-  (``folding_*``) and then leave it: ``running`` is success, ``arm_error`` / ``estopped``
-  failure.
+- **fold_in / fold_out**: ``bridge/command`` with the deadman of moves; wait for
+  ``state/bridge`` to show the fold (``folding_*``) and then leave it: ``running`` is
+  success, ``stopped`` (the fold's deadman) / ``arm_error`` / ``estopped`` failure. Bridge
+  states are taken in the bridge's order: one with a lower ``seq`` and no newer stamp
+  than the newest (published late by another of the bridge's threads) is ignored, or
+  it could end a fold that has only just begun.
 - **wait**: time from the inputs.
 
 The task stops at the first failure, with the reason from the service that failed
 (planner refusal, controller refusal or result, bridge phase, e-stop, a service whose
-liveliness token vanished, no joint states for ``link_timeout_s`` while a goal is active,
-or a timeout).
+liveliness token vanished, no joint states for ``link_timeout_s`` while a goal or a fold
+is active, or a timeout). The reason of the last one names what can be known: when the
+guardian's reports (``guardian/report``) still come from the arm computer, the link is
+up and the bridge is the one that fell silent.
 
 **Pause** stops the arm and keeps the task: a running trajectory or gripper goal is
 cancelled (the controller decelerates within the arm's limits) and, on **resume**, the
@@ -61,6 +66,7 @@ from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult, Heartbeat
+from schemas.guardian import GuardianReport
 from schemas.jog import USER_TOOK_OVER, JogState
 from schemas.planning import PlanReply
 from schemas.sequencing import (
@@ -99,6 +105,10 @@ __all__ = [  # the actions are defined in services.sequencer.actions
 ]
 
 ACTIVE_STATES = (TaskState.RUNNING, TaskState.PAUSED)
+HEARD_AFTER_NS = 120_000_000
+"""A guardian report received this long after the newest joint state was sent after the
+joint states stopped, not before a cut link (two cycles: both stream at most one per
+cycle) [ns]."""
 
 
 def refusal(why: str) -> SubmitReply:
@@ -145,6 +155,9 @@ class SequencerCore:
         self._goals = 0
         self._heartbeats = 0
         self._js_rx: int | None = None  # receive time of the newest joint state [ns]
+        self._bridge_state: BridgeState | None = None  # the newest, in the bridge's order
+        self._guardian_rx: int | None = None  # receive time of its newest report [ns]
+        self._guardian_engaged_rx: int | None = None  # ... of its newest 'engaged' one
         self._started_ns = 0
         self._history: list[TaskRecord] = []  # ended tasks, oldest first
         self.fold_check = fold_checker(self.config.scene, self.config.arm)
@@ -412,6 +425,11 @@ class SequencerCore:
     def on_bridge_state(self, bs: BridgeState, now_ns: int) -> list[Action]:
         """Bridge phase: fold progress, arm errors, e-stop."""
         self.now = now_ns
+        last = self._bridge_state
+        if last is not None and bs.seq <= last.seq and bs.stamp_ns <= last.stamp_ns:
+            return []  # published late: the bridge has said something newer already
+        # (a lower seq with a newer stamp is a restarted bridge: its seq starts at 0)
+        self._bridge_state = bs
         self.bridge_phase = bs.phase
         if not self.busy:
             return []
@@ -456,6 +474,15 @@ class SequencerCore:
         if msg.engaged and self.busy:
             why = f": {msg.reason}" if msg.reason else ""
             return self.fail(f"e-stop engaged by {msg.source or 'someone'}{why}")
+        return []
+
+    def on_guardian_report(self, report: GuardianReport, now_ns: int) -> list[Action]:
+        """The CAN guardian's report: proof that the arm computer is heard, and whether
+        the bridge leaves the arm's syncs unanswered (named when joint states stop)."""
+        self.now = now_ns
+        self._guardian_rx = now_ns
+        if report.engaged:
+            self._guardian_engaged_rx = now_ns
         return []
 
     def on_liveliness(self, service: str, alive: bool, now_ns: int) -> list[Action]:
@@ -505,8 +532,30 @@ class SequencerCore:
             return []
         return self.fail(
             f"no joint states from the arm for {silent / 1e6:.0f} ms (more than link_timeout_s "
-            f"{self.config.link_timeout_s:g} s): the link to the arm computer is down; the "
-            "controller stops the arm itself when it loses the supervisor's heartbeat"
+            f"{self.config.link_timeout_s:g} s): {self._silence_cause(self._js_rx)}"
+        )
+
+    def _silence_cause(self, js_rx: int) -> str:
+        """What stopped the joint states (received last at ``js_rx``), as far as the arm
+        computer's other messages tell."""
+        after = js_rx + HEARD_AFTER_NS
+        engaged = self._guardian_engaged_rx
+        if engaged is not None and engaged > after:
+            return (
+                "can_bridge stopped answering the arm (the guardian sends the stops in its "
+                "place and reports it, so the link to the arm computer is up): can_bridge "
+                "hangs or died"
+            )
+        heard = self._guardian_rx
+        if heard is not None and heard > after:
+            return (
+                "can_bridge publishes none, though the arm computer is heard (the guardian "
+                "reports): the bridge or its input from the arm is stuck"
+            )
+        return (
+            "nothing is heard from the arm computer (nor from its guardian): the link to it "
+            "is down; the controller stops the arm itself when it loses the supervisor's "
+            "heartbeat"
         )
 
     def _check_deadline(self) -> list[Action]:

@@ -434,7 +434,12 @@ class GripperStep(GoalStep):
         timeout = self.ctx.config.gripper_timeout_s
         self.goal_id = self.ctx.new_goal_id()
         self.grip0 = None
-        goal = GripperGoal(goal_id=self.goal_id, opening=self.spec.opening, timeout=timeout)
+        goal = GripperGoal(
+            goal_id=self.goal_id,
+            opening=self.spec.opening,
+            timeout=timeout,
+            heartbeat_timeout=self.ctx.config.heartbeat_timeout_s,
+        )
         return self._send(ep.GRIPPER_GOAL, goal, timeout + 5.0)
 
     def on_feedback(self, fb: ControllerFeedback) -> list[Action]:
@@ -448,9 +453,12 @@ class GripperStep(GoalStep):
 
 
 class FoldStep(Step):
-    """``fold_in`` / ``fold_out``: the bridge's fold command; done once ``state/bridge``
-    has shown the fold (``folding_*``) and then ``running``. A fold cannot be paused
-    half-way (a pause waits for its end); a cancel stops it (``stop``, then ``clear``)."""
+    """``fold_in`` / ``fold_out``: the bridge's fold command, with the deadman of moves
+    (``heartbeat_timeout``: the bridge stops the fold when the heartbeats or the
+    controller's commands stop); done once ``state/bridge`` has shown the fold
+    (``folding_*``) and then ``running``; failed when the bridge stops it (``stopped``). A
+    fold cannot be paused half-way (a pause waits for its end); a cancel stops it
+    (``stop``, then ``clear``)."""
 
     @classmethod
     def leaves_arm_at(cls, spec: TaskStep) -> list[float] | None:
@@ -464,7 +472,11 @@ class FoldStep(Step):
         self.seen_fold = False
         self.ctx.set_deadline(self.ctx.config.fold_timeout_s)
         self.phase = Phase.FOLDING
-        cmd = ArmCommand(action=self.spec.kind, source="sequencer")
+        cmd = ArmCommand(
+            action=self.spec.kind,
+            source="sequencer",
+            heartbeat_timeout=self.ctx.config.heartbeat_timeout_s,
+        )
         return [self.ctx.query(ep.BRIDGE_COMMAND, cmd, ArmCommandReply, wait=True)]
 
     def on_reply(self, reply: Message | None, error: str) -> list[Action]:
@@ -501,7 +513,13 @@ class FoldStep(Step):
             self.seen_fold = True
         elif self.seen_fold and bs.phase == BridgePhase.RUNNING:
             return self.ctx.step_done()
+        elif self.seen_fold and bs.phase == BridgePhase.STOPPED:
+            return self.ctx.fail(f"can_bridge: phase {bs.phase}: {bs.detail}")
         return None
+
+    @property
+    def needs_joint_states(self) -> bool:
+        return self.phase == Phase.FOLDING  # the fold's deadman echoes them
 
     def cancel(self) -> list[Action]:
         if self.phase != Phase.FOLDING:

@@ -41,6 +41,7 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
         Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
         Input(ep.JOG_STATE, lambda core, msg, t: core.on_jog_state(msg, t)),
+        Input(ep.GUARDIAN_REPORT, lambda core, msg, t: core.on_guardian_report(msg, t)),
     ),
     answers=(
         Answer(ep.TASK_CONTROL, lambda core, req, t: core.control(req, t)),

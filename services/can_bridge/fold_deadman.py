@@ -1,0 +1,82 @@
+"""A fold's deadman: the bridge drives a fold by itself, so it must know when to give up.
+
+A fold (``folding_in`` / ``folding_out``) needs no velocity command: the bridge sends the
+fold frame at every clean sync until the arm reports completion. Without a deadman, a
+fold goes on when the process that asked for it (the sequencer, on the base computer),
+the link to it, or the controller is gone. A fold requested with
+``ArmCommand.heartbeat_timeout`` > 0 gets the deadman of trajectory goals
+(docs/architecture.md, Freshness and safety rules), on two witnesses:
+
+- the supervisor: at every joint state, the newest ``Heartbeat`` (the sequencer's echo of
+  each joint state it receives) must echo a state no older than ``heartbeat_timeout``
+  (before any echo: the fold's first joint state), judged on the joint states' stamps so
+  a replay judges the same. Beyond it the fold stops.
+- the arm computer itself: at every clean sync, the cycle must have given a joint state
+  (a bridge woken from SIGSTOP has none: its backlog is not a joint state) and the
+  controller must have answered it (its command fresh by the bridge's rule, whatever it
+  says: during a fold it is zeros). Otherwise the sync is answered with zeros (the arm
+  pauses); ``fold_missed_cycles_to_stop`` such syncs in a row stop the fold.
+
+A stopped fold is phase ``stopped`` (0x370 at every sync until ``clear``): nothing
+resumes by itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+NS = 1_000_000_000
+
+
+@dataclass
+class FoldDeadman:
+    """The deadman of one fold.
+
+    Attributes:
+        heartbeat_timeout_s: the oldest echo allowed [s] (> 0).
+        missed_to_stop: syncs in a row without a live arm computer that stop the fold.
+        since_ns: stamp of the fold's first joint state [ns] (None before it).
+        missed: such syncs in a row so far.
+    """
+
+    heartbeat_timeout_s: float
+    missed_to_stop: int
+    since_ns: int | None = None
+    missed: int = 0
+
+    def on_joint_state(self, stamp_ns: int, seq: int, echo_ns: int | None) -> str | None:
+        """A joint state the bridge published (``echo_ns``: the stamp the newest heartbeat
+        echoes, None: none yet): why the fold must stop (None: it goes on)."""
+        if self.since_ns is None:
+            self.since_ns = stamp_ns
+        ref = self.since_ns if echo_ns is None or echo_ns < self.since_ns else echo_ns
+        age_ns = stamp_ns - ref
+        if age_ns <= self.heartbeat_timeout_s * NS:
+            return None
+        return (
+            f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
+            f"{age_ns / 1e6:.0f} ms before joint state seq {seq}, more than heartbeat_timeout "
+            f"{self.heartbeat_timeout_s * 1000:.0f} ms"
+        )
+
+    def on_sync(self, state_this_cycle: bool, controller_fresh: bool) -> tuple[bool, str | None]:
+        """A clean sync: (send the fold frame, why the fold must stop or None).
+
+        Args:
+            state_this_cycle: the cycle the sync ends gave a joint state.
+            controller_fresh: the controller's newest command answers the newest joint
+                state (the bridge's freshness rule).
+        """
+        if state_this_cycle and controller_fresh:
+            self.missed = 0
+            return True, None
+        self.missed += 1
+        if self.missed < self.missed_to_stop:
+            return False, None
+        what = (
+            "no joint state in the cycle (the bridge was held up: its input sat in a buffer)"
+            if not state_this_cycle
+            else "no command from the controller answering the newest joint state (is the "
+            "controller running?)"
+        )
+        return False, f"{what}, {self.missed} cycles in a row"
