@@ -30,6 +30,7 @@ import yaml
 
 from manus.errors import ManusError
 from manus.yaml_fields import FieldReader, join
+from schemas.collision import SceneState
 
 CLASSES = ("person", "chair", "environment")
 """Object classes, each with its own clearance."""
@@ -330,7 +331,7 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
     key = (str(file), text)
     scene = _PARSED.get(key)
     if scene is None:
-        scene = parse_scene(text, str(file))
+        scene = parse_scene(text, source_name(file))
         if len(_PARSED) >= 16:
             _PARSED.clear()
         _PARSED[key] = scene
@@ -346,6 +347,21 @@ def default_scene_path() -> Path:
     return Path(str(resources.files("manus") / "data" / "wheelchair.yaml"))
 
 
+SHIPPED_SOURCE = "manus/data/wheelchair.yaml"
+"""The shipped scene's name in messages: the same on every machine and in every clone, so
+that a recording (plans, scene states) replays byte for byte wherever the code lives."""
+
+
+def source_name(path: Path) -> str:
+    """A scene file's name in messages: :data:`SHIPPED_SOURCE` for the shipped one, else
+    the path as given."""
+    try:
+        shipped = path.resolve() == default_scene_path().resolve()
+    except OSError:
+        shipped = False
+    return SHIPPED_SOURCE if shipped else str(path)
+
+
 def default_scene() -> Scene:
     """:func:`load_scene` of :func:`default_scene_path`."""
     return load_scene(default_scene_path())
@@ -355,19 +371,41 @@ SCENE_ENV = "MANUS_SCENE"
 """Environment variable naming the scene every service uses when its setting is empty."""
 
 
-def scene_from_setting(setting: str) -> Scene | None:
-    """The scene a service's ``scene`` setting names: ``""`` -> ``$MANUS_SCENE`` if set,
-    else the shipped one; ``default`` -> the shipped one; ``none`` -> no scene (no
-    collision checks); else a file path. Every service's setting defaults to ``""``, so
-    one environment variable gives the planner, sequencer, controller and simulator the
-    same scene."""
+def scene_path(setting: str) -> Path | None:
+    """The file a service's ``scene`` setting names: ``""`` -> ``$MANUS_SCENE`` if set,
+    else the shipped one; ``default`` -> the shipped one; ``none`` -> None (no scene: no
+    collision checks); else the setting is the file's path. Every service's setting
+    defaults to ``""``, so one environment variable gives the planner, sequencer,
+    controller and simulator the same scene."""
     if setting == "":
         setting = os.environ.get(SCENE_ENV, "") or "default"
     if setting == "default":
-        return default_scene()
+        return default_scene_path()
     if setting == "none":
         return None
-    return load_scene(setting)
+    return Path(setting)
+
+
+def scene_from_setting(setting: str) -> Scene | None:
+    """The scene of :func:`scene_path` (None: none)."""
+    path = scene_path(setting)
+    return None if path is None else load_scene(path)
+
+
+def start_scene_state(setting: str) -> SceneState | None:
+    """The scene of a service's ``scene`` setting as the planner announces it before any
+    run-time update (version 0, the file's text, its name); None: no scene.
+
+    Raises:
+        SceneError: the file cannot be read.
+    """
+    path = scene_path(setting)
+    if path is None:
+        return None
+    try:
+        return SceneState(version=0, text=path.read_text(), source=source_name(path))
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read the scene file: {exc.strerror}") from exc
 
 
 def describe(scene: Scene) -> dict[str, Any]:

@@ -29,8 +29,8 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import TrajectoryGoal
 from schemas.planning import PlanReply, PlanRequest
-from schemas.state import JointState
 from services.planner.core import PlannerCore
+from services.planner.wiring import WIRING as PLANNER
 from services.recorder.writer import RecordingWriter
 from services.simulator.config import SimConfig
 
@@ -94,9 +94,8 @@ def record_thesis_runs(
     planner = PlannerCore()
 
     def follow(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
-        if isinstance(msg, JointState):
-            planner.on_joint_state(msg)
-        return []
+        """Joint states in, the scene state out (the plans are asked below)."""
+        return list(PLANNER.feed(planner, ep.JOINTS, msg, t_ns))
 
     def cycle() -> None:
         arm.ls.run_for(CYCLE_S)

@@ -69,10 +69,16 @@ class SceneReply(Message):
 @dataclass(frozen=True)
 class SceneState(Message):
     """The scene the planner checks against, published when a :class:`SceneUpdate`
-    replaces it, so that the controller's guard and the sequencer's fold check follow."""
+    replaces it and every second (version 0: the file read at start), so that the
+    controller's guard and the sequencer's fold check follow, also after a restart."""
 
     TYPE_NAME = "manus/SceneState/1"
 
     version: int = field("its version (the one every plan reports)", minimum=0)
     text: str = field("the scene file's YAML text")
     source: str = field("its name in messages", default="")
+
+    def same_scene(self, other: SceneState | None) -> bool:
+        """Whether ``other`` is this scene (version and text; the name may differ between
+        computers)."""
+        return other is not None and (self.version, self.text) == (other.version, other.text)

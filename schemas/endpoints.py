@@ -290,7 +290,7 @@ SCENE_STATE = _pub(
     "planner/scene_state",
     Service.PLANNER,
     collision.SceneState,
-    "the scene every plan is checked against, when an update replaces it",
+    "the scene every plan is checked against: when an update replaces it, and every second",
     _SUP,
 )
 JOINT_VELOCITY = _pub(

@@ -14,6 +14,7 @@ from manus.viapoints import load_path
 from schemas import endpoints as ep
 from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest
+from schemas.state import JointState
 from services.planner.core import PlannerCore
 from services.planner.shell import PlannerShell
 from tests.conftest import eventually
@@ -134,6 +135,75 @@ def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> 
     assert sequencer.on_scene(state) == [] and sequencer.fold_check is not before
 
 
+def _js(stamp_ms: float) -> JointState:
+    return JointState(stamp_ns=round(stamp_ms * 1e6), seq=round(stamp_ms / 60), position=UNFOLDED,
+                      gripper=0.0, valid=True, mode="joint", encoder=[0] * 7, applied=[0] * 8,
+                      applied_kind="none", applied_seq=-1)  # fmt: skip
+
+
+def test_the_scene_in_use_is_announced_at_the_first_joint_state_then_every_second() -> None:
+    from services.planner.config import PlannerConfig
+    from services.planner.wiring import WIRING
+
+    planner = PlannerCore()
+    out = [WIRING.feed(planner, ep.JOINTS, _js(60.0 * k), 0) for k in range(40)]
+    announced = [k for k, o in enumerate(out) if o]
+    assert announced == [0, 17, 34]  # stamps 0, 1020, 2040 ms: every >= 1000 ms
+    ((endpoint, state),) = out[0]
+    assert endpoint == ep.SCENE_STATE and state == planner.scene_state
+    assert (state.version, state.text) == (0, DEFAULT)
+    planner.update_scene(SceneUpdate(text=CUP, source="cup.yaml"))
+    later = [o for k in range(40, 58) if (o := WIRING.feed(planner, ep.JOINTS, _js(60.0 * k), 0))]
+    assert [(m.version, m.source) for ((_, m),) in later if isinstance(m, SceneState)] == [
+        (1, "cup.yaml")
+    ]
+    # A restarted bridge (stamps from 0 again) gets the scene at once.
+    assert WIRING.feed(planner, ep.JOINTS, _js(0.0), 0)
+    quiet = PlannerCore(PlannerConfig(scene_every_ms=0.0))
+    assert not any(WIRING.feed(quiet, ep.JOINTS, _js(60.0 * k), 0) for k in range(40))
+    assert not any(
+        WIRING.feed(PlannerCore(PlannerConfig(scene="none")), ep.JOINTS, _js(60.0 * k), 0)
+        for k in range(40)
+    )
+
+
+def test_a_controller_and_sequencer_started_after_an_update_learn_it_from_the_announcement() -> (
+    None
+):
+    from services.controller.core import ControllerCore
+    from services.planner.wiring import WIRING
+    from services.sequencer.core import SequencerCore
+
+    # the scene they read at start announced: nothing to rebuild
+    fresh = ControllerCore()
+    assert fresh.guard is not None
+    before = fresh.guard.guard.model
+    ((_, start),) = WIRING.feed(PlannerCore(), ep.JOINTS, _js(0.0), 0)
+    assert isinstance(start, SceneState)
+    fresh.on_scene(start)
+    assert fresh.guard.guard.model is before
+    planner = PlannerCore()
+    planner.update_scene(SceneUpdate(text=CUP, source="cup.yaml"))
+    # started (or restarted) now: they read the shipped scene, without the cup
+    controller, sequencer = ControllerCore(), SequencerCore()
+    assert controller.guard is not None
+    assert not any(c.other == "cup" for c in controller.guard.guard.model.checks)
+    ((_, state),) = WIRING.feed(planner, ep.JOINTS, _js(0.0), 0)
+    assert isinstance(state, SceneState)
+    controller.on_scene(state)
+    sequencer.on_scene(state)
+    model = controller.guard.guard.model
+    assert model.scene is not None and model.scene.version == 1
+    assert any(c.other == "cup" for c in model.checks)
+    fold_check = sequencer.fold_check
+    # the same scene announced again changes nothing (no rebuild every second)
+    ((_, again),) = WIRING.feed(planner, ep.JOINTS, _js(1020.0), 0)
+    assert isinstance(again, SceneState) and again == state
+    controller.on_scene(again)
+    sequencer.on_scene(again)
+    assert controller.guard.guard.model is model and sequencer.fold_check is fold_check
+
+
 def test_the_example_supervisor_replaces_the_scene(
     zenoh_settings: ZenohSettings, router_endpoint: str, tmp_path: FilePath
 ) -> None:
@@ -151,4 +221,5 @@ def test_the_example_supervisor_replaces_the_scene(
         assert proc.returncode == 2, proc.stdout + proc.stderr
         assert f"scene refused: {bad}:" in proc.stdout
         assert "radius_mm: must be > 0, got -40" in proc.stdout
-        assert shell.core.scene_state is None  # nothing changed
+        assert shell.core.scene_state is not None  # nothing changed: the scene read at start
+        assert shell.core.scene_state.version == 0

@@ -37,6 +37,7 @@ import numpy as np
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
+from manus.scene import start_scene_state
 from manus.trajectory import TrajectoryError
 from schemas import endpoints as ep
 from schemas.collision import ClearanceReport, SceneState
@@ -118,6 +119,9 @@ class ControllerCore:
         """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
         self.guard = run_guard(cfg.scene, cfg.arm)
         """The collision guard every command passes (None: no scene)."""
+        self.scene_seen = start_scene_state(cfg.scene)
+        """The scene the guard keeps clear of, as the planner announces it (``cfg.scene``'s
+        until the planner's differs; None: no scene)."""
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
@@ -242,8 +246,12 @@ class ControllerCore:
         return []
 
     def on_scene(self, scene: SceneState) -> Output:
-        """The planner's scene replaced at run time: the guard follows it (one that does
-        not build keeps the guard as it was; the planner validated it already)."""
+        """The planner's scene (replaced at run time, or its periodic announcement): the
+        guard follows it (one that does not build keeps the guard as it was; the planner
+        validated it already). The same scene again changes nothing."""
+        if scene.same_scene(self.scene_seen):
+            return []
+        self.scene_seen = scene
         guard = scene_guard(scene, self.config.arm)
         if guard is not None and self.guard is not None:
             self.guard = guard

@@ -27,6 +27,10 @@ class PlannerConfig:
         scene: the scene every trajectory is checked against
             (:func:`manus.scene.scene_from_setting`: ``""`` = ``$MANUS_SCENE`` or the
             shipped wheelchair scene, ``default``, ``none`` = no check, or a file).
+        scene_every_ms: how often the scene in use is published on ``planner/scene_state``
+            [ms], judged on the joint states' stamps (at the first one, then every so
+            often), so that a controller or sequencer started (or restarted) after a
+            run-time update, and a recording, learn it; 0: only when an update replaces it.
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -35,8 +39,13 @@ class PlannerConfig:
     check_samples: int = 32
     max_preview_points: int = 2000
     scene: str = ""
+    scene_every_ms: float = 1000.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.scene_every_ms) and 0.0 <= self.scene_every_ms <= 60_000.0):
+            raise ConfigError(
+                f"`scene_every_ms` must be in [0, 60000] ms, got {self.scene_every_ms!r}"
+            )
         if not 0.0 < self.max_knot_jump <= 2.0 * math.pi:
             raise ConfigError(
                 f"`max_knot_jump` must be in (0, 2 pi] rad, got {self.max_knot_jump!r}"

@@ -32,7 +32,7 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
-from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
 from manus.viapoints import ViaPointError, validate_path
 from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
@@ -67,11 +67,13 @@ class PlannerCore:
         self.latest: JointState | None = None
         self.collision: CollisionModel | None = None
         self.scene_state: SceneState | None = None
-        """The last accepted update (None: the scene read at start)."""
+        """The scene in use, as published (None: no scene, no collision check)."""
+        self._announced_ns: int | None = None  # stamp of the joint state it last went out at
         self.checking = threading.Lock()
         """Held while the collision model is used or replaced: its Pinocchio data is
         scratch space shared by every check (a live shell plans on several threads)."""
         self.set_scene(scene_from_setting(self.config.scene))
+        self.scene_state = start_scene_state(self.config.scene)
 
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
@@ -102,10 +104,22 @@ class PlannerCore:
         self.scene_state = SceneState(version=scene.version, text=update.text, source=scene.source)
         return SceneReply(accepted=True, version=scene.version)
 
-    def on_joint_state(self, js: JointState) -> None:
-        """Remember ``js`` as the default start if it is valid (invalid ones are ignored)."""
+    def on_joint_state(self, js: JointState) -> SceneState | None:
+        """Remember ``js`` as the default start if it is valid (invalid ones are ignored).
+
+        Returns:
+            The scene in use when it is due on ``planner/scene_state`` (at the first joint
+            state, then every ``scene_every_ms`` of the joint states' stamps), else None.
+        """
         if js.valid:
             self.latest = js
+        every_ns = round(self.config.scene_every_ms * 1e6)
+        if self.scene_state is None or every_ns <= 0:
+            return None
+        if self._announced_ns is not None and 0 <= js.stamp_ns - self._announced_ns < every_ns:
+            return None  # (a stamp going back: a restarted bridge; announce now)
+        self._announced_ns = js.stamp_ns
+        return self.scene_state
 
     def plan(self, request: PlanRequest, latest: JointState | None = None) -> PlanReply:
         """Plan ``request``; never raises for a bad request.

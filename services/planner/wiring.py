@@ -16,8 +16,9 @@ from services.planner.core import PlannerCore
 
 
 def _on_joint_state(core: PlannerCore, js: JointState, t_ns: int) -> Publications:
-    core.on_joint_state(js)
-    return []
+    """The default start; now and then the scene in use (late joiners, recordings)."""
+    state = core.on_joint_state(js)
+    return [] if state is None else [(ep.SCENE_STATE, state)]
 
 
 def _on_scene(core: PlannerCore, update: SceneUpdate, t_ns: int) -> tuple[SceneReply, Publications]:
@@ -36,4 +37,4 @@ WIRING: Wiring[PlannerCore, Publications] = Wiring(
         Answer(ep.SCENE, _on_scene, locked=False),
     ),
 )
-"""The planner's wiring map (it publishes nothing: its replies are its output)."""
+"""The planner's wiring map (its replies, and the scene in use on ``planner/scene_state``)."""

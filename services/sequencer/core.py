@@ -61,6 +61,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from manus.scene import start_scene_state
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
@@ -162,6 +163,9 @@ class SequencerCore:
         self._history: list[TaskRecord] = []  # ended tasks, oldest first
         self.fold_check = fold_checker(self.config.scene, self.config.arm)
         """Checks folds against the scene during validation (None: no scene)."""
+        self.scene_seen = start_scene_state(self.config.scene)
+        """The scene folds are checked against, as the planner announces it
+        (``config.scene``'s until the planner's differs; None: no scene)."""
         self._reset_step()
 
     def _reset_step(self) -> None:
@@ -304,8 +308,12 @@ class SequencerCore:
         return [*self.start(sub.task_id, sub.task, self.now), answer(sub.task_id, accepted)]
 
     def on_scene(self, scene: SceneState) -> list[Action]:
-        """The planner's scene replaced at run time: later validations check folds
-        against it (one that does not build leaves the check as it was)."""
+        """The planner's scene (replaced at run time, or its periodic announcement): later
+        validations check folds against it (one that does not build leaves the check as it
+        was). The same scene again changes nothing."""
+        if scene.same_scene(self.scene_seen):
+            return []
+        self.scene_seen = scene
         check = scene_fold_checker(scene, self.config.arm)
         if check is not None and self.fold_check is not None:
             self.fold_check = check

@@ -46,7 +46,7 @@ from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ManusError
 from manus.kinematics import fk
-from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
 from manus.trajectory import JointTrajectory
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -203,6 +203,7 @@ class ViewerCore:
         """The newest goal's path and via points [m] (what ``viz/planned`` shows)."""
         self._urdf = build_visual_urdf(self.config.arm)
         self.scene: Scene | None = scene_from_setting(self.config.scene)
+        self._scene_seen = start_scene_state(self.config.scene)  # what is drawn, as announced
         """The scene drawn now (None: none)."""
         self._handlers = {
             ep.JOINTS: self._joints,
@@ -455,6 +456,9 @@ class ViewerCore:
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)
+        if msg.same_scene(self._scene_seen):
+            return []  # the planner's announcement of the scene drawn (every second)
+        self._scene_seen = msg
         try:
             parsed = parse_scene(msg.text, msg.source or "<scene update>")
         except SceneError as exc:  # the planner validated it: another stack's, or garbage
