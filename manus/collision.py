@@ -173,6 +173,7 @@ class CollisionModel:
             self._keep_in_zones(scene)
         self.geom = gm
         self._covers = [cover(s) for s in self.shapes]
+        self._holding: dict[int, float] = {}
         self._prepare_points()
         # Pairs no configuration can bring within their clearance are left out.
         reachable = [self._can_meet(first, second) for first, second in pairs]
@@ -404,13 +405,7 @@ class CollisionModel:
         """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
         the shoulder that holds ``body`` in every configuration (the joint placements'
         lengths up to the body, plus its own extent)."""
-        obj = self.geom.geometryObjects[body]
-        rows = self._point_body == body
-        radius = sum(
-            float(np.linalg.norm(self.model.jointPlacements[k].translation))
-            for k in range(1, obj.parentJoint + 1)
-        )
-        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        radius = self._holding_radius(body)
         fixed = self.geom.geometryObjects[other]
         if fixed.parentJoint != 0:
             return True  # another arm body (a self pair)
@@ -424,6 +419,21 @@ class CollisionModel:
             coal.DistanceResult(),
         )
         return bool(gap <= 0.0)
+
+    def _holding_radius(self, body: int) -> float:
+        """The radius of the sphere about the shoulder that holds ``body`` in every
+        configuration [m] (computed once per body)."""
+        if body in self._holding:
+            return self._holding[body]
+        obj = self.geom.geometryObjects[body]
+        rows = self._point_body == body
+        radius = sum(
+            float(np.linalg.norm(self.model.jointPlacements[k].translation))
+            for k in range(1, obj.parentJoint + 1)
+        )
+        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        self._holding[body] = radius
+        return radius
 
     def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
         """One geometry model per moving body with its pairs, for per-body margins: the

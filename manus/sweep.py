@@ -1,28 +1,34 @@
 """Whole motions through the collision model: continuous checking by conservative
-advancement.
+advancement, from both ends of every stretch.
 
-:func:`sweep` computes distances at few configurations of a motion and proves the
-stretches in between clear: at a checked configuration each moving body has a margin
-(its distance to the nearest thing it must keep clear of, minus that class's
-clearance), and while no point of the body can have moved further than that, no gap can
-have closed. How far the points have moved comes from the motion itself: its positions
-on a fine grid (every knot, and no more than 10 mm of any point's travel apart), each
-body's cover points there (:class:`manus.travel.BodyPoints`, vectorised over the whole
-grid), and in between the segment's peak joint speeds times each joint's farthest reach
-to the body. The next configuration checked is the first grid sample the bound cannot
-reach; far from obstacles a few cover a whole trajectory, near them the advance shrinks
-to ``step``.
+:func:`sweep` computes distances (:meth:`CollisionModel.pair_margins`, Coal) at few
+configurations of a motion and proves the stretches in between: at a checked
+configuration each moving body has a margin (its distance to the nearest thing it must
+keep clear of, minus that class's clearance), and no gap of the body can have closed
+while no point of it has moved further than that margin. How far the points have moved
+comes from the motion itself: its positions on a grid (every knot, and no more than
+:data:`GRID_M` of any point's travel apart), each body's cover points there
+(:class:`manus.travel.BodyPoints`, vectorised over the whole grid), and in between each
+segment's peak joint speeds times each joint's farthest reach to the body. A body's
+margin anywhere in a stretch is at least the larger of what its two ends leave (margin
+minus travel from that end).
 
-Two tolerances, both stated: a violation shallower than ``step / 2`` (1 mm) can lie
-between two checked configurations, and the smallest margin reported is at most
-``tolerance + step`` above the motion's true smallest (each advance also keeps every
-body above the smallest margin found so far minus ``tolerance``).
-:func:`straight_motion_problem` checks the arm's own fold motions, straight lines in
-joint space.
+It starts at the knots and adds a configuration where a stretch's bound is lowest until
+every stretch is proven to stay above zero and above the smallest margin found minus
+``tolerance`` (all open stretches bounded in one vectorised pass per round); between
+two grid samples it halves the stretch (off the grid), down to ``step``.
+
+Stated limits: a violation shallower than ``step`` (2 mm) can lie inside a stretch no
+point crosses more than ``step`` of, and the smallest margin reported is at most
+``tolerance`` (10 mm) above the motion's true smallest (a check every 10 mm of travel:
+within 5 mm). :func:`straight_motion_problem` checks the arm's own fold motions,
+straight lines in joint space.
 """
 
 from __future__ import annotations
 
+import math
+import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -32,19 +38,16 @@ from manus.collision import Check, Clearance, CollisionModel
 from manus.travel import BodyPoints
 
 STEP_M = 0.002
-"""Smallest advance: the travel [m] a body may make past its margin when that margin is
-smaller (a violation shallower than half of it may go unseen)."""
+"""Shortest stretch refined [m] (of any point's travel): a violation shallower than it
+may go unseen inside one."""
 
-TOLERANCE_M = 0.020
+TOLERANCE_M = 0.010
 """How far [m] the stretches between checked configurations may come below the smallest
-margin found: the reported smallest margin is within ``TOLERANCE_M + STEP_M`` of the
-motion's true one (a check every 10 mm of travel: within 5 mm)."""
+margin found: the reported smallest margin is within it of the motion's true one."""
 
-GRID_M = 0.010
-"""Largest travel of any point between two grid samples [m], by the speed bound."""
-
-_WINDOW = 48
-"""Grid intervals bounded by the first vectorised step of an advance (doubling after)."""
+GRID_M = 0.020
+"""Largest travel of any point between two grid samples [m], by the speed bound (finer
+grids cost more per round than they save in Coal queries)."""
 
 
 class Sweep(NamedTuple):
@@ -65,12 +68,14 @@ class Sweep(NamedTuple):
 
 class _At(NamedTuple):
     """A configuration of the motion: time [s], angles [rad] (6,), cover points [m]
-    (n, 3), per keep-in zone each body's margin [m] (B,)."""
+    (n, 3), per keep-in zone each body's margin [m] (B,), its grid sample (-1: between
+    samples)."""
 
     t: float
     q: np.ndarray
     points: np.ndarray
     keep_in: list[np.ndarray]
+    k: int
 
 
 def sweep(
@@ -88,31 +93,27 @@ def sweep(
         times: knot times [s], shape (S+1,).
         qd_peaks: largest |joint speed| on each segment [rad/s], shape (S, 6).
         evaluate: positions at times [s], shape (n,) -> (n, 6) [rad].
-        step: smallest advance of any point [m].
+        step: shortest stretch refined (of any point's travel) [m].
         tolerance: how far below the smallest margin found the unchecked stretches may
             be [m].
     """
     motion = _Motion(model, np.asarray(times, dtype=float), qd_peaks, evaluate)
-    at, j = motion.sample(0), 1  # j: the first grid sample after at.t
-    checked = 0
-    worst: Clearance | None = None
-    while True:
-        found, free = motion.probe(at)
-        checked += 1
-        if worst is None or found.margin < worst.margin:
-            worst = found
-        if found.margin < 0.0 or j >= len(motion.grid) or not np.isfinite(free).any():
-            violation = found if found.margin < 0.0 else None
-            return Sweep(worst, violation, checked, len(motion.grid))
-        floor = max(0.0, worst.margin - tolerance)
-        allowance = np.where(np.isfinite(free), np.maximum(free - floor, step), np.inf)
-        k = motion.first_unproven(at, j, allowance)
-        if k is None:
-            return Sweep(worst, None, checked, len(motion.grid))  # proven to the end
-        if k >= j:
-            at, j = motion.sample(k), k + 1
-        else:  # not even to the next grid sample: creep by the speed bound
-            at = motion.between(at, j, allowance)
+    last = len(motion.grid) - 1
+    knots = np.unique(np.clip(np.searchsorted(motion.grid, motion.times), 0, last))
+    checked = [_Checked(at, *reversed(motion.probe(at))) for at in map(motion.sample, knots)]
+    checked = motion.refine(checked, tolerance, step)
+    bad = [c.found for c in checked if c.found.margin < 0.0]
+    worst = bad[0] if bad else min((c.found for c in checked), key=lambda f: f.margin)
+    return Sweep(worst, bad[0] if bad else None, len(checked), last + 1)
+
+
+class _Checked(NamedTuple):
+    """A configuration whose distances were computed: where, each moving body's margin
+    [m] (B,), and the tightest check."""
+
+    at: _At
+    free: np.ndarray
+    found: Clearance
 
 
 class _Motion:
@@ -138,24 +139,11 @@ class _Motion:
         self.Q = evaluate(self.grid)
         self.points = b.world(self.Q)
         self.keep_in = b.keep_in(self.points)
-        segment = np.clip(
-            np.searchsorted(times, self.grid[:-1], side="right") - 1, 0, len(self.peaks) - 1
-        )
-        self.spread = self.speed[segment] * np.diff(self.grid)[:, None]  # (G-1, B) [m]
 
     def sample(self, k: int) -> _At:
-        return _At(float(self.grid[k]), self.Q[k], self.points[k], [m[k] for _, m in self.keep_in])
-
-    def between(self, at: _At, j: int, allowance: np.ndarray) -> _At:
-        """The configuration as far from ``at`` as the speed bound allows (before grid
-        sample ``j``)."""
-        seg = min(int(np.searchsorted(self.times, at.t, side="right")) - 1, len(self.peaks) - 1)
-        speed = self.speed[seg]
-        dt = float(np.min(allowance / np.where(speed > 0.0, speed, 1e-12)))
-        t = min(at.t + dt, float(self.grid[j]))
-        q = self.evaluate(np.array([t]))[0]
-        points = self.bodies.world(q[None])
-        return _At(t, q, points[0], [m[0] for _, m in self.bodies.keep_in(points)])
+        return _At(
+            float(self.grid[k]), self.Q[k], self.points[k], [m[k] for _, m in self.keep_in], k
+        )
 
     def probe(self, at: _At) -> tuple[Clearance, np.ndarray]:
         """The tightest check at ``at`` and each moving body's margin [m] (B,)."""
@@ -168,40 +156,114 @@ class _Motion:
                 tight, check = float(margins[b]), zone._replace(body=self.bodies.names[b])
         return Clearance(tight, tight + check.required, check, at.t, at.q), free
 
-    def first_unproven(self, at: _At, j: int, allowance: np.ndarray) -> int | None:
-        """The last grid sample (``>= j``) up to which no body of the motion from ``at``
-        can have moved past its ``allowance`` [m]; ``j - 1`` when not even sample ``j``
-        is reached; None when the motion is proven to its end.
+    def refine(self, checked: list[_Checked], tolerance: float, step: float) -> list[_Checked]:
+        """Check more configurations until no stretch between two checked ones can come
+        below the smallest margin found minus ``tolerance``, nor below zero: per body,
+        the larger of the two ends' lower bounds (its margin there minus its travel
+        bound from there). A new configuration goes where the bound is lowest (or
+        halfway, between two grid samples); a stretch no point can cross more than
+        ``step`` of is left as it is. All open stretches are bounded in one vectorised
+        pass per round. Once a violation is found only the stretches before the first
+        one are refined further (the first one along the motion is the one reported)."""
+        out = list(checked)
+        pending = list(range(len(out) - 1))
+        while pending:
+            bad = next((c.at.t for c in out if c.found.margin < 0.0), math.inf)
+            pending = [i for i in pending if out[i + 1].at.t <= bad]
+            if not pending:
+                break
+            worst = min(c.found.margin for c in out)
+            lows, farthest, inner_best = self._bounds(out, pending)
+            added: list[tuple[int, _At]] = []
+            for n, i in enumerate(pending):
+                if lows[n] >= max(worst - tolerance, 0.0) or farthest[n] <= step:
+                    continue
+                a, b = out[i].at, out[i + 1].at
+                k = inner_best(n)
+                added.append((i, self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)))
+            pending = []
+            for shift, (i, at) in enumerate(added):
+                found, free = self.probe(at)
+                out.insert(i + shift + 1, _Checked(at, free, found))
+                pending += [i + shift, i + shift + 1]
+        return out
 
-        Over an interval whose ends have moved ``D0`` and ``D1`` and whose points move no
-        faster than ``v`` for ``dt``, nothing has moved more than ``(D0 + D1 + v dt) / 2``.
-        """
-        b, last = self.bodies, len(self.grid) - 1
-        seg = min(int(np.searchsorted(self.times, at.t, side="right")) - 1, len(self.peaks) - 1)
-        first_spread = self.speed[seg] * (self.grid[j] - at.t)
-        k, window = j, _WINDOW
-        while True:
-            stop = min(k + window, last)
-            window *= 2
-            moved = b.displacement(self.points[k : stop + 1], at.points)
-            moved += (np.abs(self.Q[k : stop + 1] - at.q) @ b.moves) * b.radius
-            if k == j and ((moved[0] + first_spread) / 2.0 > allowance).any():
-                return j - 1
-            spread = self.spread[k:stop]
-            bad = ((moved[:-1] + moved[1:] + spread) / 2.0 > allowance).any(axis=1)
-            if bad.any():
-                return k + int(np.argmax(bad))
-            if stop == last:
-                return None
-            k = stop
+    def at_time(self, t: float) -> _At:
+        """The configuration at ``t`` [s] (between grid samples)."""
+        q = self.evaluate(np.array([t]))[0]
+        points = self.bodies.world(q[None])
+        return _At(t, q, points[0], [m[0] for _, m in self.bodies.keep_in(points)], -1)
+
+    def _bounds(
+        self, out: list[_Checked], pending: list[int]
+    ) -> tuple[np.ndarray, np.ndarray, Callable[[int], int]]:
+        """For the stretches ``out[i]`` to ``out[i + 1]``, ``i`` in ``pending``: the lower
+        bound of the margin [m], the farthest any body can travel between the two ends
+        [m], and a function giving the inner grid sample where the bound is lowest (-1:
+        none)."""
+        G, grid = len(self.grid), self.grid
+        extra: list[_At] = []  # ends between grid samples: appended after the grid
+
+        def row(at: _At) -> int:
+            if at.k >= 0:
+                return at.k
+            extra.append(at)
+            return G + len(extra) - 1
+
+        ra = np.array([row(out[i].at) for i in pending])
+        rb = np.array([row(out[i + 1].at) for i in pending])
+        lo = np.searchsorted(grid, [out[i].at.t for i in pending], side="right")
+        hi = np.searchsorted(grid, [out[i + 1].at.t for i in pending], side="left")
+        counts = hi - lo + 2  # the inner samples and the two ends
+        starts_arr = np.cumsum(counts) - counts
+        last = starts_arr + counts - 1
+        rows = np.repeat(lo - 1 - starts_arr, counts) + np.arange(int(counts.sum()))
+        rows[starts_arr], rows[last] = ra, rb
+        starts = starts_arr.tolist()
+        points, Q, T = self.points, self.Q, grid
+        if extra:
+            points = np.concatenate((points, np.array([e.points for e in extra])))
+            Q = np.concatenate((Q, np.array([e.q for e in extra])))
+            T = np.concatenate((grid, [e.t for e in extra]))
+        at_end = np.stack((np.repeat(ra, counts), np.repeat(rb, counts)))  # (2, R)
+        ts = T[rows]
+        body = self.bodies
+        moved = body.displacement(points[rows][None], points[at_end])  # (2, R, B)
+        moved += (np.abs(Q[rows][None] - Q[at_end]) @ body.moves) * body.radius
+        pair = np.repeat(np.arange(len(pending)), counts)
+        free = np.array([[out[i].free for i in pending], [out[i + 1].free for i in pending]])
+        free = free[:, pair]  # (2, R, B)
+        seg = np.clip(
+            np.searchsorted(self.times, ts[:-1], side="right") - 1, 0, len(self.peaks) - 1
+        )
+        spread = self.speed[seg] * np.diff(ts)[:, None]
+        travel = (moved[:, :-1] + moved[:, 1:] + spread) * 0.5
+        per_interval = (free[:, :-1] - travel).max(axis=0).min(axis=1)
+        across = np.array(starts[1:], dtype=np.int64) - 1  # intervals between stretches
+        per_interval[across] = np.inf
+        lows = np.minimum.reduceat(per_interval, starts)
+        reach = travel[0].max(axis=1)
+        reach[across] = 0.0
+        farthest = np.maximum.reduceat(reach, starts)
+        per_sample = (free - moved).max(axis=0).min(axis=1)
+
+        def inner_best(n: int) -> int:
+            first, stop = starts[n] + 1, int(last[n])
+            if stop <= first:
+                return -1
+            return int(rows[first + int(np.argmin(per_sample[first:stop]))])
+
+        return lows, farthest, inner_best
+
+
+_BODY_POINTS: weakref.WeakKeyDictionary[CollisionModel, BodyPoints] = weakref.WeakKeyDictionary()
 
 
 def _body_points(model: CollisionModel) -> BodyPoints:
     """The model's :class:`BodyPoints`, built once per model."""
-    found = getattr(model, "_body_points", None)
+    found = _BODY_POINTS.get(model)
     if found is None:
-        found = BodyPoints(model)
-        model._body_points = found  # type: ignore[attr-defined]
+        found = _BODY_POINTS[model] = BodyPoints(model)
     return found
 
 

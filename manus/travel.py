@@ -57,25 +57,22 @@ class BodyPoints:
         (G, 6) -> (G, n, 3) [m] (the same as Pinocchio's placements)."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         G = len(Q)
-        c, s = np.cos(Q), np.sin(Q)
-        frames = np.empty((G, len(self._placements), 4, 4))
-        frames[:, 0] = self._placements[0]
+        c, s = np.cos(Q.T), np.sin(Q.T)  # (6, G)
+        # Frames as (4, 4, G): the configurations last, so every step is a few long,
+        # contiguous rows (or 4 x 4 matrix products over them).
+        frames = [np.repeat(self._placements[0][:, :, None], G, axis=2)]
         for j in range(1, len(self._placements)):
-            # (parent @ placement) as one 2-D product, then the turn about z by columns.
-            A = (frames[:, self._parents[j]].reshape(4 * G, 4) @ self._placements[j]).reshape(
-                G, 4, 4
-            )
-            cj, sj = c[:, j - 1, None], s[:, j - 1, None]
-            F = frames[:, j]
-            F[:, :, 0] = A[:, :, 0] * cj + A[:, :, 1] * sj
-            F[:, :, 1] = A[:, :, 1] * cj - A[:, :, 0] * sj
-            F[:, :, 2:] = A[:, :, 2:]
-        out = np.empty((G, len(self._points), 3))
+            # (parent @ placement), row by row, then the turn about z by columns.
+            A = np.matmul(self._placements[j].T, frames[self._parents[j]])
+            F = np.empty_like(A)
+            F[:, 0] = A[:, 0] * c[j - 1] + A[:, 1] * s[j - 1]
+            F[:, 1] = A[:, 1] * c[j - 1] - A[:, 0] * s[j - 1]
+            F[:, 2:] = A[:, 2:]
+            frames.append(F)
+        out = np.empty((len(self._points), 3, G))
         for j, rows in self._groups:
-            local = self._points1[rows].T  # (4, r)
-            moved = (frames[:, j, :3, :].reshape(3 * G, 4) @ local).reshape(G, 3, len(rows))
-            out[:, rows] = np.swapaxes(moved, 1, 2)
-        return out
+            out[rows] = np.matmul(self._points1[rows], frames[j][:3]).transpose(1, 0, 2)
+        return np.ascontiguousarray(out.transpose(2, 0, 1))
 
     def keep_in(self, world: np.ndarray) -> list[tuple[Check, np.ndarray]]:
         """Per keep-in zone: its check (no body named) and each moving body's margin to
@@ -93,15 +90,16 @@ class BodyPoints:
 
     def displacement(self, points: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Per moving body, how far its farthest cover point is from where it was in
-        ``start`` (n, 3), at each of ``points`` (K, n, 3) [m], shape (K, B)."""
+        ``start`` (n, 3), at each of ``points`` (K, n, 3) [m], shape (K, B) (or any
+        leading shapes that broadcast)."""
         d = points - start
         squared = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
         return self.farthest(np.sqrt(squared))
 
     def farthest(self, distances: np.ndarray) -> np.ndarray:
         """Per moving body, the largest of ``distances`` over its cover points, shape
-        (K, n) -> (K, B)."""
-        return np.asarray(np.maximum.reduceat(distances, self._starts, axis=1)[:, self.moving])
+        (..., n) -> (..., B)."""
+        return np.asarray(np.maximum.reduceat(distances, self._starts, axis=-1)[..., self.moving])
 
     def _levers(self, joint_of: np.ndarray) -> np.ndarray:
         """The joint placements' lengths from joint ``j`` out to the body, plus the body's

@@ -13,7 +13,7 @@ import pytest
 from manus.collision import SELF_PAIRS, CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import default_scene
-from manus.sweep import STEP_M, TOLERANCE_M, sweep
+from manus.sweep import TOLERANCE_M, sweep
 from manus.viapoints import load_path, parse_viapoints
 from schemas.planning import PlanReply, PlanRequest
 from services.planner.config import PlannerConfig
@@ -138,7 +138,7 @@ def test_the_sweep_decides_as_a_dense_check_on_random_paths() -> None:
     """Against margins computed every 4 ms (under 2 mm of any point's travel) by the
     model's plain per-configuration query: the same accept / refuse decision on every
     path, a violation where the dense check has one, and a reported smallest margin that
-    is a real configuration's and at most TOLERANCE_M + STEP_M above the dense one."""
+    is a real configuration's and at most TOLERANCE_M above the dense one."""
     accepted = refused = 0
     for curve in random_paths(30, seed=17):
         ex = curve.extremes(1)
@@ -149,7 +149,7 @@ def test_the_sweep_decides_as_a_dense_check_on_random_paths() -> None:
         assert MODEL.clearance(swept.worst.q).margin == pytest.approx(swept.worst.margin, abs=1e-6)
         if swept.violation is None:
             accepted += 1
-            assert lowest - 0.001 <= swept.worst.margin <= lowest + TOLERANCE_M + STEP_M
+            assert lowest - 0.001 <= swept.worst.margin <= lowest + TOLERANCE_M
         else:
             refused += 1
             assert swept.violation.margin < 0.0
