@@ -100,8 +100,7 @@ def sweep(
     motion = _Motion(model, np.asarray(times, dtype=float), qd_peaks, evaluate)
     last = len(motion.grid) - 1
     knots = np.unique(np.clip(np.searchsorted(motion.grid, motion.times), 0, last))
-    checked = [_Checked(at, *reversed(motion.probe(at))) for at in map(motion.sample, knots)]
-    checked = motion.refine(checked, tolerance, step)
+    checked = motion.refine([motion.check(motion.sample(k)) for k in knots], tolerance, step)
     bad = [c.found for c in checked if c.found.margin < 0.0]
     worst = bad[0] if bad else min((c.found for c in checked), key=lambda f: f.margin)
     return Sweep(worst, bad[0] if bad else None, len(checked), last + 1)
@@ -145,6 +144,11 @@ class _Motion:
             float(self.grid[k]), self.Q[k], self.points[k], [m[k] for _, m in self.keep_in], k
         )
 
+    def check(self, at: _At) -> _Checked:
+        """Compute the distances at ``at``."""
+        found, free = self.probe(at)
+        return _Checked(at, free, found)
+
     def probe(self, at: _At) -> tuple[Clearance, np.ndarray]:
         """The tightest check at ``at`` and each moving body's margin [m] (B,)."""
         free, tight, row = self.model.pair_margins(at.q)
@@ -183,8 +187,7 @@ class _Motion:
                 added.append((i, self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)))
             pending = []
             for shift, (i, at) in enumerate(added):
-                found, free = self.probe(at)
-                out.insert(i + shift + 1, _Checked(at, free, found))
+                out.insert(i + shift + 1, self.check(at))
                 pending += [i + shift, i + shift + 1]
         return out
 
