@@ -27,8 +27,11 @@ object beyond the sphere about the shoulder that holds the body) are left out. T
 their distances to the scene are checked once, when the model is built
 (:meth:`CollisionModel.base_overlaps`), not per configuration.
 
-:func:`manus.sweep.sweep` checks a whole motion through :meth:`CollisionModel.probe`
-(each moving body's margin and its reach from each joint's axis).
+:func:`manus.sweep.sweep` checks a whole motion through
+:meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
+clear of) and :class:`manus.travel.BodyPoints` (the cover points over the motion, the
+keep-in zones); the controller's guard through :meth:`CollisionModel.probe` (the same
+margins, and each joint's reach to each body).
 """
 
 from __future__ import annotations
