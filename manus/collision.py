@@ -27,8 +27,11 @@ object beyond the sphere about the shoulder that holds the body) are left out. T
 their distances to the scene are checked once, when the model is built
 (:meth:`CollisionModel.base_overlaps`), not per configuration.
 
-:func:`manus.sweep.sweep` checks a whole motion through :meth:`CollisionModel.probe`
-(each moving body's margin and its reach from each joint's axis).
+:func:`manus.sweep.sweep` checks a whole motion through
+:meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
+clear of) and :class:`manus.travel.BodyPoints` (the cover points over the motion, the
+keep-in zones); the controller's guard through :meth:`CollisionModel.probe` (the same
+margins, and each joint's reach to each body).
 """
 
 from __future__ import annotations
@@ -61,6 +64,9 @@ GRIPPER_BODIES = ("gripper", "gripper_motor")
 
 STATIC_BODIES = ("column", "shoulder")
 """Bodies whose distance to the scene does not depend on the joint angles."""
+
+
+_ONES3 = np.ones(3)
 
 
 class Check(NamedTuple):
@@ -170,6 +176,7 @@ class CollisionModel:
             self._keep_in_zones(scene)
         self.geom = gm
         self._covers = [cover(s) for s in self.shapes]
+        self._holding: dict[int, float] = {}
         self._prepare_points()
         # Pairs no configuration can bring within their clearance are left out.
         reachable = [self._can_meet(first, second) for first, second in pairs]
@@ -180,6 +187,10 @@ class CollisionModel:
         self.geom_data = pin.GeometryData(gm)
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
+        self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
+        self._no_margin = np.full(len(self._moving), math.inf)
+        self._no_reach = np.zeros((6, len(self._moving)))
+        self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
         if overlaps:
             raise SceneError(overlaps[0])
@@ -274,7 +285,7 @@ class CollisionModel:
     def keep_in_margins(self) -> list[tuple[float, Check]]:
         """For each keep-in zone: the smallest inner distance of its bodies to its boundary
         minus its clearance, at the configuration of the last :meth:`margins` call."""
-        return self._keep_in_at(self._world_points())
+        return [(margin, check) for margin, check, _ in self._keep_in_at(self._world_points())]
 
     def clearance(self, q: np.ndarray, time: float = 0.0) -> Clearance:
         """The tightest check at ``q``."""
@@ -323,75 +334,81 @@ class CollisionModel:
         of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
         False: cheaper); and the tightest check."""
         q = np.asarray(q, dtype=float)
-        pin.forwardKinematics(self.model, self.data, q)
-        free = np.full(len(self._moving), math.inf)
-        best = Clearance(math.inf, math.inf, Check("", "", "self", 0.0), time, q)
-        tight, tight_row = math.inf, -1
-        update, distances, model, data = (
-            pin.updateGeometryPlacements,
-            pin.computeDistances,
-            self.model,
-            self.data,
-        )
-        for b, (gm, gd, rows) in enumerate(self._per_body):
-            if rows:
-                update(model, data, gm, gd)
-                k = distances(gm, gd)
-                margin = gd.distanceResults[k].min_distance
-                free[b] = margin
-                if margin < tight:
-                    tight, tight_row = margin, rows[k]
+        free, tight, tight_row = self.pair_margins(q)
+        points = self._world_points()
+        for margin, check, per_body in self._keep_in_at(points):
+            np.minimum(free, per_body, out=free)
+            if margin < tight:
+                tight, tight_row, keep_in = margin, -2, check
         if tight_row >= 0:
             check = self.checks[tight_row]
-            best = Clearance(tight, tight + check.required, check, time, q)
-        points = self._world_points()
-        for margin, check in self._keep_in_at(points):
-            free = np.minimum(free, margin)  # every body: the zone's tightest (cheaper)
-            if margin < best.margin:
-                best = Clearance(margin, margin + check.required, check, time, q)
-        reaches = self._reach_at(points) if reach else np.zeros((6, len(self._moving)))
-        return Probe(best, np.maximum(free, 0.0), reaches)
+        elif tight_row == -2:
+            check = keep_in
+        else:
+            check = Check("", "", "self", 0.0)
+        best = Clearance(tight, tight + check.required, check, time, q)
+        reaches = self._reach_at(points) if reach else self._no_reach
+        return Probe(best, np.maximum(free, 0.0, out=free), reaches)
+
+    def pair_margins(self, q: np.ndarray) -> tuple[np.ndarray, float, int]:
+        """The pair checks at ``q`` [rad] (no keep-in zones): each moving body's tightest
+        margin [m] (inf: nothing to keep clear of), shape (moving bodies,); the tightest
+        margin of all [m] and its row in :attr:`checks` (-1: none)."""
+        model, data = self.model, self.data
+        pin.forwardKinematics(model, data, q)
+        update, distances = pin.updateGeometryPlacements, pin.computeDistances
+        free = self._no_margin.copy()
+        tight, tight_row = math.inf, -1
+        for b, gm, gd, rows in self._live:
+            update(model, data, gm, gd)
+            k = distances(gm, gd)
+            margin = gd.distanceResults[k].min_distance
+            free[b] = margin
+            if margin < tight:
+                tight, tight_row = margin, rows[k]
+        return free, tight, tight_row
 
     def _world_points(self) -> np.ndarray:
         """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
         oMi = self.data.oMi
-        H = np.array([oMi[j].homogeneous for j in range(self.model.njoints)])
+        H = np.array([m.homogeneous for m in oMi])
         self._joints_now = H
         Hp = H[self._point_joint]
-        return np.asarray(np.einsum("nij,nj->ni", Hp[:, :3, :3], self._points) + Hp[:, :3, 3])
+        return np.asarray((Hp[:, :3, :] @ self._points1)[:, :, 0])
 
     def _reach_at(self, world: np.ndarray) -> np.ndarray:
         """Per joint and moving body, the farthest point of the body from the joint's axis
         (0 for a body the joint does not move) [m], shape (6, moving bodies)."""
         H = self._joints_now[1:]
-        d = world[None, :, :] - H[:, None, :3, 3]  # (6, n, 3)
-        along = np.einsum("jnk,jk->jn", d, H[:, :3, 2])
-        radial = np.sqrt(np.maximum(np.einsum("jnk,jnk->jn", d, d) - along * along, 0.0))
+        origins, axes = H[:, :3, 3], H[:, :3, 2]  # (6, 3) each
+        # |d|^2 - (d . z)^2 with d = p - o, expanded so that one product does the work.
+        wo_wz = world @ np.hstack((origins.T, axes.T))  # (n, 12)
+        squared = (world * world) @ _ONES3  # (n,): numpy's sum over a short axis is slow
+        d2 = squared[:, None] - 2.0 * wo_wz[:, :6] + (origins * origins) @ _ONES3
+        along = wo_wz[:, 6:] - (origins * axes) @ _ONES3
+        radial = np.sqrt(np.maximum(d2 - along * along, 0.0)).T  # (6, n)
         radial = np.where(self._beyond_mask, radial + self._radii, 0.0)
         per_body = np.maximum.reduceat(radial, self._body_starts, axis=1)
         return np.asarray(per_body[:, self._moving])
 
-    def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check]]:
-        """Per keep-in zone: its tightest margin and the check naming the body."""
+    def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check, np.ndarray]]:
+        """Per keep-in zone: its tightest margin [m], the check naming the body, and each
+        moving body's margin to it [m] (inf: a body the zone does not hold)."""
         out = []
         for check, zone, rows in self._keep_in:
-            inner = inner_distances(zone, world[rows]) - self._radii[rows]
+            inner = self._outside.copy()
+            inner[rows] = inner_distances(zone, world[rows]) - self._radii[rows] - check.required
             k = int(np.argmin(inner))
-            body = self.shapes[int(self._point_body[rows][k])].name
-            out.append((float(inner[k]) - check.required, check._replace(body=body)))
+            body = self.shapes[int(self._point_body[k])].name
+            per_body = np.minimum.reduceat(inner, self._body_starts)[self._moving]
+            out.append((float(inner[k]), check._replace(body=body), per_body))
         return out
 
     def _can_meet(self, body: int, other: int) -> bool:
         """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
         the shoulder that holds ``body`` in every configuration (the joint placements'
         lengths up to the body, plus its own extent)."""
-        obj = self.geom.geometryObjects[body]
-        rows = self._point_body == body
-        radius = sum(
-            float(np.linalg.norm(self.model.jointPlacements[k].translation))
-            for k in range(1, obj.parentJoint + 1)
-        )
-        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        radius = self._holding_radius(body)
         fixed = self.geom.geometryObjects[other]
         if fixed.parentJoint != 0:
             return True  # another arm body (a self pair)
@@ -405,6 +422,21 @@ class CollisionModel:
             coal.DistanceResult(),
         )
         return bool(gap <= 0.0)
+
+    def _holding_radius(self, body: int) -> float:
+        """The radius of the sphere about the shoulder that holds ``body`` in every
+        configuration [m] (computed once per body)."""
+        if body in self._holding:
+            return self._holding[body]
+        obj = self.geom.geometryObjects[body]
+        rows = self._point_body == body
+        radius = sum(
+            float(np.linalg.norm(self.model.jointPlacements[k].translation))
+            for k in range(1, obj.parentJoint + 1)
+        )
+        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
+        self._holding[body] = radius
+        return radius
 
     def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
         """One geometry model per moving body with its pairs, for per-body margins: the
@@ -442,6 +474,8 @@ class CollisionModel:
             (j, np.flatnonzero(self._point_joint == j)) for j in sorted(set(joints))
         ]
         self._beyond_mask = np.array([self._point_joint >= j for j in range(1, self.model.njoints)])
+        self._outside = np.full(len(self._points), math.inf)
+        self._points1 = np.c_[self._points, np.ones(len(self._points))][:, :, None]
         self._body_starts = np.searchsorted(self._point_body, np.arange(len(self.shapes)))
         self._moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
         """Arm bodies whose distances depend on the joint angles (indices into shapes)."""

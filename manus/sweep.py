@@ -1,42 +1,81 @@
-"""Whole motions through the collision model: continuous where the margins allow.
+"""Whole motions through the collision model: continuous checking by conservative
+advancement, from both ends of every stretch.
 
-:func:`sweep` samples a motion so that no point of the arm travels more than ``step``
-(10 mm) between samples, and skips ahead where the margins are larger than the travel
-in between: from each checked configuration, each body advances as far as no point of it
-can have moved more than its own smallest margin (its speed bounded by each joint's peak
-speed times the body's distance from that joint's axis): no gap can close in between
-(conservative advancement). :func:`straight_motion_problem` checks the arm's own fold
-motions, straight lines in joint space.
+:func:`sweep` computes distances (:meth:`CollisionModel.pair_margins`, Coal) at few
+configurations of a motion and proves the stretches in between: at a checked
+configuration each moving body has a margin (its distance to the nearest thing it must
+keep clear of, minus that class's clearance), and no gap of the body can have closed
+while no point of it has moved further than that margin. How far the points have moved
+comes from the motion itself: its positions on a grid (every knot, and no more than
+:data:`GRID_M` of any point's travel apart), each body's cover points there
+(:class:`manus.travel.BodyPoints`, vectorised over the whole grid), and in between each
+segment's peak joint speeds times each joint's farthest reach to the body. A body's
+margin anywhere in a stretch is at least the larger of what its two ends leave (margin
+minus travel from that end).
+
+It starts at the knots and adds a configuration where a stretch's bound is lowest until
+every stretch is proven to stay above zero and above the smallest margin found minus
+``tolerance`` (all open stretches bounded in one vectorised pass per round); between
+two grid samples it halves the stretch (off the grid), down to ``step``.
+
+Stated limits: a violation shallower than ``step`` (2 mm) can lie inside a stretch no
+point crosses more than ``step`` of, and the smallest margin reported is at most
+``tolerance`` (10 mm) above the motion's true smallest (a check every 10 mm of travel:
+within 5 mm). :func:`straight_motion_problem` checks the arm's own fold motions,
+straight lines in joint space.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
-from manus.collision import Clearance, CollisionModel
+from manus.collision import Check, Clearance, CollisionModel
+from manus.travel import BodyPoints
 
-STEP_M = 0.010
-"""Largest travel of any point of the arm between two checked samples [m]."""
+STEP_M = 0.002
+"""Shortest stretch refined [m] (of any point's travel): a violation shallower than it
+may go unseen inside one."""
+
+TOLERANCE_M = 0.010
+"""How far [m] the stretches between checked configurations may come below the smallest
+margin found: the reported smallest margin is within it of the motion's true one."""
+
+GRID_M = 0.020
+"""Largest travel of any point between two grid samples [m], by the speed bound (finer
+grids cost more per round than they save in Coal queries)."""
 
 
 class Sweep(NamedTuple):
     """What :func:`sweep` found.
 
     Attributes:
-        worst: the smallest margin over the checked samples.
-        violation: the first sample whose margin is negative (None: none).
+        worst: the smallest margin over the checked configurations.
+        violation: the first checked configuration whose margin is negative (None: none).
         checked: configurations whose distances were computed [-].
-        samples: configurations on the 10 mm grid [-].
+        samples: configurations on the motion's grid [-].
     """
 
     worst: Clearance
     violation: Clearance | None
     checked: int
     samples: int
+
+
+class _At(NamedTuple):
+    """A configuration of the motion: time [s], angles [rad] (6,), cover points [m]
+    (n, 3), per keep-in zone each body's margin [m] (B,), its grid sample (-1: between
+    samples)."""
+
+    t: float
+    q: np.ndarray
+    points: np.ndarray
+    keep_in: list[np.ndarray]
+    k: int
 
 
 def sweep(
@@ -46,87 +85,201 @@ def sweep(
     evaluate: Callable[[np.ndarray], np.ndarray],
     *,
     step: float = STEP_M,
+    tolerance: float = TOLERANCE_M,
 ) -> Sweep:
-    """Check a motion against every check, continuously where the margins allow.
-
-    From each checked configuration the next one is as far along as no point of the
-    arm can have travelled more than the smallest margin there (so no gap can have
-    closed: conservative advancement), and never more than ``step`` where that
-    margin is smaller. The speed bound is Coal-free: per joint, its peak speed on the
-    segment times the farthest any body beyond it is from its axis (measured at the
-    configuration, plus the travel allowed), segment by segment.
+    """Check a motion continuously against every check (see the module docstring).
 
     Args:
         times: knot times [s], shape (S+1,).
         qd_peaks: largest |joint speed| on each segment [rad/s], shape (S, 6).
         evaluate: positions at times [s], shape (n,) -> (n, 6) [rad].
-        step: largest travel of any point between two samples where the margins
-            are smaller than that [m].
+        step: shortest stretch refined (of any point's travel) [m].
+        tolerance: how far below the smallest margin found the unchecked stretches may
+            be [m].
     """
-    times = np.asarray(times, dtype=float)
-    peaks = np.abs(np.asarray(qd_peaks, dtype=float))
-    # One vectorised evaluation on a grid no coarser than a step of the slowest
-    # bound; each advance lands on the last grid time it may reach (never beyond).
-    grid = _grid(model, times, peaks, step)
-    Q = evaluate(grid)
-    i, seg, checked = 0, 0, 0
-    worst: Clearance | None = None
-    while True:
-        t = float(grid[i])
-        found, free, reach = model.probe(Q[i], t)
-        checked += 1
-        if worst is None or found.margin < worst.margin:
-            worst = found
-        if found.margin < 0.0:
-            return Sweep(worst, found, checked, len(grid))
-        if i == len(grid) - 1:
-            return Sweep(worst, None, checked, len(grid))
-        while seg < len(times) - 2 and t >= times[seg + 1]:
-            seg += 1
-        t_next = _advance(t, seg, times, peaks, free, reach, step)
-        i = max(i + 1, int(np.searchsorted(grid, t_next, side="right")) - 1)
+    motion = _Motion(model, np.asarray(times, dtype=float), qd_peaks, evaluate)
+    last = len(motion.grid) - 1
+    knots = np.unique(np.clip(np.searchsorted(motion.grid, motion.times), 0, last))
+    checked = motion.refine([motion.check(motion.sample(k)) for k in knots], tolerance, step)
+    bad = [c.found for c in checked if c.found.margin < 0.0]
+    worst = bad[0] if bad else min((c.found for c in checked), key=lambda f: f.margin)
+    return Sweep(worst, bad[0] if bad else None, len(checked), last + 1)
 
 
-def _advance(
-    t: float,
-    seg: int,
-    times: np.ndarray,
-    peaks: np.ndarray,
-    free: np.ndarray,
-    reach: np.ndarray,
-    step: float,
-) -> float:
-    """The latest time [s] no body can have travelled past its allowance from ``t``: its
-    margin, or ``step`` where that is smaller; each segment at its own peak speeds."""
-    bound = np.isfinite(free)  # bodies with something to keep clear of
-    if not bound.any():
-        return float(times[-1])
-    travel = np.maximum(free[bound], step)
-    radius = reach[:, bound] + travel  # (6, bodies): distance from each axis, at most
-    left = travel.copy()  # what each body may still travel [m]
-    while True:
-        end = float(times[seg + 1])
-        speed = peaks[seg] @ radius
-        need = np.where(speed > 0.0, left / np.where(speed > 0.0, speed, 1.0), math.inf)
-        dt = float(need.min())
-        if t + dt <= end or seg == len(times) - 2:
-            return min(t + dt, float(times[-1]))
-        left = left - speed * (end - t)
-        t, seg = end, seg + 1
+class _Checked(NamedTuple):
+    """A configuration whose distances were computed: where, each moving body's margin
+    [m] (B,), and the tightest check."""
+
+    at: _At
+    free: np.ndarray
+    found: Clearance
 
 
-def _grid(model: CollisionModel, times: np.ndarray, peaks: np.ndarray, step: float) -> np.ndarray:
-    """Sample times: every knot, and per segment no more than ``step`` of travel apart
-    for a body as far out as the arm reaches (a coarse bound: the sweep's own steps
-    are longer except near obstacles)."""
-    reach = model.extent + 1.0
-    parts = [times[:1]]
-    for s in range(len(times) - 1):
-        t0, t1 = float(times[s]), float(times[s + 1])
-        v = float(peaks[s].sum()) * reach
-        n = max(1, math.ceil(v * (t1 - t0) / step))
-        parts.append(np.linspace(t0, t1, n + 1)[1:])
-    return np.concatenate(parts)
+class _Motion:
+    """A motion on its grid: angles, cover points and keep-in margins at every sample,
+    and the bounds of how far the bodies travel in between."""
+
+    def __init__(
+        self,
+        model: CollisionModel,
+        times: np.ndarray,
+        qd_peaks: np.ndarray,
+        evaluate: Callable[[np.ndarray], np.ndarray],
+    ) -> None:
+        self.model = model
+        self.bodies = _body_points(model)
+        self.times = times
+        self.peaks = np.abs(np.asarray(qd_peaks, dtype=float))
+        self.evaluate = evaluate
+        b = self.bodies
+        # Per segment and body: how fast any point of the body can move [m/s].
+        self.speed = self.peaks @ b.levers + (self.peaks @ b.moves) * b.radius
+        self.grid = _grid(times, self.speed)
+        self.Q = evaluate(self.grid)
+        self.points = b.world(self.Q)
+        self.keep_in = b.keep_in(self.points)
+
+    def sample(self, k: int) -> _At:
+        return _At(
+            float(self.grid[k]), self.Q[k], self.points[k], [m[k] for _, m in self.keep_in], k
+        )
+
+    def check(self, at: _At) -> _Checked:
+        """Compute the distances at ``at``."""
+        found, free = self.probe(at)
+        return _Checked(at, free, found)
+
+    def probe(self, at: _At) -> tuple[Clearance, np.ndarray]:
+        """The tightest check at ``at`` and each moving body's margin [m] (B,)."""
+        free, tight, row = self.model.pair_margins(at.q)
+        check = self.model.checks[row] if row >= 0 else Check("", "", "self", 0.0)
+        for (zone, _), margins in zip(self.keep_in, at.keep_in, strict=True):
+            np.minimum(free, margins, out=free)
+            b = int(np.argmin(margins))
+            if margins[b] < tight:
+                tight, check = float(margins[b]), zone._replace(body=self.bodies.names[b])
+        return Clearance(tight, tight + check.required, check, at.t, at.q), free
+
+    def refine(self, checked: list[_Checked], tolerance: float, step: float) -> list[_Checked]:
+        """Check more configurations until no stretch between two checked ones can come
+        below the smallest margin found minus ``tolerance``, nor below zero: per body,
+        the larger of the two ends' lower bounds (its margin there minus its travel
+        bound from there). A new configuration goes where the bound is lowest (or
+        halfway, between two grid samples); a stretch no point can cross more than
+        ``step`` of is left as it is. All open stretches are bounded in one vectorised
+        pass per round. Once a violation is found only the stretches before the first
+        one are refined further (the first one along the motion is the one reported)."""
+        out = list(checked)
+        pending = list(range(len(out) - 1))
+        while pending:
+            bad = next((c.at.t for c in out if c.found.margin < 0.0), math.inf)
+            pending = [i for i in pending if out[i + 1].at.t <= bad]
+            if not pending:
+                break
+            worst = min(c.found.margin for c in out)
+            lows, farthest, inner_best = self._bounds(out, pending)
+            added: list[tuple[int, _At]] = []
+            for n, i in enumerate(pending):
+                if lows[n] >= max(worst - tolerance, 0.0) or farthest[n] <= step:
+                    continue
+                a, b = out[i].at, out[i + 1].at
+                k = inner_best(n)
+                added.append((i, self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)))
+            pending = []
+            for shift, (i, at) in enumerate(added):
+                out.insert(i + shift + 1, self.check(at))
+                pending += [i + shift, i + shift + 1]
+        return out
+
+    def at_time(self, t: float) -> _At:
+        """The configuration at ``t`` [s] (between grid samples)."""
+        q = self.evaluate(np.array([t]))[0]
+        points = self.bodies.world(q[None])
+        return _At(t, q, points[0], [m[0] for _, m in self.bodies.keep_in(points)], -1)
+
+    def _bounds(
+        self, out: list[_Checked], pending: list[int]
+    ) -> tuple[np.ndarray, np.ndarray, Callable[[int], int]]:
+        """For the stretches ``out[i]`` to ``out[i + 1]``, ``i`` in ``pending``: the lower
+        bound of the margin [m], the farthest any body can travel between the two ends
+        [m], and a function giving the inner grid sample where the bound is lowest (-1:
+        none)."""
+        G, grid = len(self.grid), self.grid
+        extra: list[_At] = []  # ends between grid samples: appended after the grid
+
+        def row(at: _At) -> int:
+            if at.k >= 0:
+                return at.k
+            extra.append(at)
+            return G + len(extra) - 1
+
+        ra = np.array([row(out[i].at) for i in pending])
+        rb = np.array([row(out[i + 1].at) for i in pending])
+        lo = np.searchsorted(grid, [out[i].at.t for i in pending], side="right")
+        hi = np.searchsorted(grid, [out[i + 1].at.t for i in pending], side="left")
+        counts = hi - lo + 2  # the inner samples and the two ends
+        starts_arr = np.cumsum(counts) - counts
+        last = starts_arr + counts - 1
+        rows = np.repeat(lo - 1 - starts_arr, counts) + np.arange(int(counts.sum()))
+        rows[starts_arr], rows[last] = ra, rb
+        starts = starts_arr.tolist()
+        points, Q, T = self.points, self.Q, grid
+        if extra:
+            points = np.concatenate((points, np.array([e.points for e in extra])))
+            Q = np.concatenate((Q, np.array([e.q for e in extra])))
+            T = np.concatenate((grid, [e.t for e in extra]))
+        at_end = np.stack((np.repeat(ra, counts), np.repeat(rb, counts)))  # (2, R)
+        ts = T[rows]
+        body = self.bodies
+        moved = body.displacement(points[rows][None], points[at_end])  # (2, R, B)
+        moved += (np.abs(Q[rows][None] - Q[at_end]) @ body.moves) * body.radius
+        pair = np.repeat(np.arange(len(pending)), counts)
+        free = np.array([[out[i].free for i in pending], [out[i + 1].free for i in pending]])
+        free = free[:, pair]  # (2, R, B)
+        seg = np.clip(
+            np.searchsorted(self.times, ts[:-1], side="right") - 1, 0, len(self.peaks) - 1
+        )
+        spread = self.speed[seg] * np.diff(ts)[:, None]
+        travel = (moved[:, :-1] + moved[:, 1:] + spread) * 0.5
+        per_interval = (free[:, :-1] - travel).max(axis=0).min(axis=1)
+        across = np.array(starts[1:], dtype=np.int64) - 1  # intervals between stretches
+        per_interval[across] = np.inf
+        lows = np.minimum.reduceat(per_interval, starts)
+        reach = travel[0].max(axis=1)
+        reach[across] = 0.0
+        farthest = np.maximum.reduceat(reach, starts)
+        per_sample = (free - moved).max(axis=0).min(axis=1)
+
+        def inner_best(n: int) -> int:
+            first, stop = starts[n] + 1, int(last[n])
+            if stop <= first:
+                return -1
+            return int(rows[first + int(np.argmin(per_sample[first:stop]))])
+
+        return lows, farthest, inner_best
+
+
+_BODY_POINTS: weakref.WeakKeyDictionary[CollisionModel, BodyPoints] = weakref.WeakKeyDictionary()
+
+
+def _body_points(model: CollisionModel) -> BodyPoints:
+    """The model's :class:`BodyPoints`, built once per model."""
+    found = _BODY_POINTS.get(model)
+    if found is None:
+        found = _BODY_POINTS[model] = BodyPoints(model)
+    return found
+
+
+def _grid(times: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    """Sample times: every knot, and per segment no more than :data:`GRID_M` of any
+    point's travel apart (``speed``: per segment and body, the bound [m/s])."""
+    h = np.diff(times)
+    n = np.maximum(1, np.ceil(speed.max(axis=1) * h / GRID_M)).astype(np.int64)
+    segment = np.repeat(np.arange(len(h)), n)
+    within = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1  # 1..n
+    inner = times[segment] + h[segment] * (within / n[segment])
+    inner[np.cumsum(n) - 1] = times[1:]  # the knots exactly
+    return np.concatenate((times[:1], inner))
 
 
 def straight_motion_problem(

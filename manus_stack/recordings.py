@@ -23,7 +23,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from manus.viapoints import load_path
+from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -105,7 +105,8 @@ def record_thesis_runs(
     arm.start()
     result = None
     for i, shape in enumerate(shapes):
-        request = PlanRequest(path=load_path(PATHS / f"thesis_{shape}.txt"))
+        name = f"paths/thesis_{shape}.txt"  # not the checkout's path: the same in any clone
+        request = PlanRequest(path=parse_viapoints((PATHS.parent / name).read_text(), name))
         arm.ls.publish(ep.PLAN.trace("request"), request)
         reply: PlanReply = planner.plan(request)
         arm.ls.publish(ep.PLAN.trace("reply"), reply)

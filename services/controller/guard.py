@@ -12,9 +12,9 @@ allowed, so an arm that starts too close can still leave.
 
 Most cycles compute no distance at all: from the last configuration whose distances
 were computed (the anchor), no point of the arm can have moved further than its joint
-moves times each joint's reach, and while that bound stays under the anchor's margin
-nothing can be violated (conservative advancement, as in
-:func:`manus.sweep.sweep`).
+moves times each joint's reach (grown by the joints beyond it), and while that bound
+stays under each body's margin at the anchor nothing can be violated (conservative
+advancement, as in :func:`manus.sweep.sweep`).
 
 Pure: no clock, no I/O; the same inputs give the same commands.
 """
@@ -58,10 +58,9 @@ class Verdict(NamedTuple):
 class _Anchor(NamedTuple):
     q: list[float]
     """where the distances were computed [rad]"""
-    free: list[float]
-    """margins of the bodies that have something to keep clear of [m]"""
-    radius: list[list[float]]
-    """per body, each joint's reach to it plus its margin [m]"""
+    bodies: list[tuple[float, list[float]]]
+    """per body that has something to keep clear of: its margin [m] and each joint's
+    reach to it, from the last joint inward [m]"""
     margin: float
 
 
@@ -170,21 +169,40 @@ class Guard:
         best, free, reach = self.model.probe(q)
         self.computed += 1
         bound = np.isfinite(free)
-        radius = (reach[:, bound] + free[bound]).T.tolist()
-        self._anchor = _Anchor(q.tolist(), free[bound].tolist(), radius, best.margin)
+        levers = reach[::-1, bound].T.tolist()  # per body, joints 6..1
+        bodies = list(zip(free[bound].tolist(), levers, strict=True))
+        self._anchor = _Anchor(q.tolist(), bodies, best.margin)
         return _AnchorResult(best.margin, best)
 
     def _proven_clear(self, *qs: list[float]) -> bool:
         """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
-        body closer to the anchor than its margin there."""
+        body closer to the anchor than its margin there.
+
+        A point moves at most ``sum_j |dq_j| r_j`` with ``r_j`` its largest distance from
+        joint ``j``'s axis on the way, which only the joints beyond ``j`` change: ``r_j
+        <= reach_j + sum_{k>j} |dq_k| r_k`` (:func:`manus.sweep` bounds the same way).
+        Plain floats, unrolled: this runs every cycle.
+        """
         a = self._anchor
-        if a is None or not all(f > 0.0 for f in a.free):
+        if a is None:
             return False
-        box = [max(abs(q[j] - a.q[j]) for q in qs) for j in range(len(a.q))]
-        return all(
-            sum(b * r for b, r in zip(box, radius, strict=True)) < free
-            for radius, free in zip(a.radius, a.free, strict=True)
-        )
+        aq = a.q
+        box = [abs(x - y) for x, y in zip(qs[0], aq, strict=True)]
+        for q in qs[1:]:
+            box = [max(b, abs(x - y)) for b, x, y in zip(box, q, aq, strict=True)]
+        b0, b1, b2, b3, b4, b5 = box
+        for free, (r5, r4, r3, r2, r1, r0) in a.bodies:
+            if free <= 0.0:
+                return False
+            grown = b5 * r5
+            grown += b4 * (r4 + grown)
+            grown += b3 * (r3 + grown)
+            grown += b2 * (r2 + grown)
+            grown += b1 * (r1 + grown)
+            grown += b0 * (r0 + grown)
+            if grown >= free:
+                return False
+        return True
 
 
 class _AnchorResult(NamedTuple):

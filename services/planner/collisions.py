@@ -1,8 +1,9 @@
 """The planner's collision check: every trajectory it returns, against the scene.
 
-The whole curve (after any time stretching) is swept by
-:func:`manus.sweep.sweep`: samples no more than 10 mm of any point's
-travel apart, skipping only where the margins prove no gap can close. A violation
+The whole curve (after any time stretching) is swept by :func:`manus.sweep.sweep`:
+distances at a few configurations, and bounds of how far each body can have travelled
+that prove the stretches in between (a violation shallower than 2 mm can hide only in
+a stretch shorter than that; the smallest clearance is within 10 mm). A violation
 refuses the plan as ``collision``, naming the segment (its via points and lines), the
 time, the arm body, the object and the distance; otherwise the smallest clearance goes
 into the trajectory.

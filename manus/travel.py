@@ -1,0 +1,117 @@
+"""How far the arm's bodies travel: their cover points over many configurations at once.
+
+:func:`manus.sweep.sweep` proves stretches of a motion clear by bounding how far any
+point of each body can have moved since the last configuration whose distances were
+computed. :class:`BodyPoints` gives it what that takes, vectorised over all the motion's
+grid samples in one go: the bodies' cover points (:func:`manus.shapes.cover`: points
+and a radius whose hull holds the body) in the base frame, each moving body's margin to
+the keep-in zones, and the per-body bounds below.
+
+A rigid motion moves a body's point ``c + u`` (``c`` a cover point, ``|u| <=`` its
+radius) by ``d(c) + (R - I) u``: at most the cover point's own displacement plus the
+body's rotation angle times the radius, and the rotation angle is at most the sum of the
+joint deltas of the joints that move the body. The displacement is convex in the point,
+so a body's largest displacement is at its cover points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from manus.collision import Check, CollisionModel
+from manus.shapes import inner_distances
+
+
+class BodyPoints:
+    """The moving bodies of ``model`` as cover points, batched over configurations.
+
+    Args:
+        model: the collision model (its bodies, keep-in zones and joint placements).
+    """
+
+    def __init__(self, model: CollisionModel) -> None:
+        self.model = model
+        pm = model.model
+        self._placements = [pm.jointPlacements[j].homogeneous for j in range(pm.njoints)]
+        self._parents = [int(pm.parents[j]) for j in range(pm.njoints)]
+        self._groups = model._rows_by_joint
+        self._points = model._points
+        self._points1 = np.c_[self._points, np.ones(len(self._points))]
+        self._radii = model._radii
+        self._starts = model._body_starts
+        self.moving = np.array(model._moving)
+        """Indices into ``model.shapes`` of the bodies the joints move, shape (B,)."""
+        self.names = [model.shapes[i].name for i in model._moving]
+        joint_of = np.array([model.geom.geometryObjects[i].parentJoint for i in model._moving])
+        self.moves = np.array(
+            [joint_of >= j for j in range(1, pm.njoints)], dtype=float
+        )  # (6, B): 1 where joint j moves body b
+        self.radius = np.maximum.reduceat(self._radii, self._starts)[self.moving]
+        """Largest cover radius of each moving body [m], shape (B,)."""
+        self.levers = self._levers(joint_of)
+        """Per joint and moving body, the farthest any point of the body can ever be
+        from the joint's origin [m], shape (6, B) (0: the joint does not move it)."""
+
+    def world(self, Q: np.ndarray) -> np.ndarray:
+        """Cover points in the base frame at each configuration ``Q`` [rad], shape
+        (G, 6) -> (G, n, 3) [m] (the same as Pinocchio's placements)."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        G = len(Q)
+        c, s = np.cos(Q.T), np.sin(Q.T)  # (6, G)
+        # Frames as (4, 4, G): the configurations last, so every step is a few long,
+        # contiguous rows (or 4 x 4 matrix products over them).
+        frames = [np.repeat(self._placements[0][:, :, None], G, axis=2)]
+        for j in range(1, len(self._placements)):
+            # (parent @ placement), row by row, then the turn about z by columns.
+            A = np.matmul(self._placements[j].T, frames[self._parents[j]])
+            F = np.empty_like(A)
+            F[:, 0] = A[:, 0] * c[j - 1] + A[:, 1] * s[j - 1]
+            F[:, 1] = A[:, 1] * c[j - 1] - A[:, 0] * s[j - 1]
+            F[:, 2:] = A[:, 2:]
+            frames.append(F)
+        out = np.empty((len(self._points), 3, G))
+        for j, rows in self._groups:
+            out[rows] = np.matmul(self._points1[rows], frames[j][:3]).transpose(1, 0, 2)
+        return np.ascontiguousarray(out.transpose(2, 0, 1))
+
+    def keep_in(self, world: np.ndarray) -> list[tuple[Check, np.ndarray]]:
+        """Per keep-in zone: its check (no body named) and each moving body's margin to
+        it [m] at each configuration, shape (G, B) (inf: a body the zone does not hold);
+        ``world`` from :meth:`world`."""
+        out = []
+        G, n = world.shape[:2]
+        for check, zone, rows in self.model._keep_in:
+            inner = np.full((G, n), np.inf)
+            held = world if len(rows) == n else world[:, rows]
+            inside = inner_distances(zone, held.reshape(-1, 3)).reshape(G, len(rows))
+            inner[:, rows] = inside - self._radii[rows] - check.required
+            out.append((check, np.minimum.reduceat(inner, self._starts, axis=1)[:, self.moving]))
+        return out
+
+    def displacement(self, points: np.ndarray, start: np.ndarray) -> np.ndarray:
+        """Per moving body, how far its farthest cover point is from where it was in
+        ``start`` (n, 3), at each of ``points`` (K, n, 3) [m], shape (K, B) (or any
+        leading shapes that broadcast)."""
+        d = points - start
+        squared = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
+        return self.farthest(np.sqrt(squared))
+
+    def farthest(self, distances: np.ndarray) -> np.ndarray:
+        """Per moving body, the largest of ``distances`` over its cover points, shape
+        (..., n) -> (..., B)."""
+        return np.asarray(np.maximum.reduceat(distances, self._starts, axis=-1)[..., self.moving])
+
+    def _levers(self, joint_of: np.ndarray) -> np.ndarray:
+        """The joint placements' lengths from joint ``j`` out to the body, plus the body's
+        own farthest cover point and radius (configuration-independent)."""
+        pm = self.model.model
+        lengths = [
+            float(np.linalg.norm(pm.jointPlacements[k].translation)) for k in range(pm.njoints)
+        ]
+        extent = np.linalg.norm(self._points, axis=1) + self._radii
+        own = np.maximum.reduceat(extent, self._starts)[self.moving]
+        out = np.zeros((pm.njoints - 1, len(self.moving)))
+        for b, joint in enumerate(joint_of):
+            for j in range(1, joint + 1):
+                out[j - 1, b] = sum(lengths[j + 1 : joint + 1]) + own[b]
+        return out
