@@ -212,3 +212,31 @@ def test_a_killed_controller_stops_the_fold_and_the_task_fails_naming_it() -> No
     assert _stop_ms(rig.ls) <= 2 * CYCLE_MS
     assert rig.seq.state == "failed"
     assert "phase stopped" in rig.seq.reason and "controller" in rig.seq.reason, rig.seq.reason
+
+
+def test_a_late_joint_state_is_judged_one_cycle_after_the_one_before_it() -> None:
+    """The arm's side starved (a joint state 250 ms after the one before it) while every
+    state was echoed: no echo of the late state can exist yet, so it is no lost
+    heartbeat; when the echoes stop, the fold stops at the same state as without it."""
+    from services.can_bridge.fold_deadman import FoldDeadman
+
+    ms = 1_000_000
+    late = FoldDeadman(heartbeat_timeout_s=0.1, missed_to_stop=5)
+    stamps = [0, 60, 120, 370, 430]  # 370: 250 ms late
+    echoes = [None, 0, 60, 120, 370]
+    assert [late.on_joint_state(t * ms, k, e if e is None else e * ms)
+            for k, (t, e) in enumerate(zip(stamps, echoes, strict=True))] == [None] * 5  # fmt: skip
+    # the echoes stop after 430: stopped at the second state after it, as on time
+    assert late.on_joint_state(490 * ms, 5, 430 * ms) is None
+    assert late.on_joint_state(550 * ms, 6, 430 * ms) is not None
+    # a late state whose predecessor went unechoed still stops the fold
+    cut = FoldDeadman(heartbeat_timeout_s=0.1, missed_to_stop=5)
+    assert cut.on_joint_state(0, 0, None) is None
+    assert cut.on_joint_state(60 * ms, 1, 0) is None
+    why = cut.on_joint_state(310 * ms, 2, 0)
+    assert why is not None and "120 ms before joint state seq 2" in why
+    # more than 5 cycles without a joint state (a bridge held up): stopped whatever echoes
+    held = FoldDeadman(heartbeat_timeout_s=0.1, missed_to_stop=5)
+    assert held.on_joint_state(0, 0, None) is None
+    why = held.on_joint_state(400 * ms, 1, 0)
+    assert why is not None and why.startswith("no joint state for 400 ms")

@@ -10,7 +10,12 @@ the link to it, or the controller is gone. A fold requested with
 - the supervisor: at every joint state, the newest ``Heartbeat`` (the sequencer's echo of
   each joint state it receives) must echo a state no older than ``heartbeat_timeout``
   (before any echo: the fold's first joint state), judged on the joint states' stamps so
-  a replay judges the same. Beyond it the fold stops.
+  a replay judges the same. Beyond it the fold stops. A late joint state (the arm's side
+  starved: more than a cycle after the one before it) is judged as if it had come one
+  cycle after it: no echo of it can exist yet (the controller's deadman does the same);
+  a joint state more than ``fold_missed_cycles_to_stop`` cycles after the one before it
+  (the bridge held up, a SIGSTOP) stops the fold, as the controller's gap rule aborts
+  its goals.
 - the arm computer itself: at every clean sync, the cycle must have given a joint state
   (a bridge woken from SIGSTOP has none: its backlog is not a joint state) and the
   controller must have answered it (its command fresh by the bridge's rule, whatever it
@@ -25,7 +30,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from manus.protocol import CYCLE_S
+
 NS = 1_000_000_000
+CYCLE_NS = round(CYCLE_S * NS)
 
 
 @dataclass
@@ -37,20 +45,31 @@ class FoldDeadman:
         missed_to_stop: syncs in a row without a live arm computer that stop the fold.
         since_ns: stamp of the fold's first joint state [ns] (None before it).
         missed: such syncs in a row so far.
+        last_ns: stamp of the joint state before [ns] (None before the first).
     """
 
     heartbeat_timeout_s: float
     missed_to_stop: int
     since_ns: int | None = None
     missed: int = 0
+    last_ns: int | None = None
 
     def on_joint_state(self, stamp_ns: int, seq: int, echo_ns: int | None) -> str | None:
         """A joint state the bridge published (``echo_ns``: the stamp the newest heartbeat
         echoes, None: none yet): why the fold must stop (None: it goes on)."""
         if self.since_ns is None:
             self.since_ns = stamp_ns
+        judged_ns, last = stamp_ns, self.last_ns
+        self.last_ns = stamp_ns
+        if last is not None and stamp_ns > last:
+            judged_ns = min(stamp_ns, last + CYCLE_NS)
+            if stamp_ns - last > self.missed_to_stop * CYCLE_NS:  # a bridge held up (SIGSTOP)
+                return (
+                    f"no joint state for {(stamp_ns - last) / 1e6:.0f} ms before seq {seq} "
+                    f"(more than {self.missed_to_stop} cycles: the arm's side was held up)"
+                )
         ref = self.since_ns if echo_ns is None or echo_ns < self.since_ns else echo_ns
-        age_ns = stamp_ns - ref
+        age_ns = judged_ns - ref
         if age_ns <= self.heartbeat_timeout_s * NS:
             return None
         return (
