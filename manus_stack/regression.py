@@ -161,10 +161,40 @@ Window = tuple[int, int]
 EVERYTHING: Window = (-(2**63), 2**63 - 1)
 
 
-def service_window(recording: Recording, service: str) -> Window:
+EARLY_OUTPUT_NS = 100_000_000
+"""How long before its token a service's output may be recorded and still count as its
+first process's (the token goes up once the service listens and answers, milliseconds
+after its first answer, and the recorder hears liveliness on another path than data)."""
+
+
+def service_window(
+    recording: Recording, service: str, inputs: tuple[str, ...] = (), outputs: tuple[str, ...] = ()
+) -> Window:
     """When the first process of ``service`` was alive, by the recorded liveliness
     changes of its ``where`` token (:data:`EVERYTHING` when the recording has none:
-    lock-step recordings, or a recorder older than the liveliness channel)."""
+    lock-step recordings, or a recorder older than the liveliness channel).
+
+    A service announces its token once it listens, so its first outputs can be recorded
+    before the token: then the window starts at the last of its ``inputs`` (its clock:
+    the joint states it answers) recorded before its first ``output``, not at the token.
+    """
+    start, end = _token_window(recording, service)
+    if start == EVERYTHING[0] or not inputs or not outputs:
+        return start, end
+    first_out = next((r.log_ns for r in recording.messages(outputs)), None)
+    if first_out is None or not start - EARLY_OUTPUT_NS <= first_out < start:
+        return start, end  # none before the token, or a life the recording does not show
+    trigger = start
+    for rec in recording.messages(inputs):
+        if rec.log_ns > first_out:
+            break
+        if rec.log_ns >= start - EARLY_OUTPUT_NS:
+            trigger = rec.log_ns
+    return min(trigger, start), end
+
+
+def _token_window(recording: Recording, service: str) -> Window:
+    """:func:`service_window` by the ``where`` token alone."""
     if not any(c.suffix == LIVELINESS for c in recording.info.channels.values()):
         return EVERYTHING
     start, end = EVERYTHING
@@ -267,7 +297,12 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     """Replay the planner's inputs through :class:`PlannerCore` (see the module docstring)."""
     recording = Recording(path)
     core = PlannerCore(config)
-    window = service_window(recording, PLANNER.service)
+    window = service_window(
+        recording,
+        PLANNER.service,
+        (ep.JOINTS,),
+        PLANNER.output_suffixes,  # its clock input
+    )
     outputs = PLANNER.output_suffixes
     cmp = _Comparer(recording, outputs, window)
     window = (window[0], cmp.last_ns)
@@ -293,7 +328,12 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
     recording = Recording(path)
     core = ControllerCore(config)
-    window = service_window(recording, CONTROLLER.service)
+    window = service_window(
+        recording,
+        CONTROLLER.service,
+        (ep.JOINTS,),
+        CONTROLLER.output_suffixes,  # its clock
+    )
     cmp = _Comparer(recording, CONTROLLER.output_suffixes, window)
     window = (window[0], cmp.last_ns)
     inputs = 0

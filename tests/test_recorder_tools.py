@@ -262,6 +262,31 @@ def test_a_live_check_feeds_only_what_came_while_the_first_process_listened(
     assert service_window(Recording(SQUARE), "controller") == EVERYTHING
 
 
+def test_outputs_recorded_before_the_token_start_the_window_at_the_state_they_answer(
+    tmp_path: Path,
+) -> None:
+    """A service announces its token once it listens, and the recorder hears liveliness on
+    another path than data: its first command can be recorded before its token."""
+    src = Recording(SQUARE)
+    start = min(r.log_ns for r in src.messages())
+    first_cmd = min(r.log_ns for r in src.messages(["cmd/joint_velocity"]))
+    answered = max(r.log_ns for r in src.messages(["state/joints"]) if r.log_ns <= first_cmd)
+    early = _live_like(
+        tmp_path / "early.mcap",
+        appear_s=(first_cmd - start) / 1e9 + 0.0005,
+        vanish_s=None,
+        drop_outputs_after_s=1e9,
+    )
+    assert service_window(Recording(early), "controller")[0] > first_cmd  # the token alone
+    window = service_window(
+        Recording(early), "controller", ("state/joints",), CONTROLLER.output_suffixes
+    )
+    assert window[0] == answered
+    result = check_controller(early)
+    assert result.ok, result.difference
+    assert result.compared == check_controller(SQUARE).compared
+
+
 def test_the_window_follows_the_first_process_not_a_restart(tmp_path: Path) -> None:
     out = tmp_path / "restart.mcap"
     with RecordingWriter(out, source="restart") as writer:
