@@ -195,8 +195,8 @@ OPEN: dict[tuple[str, str], str] = {
         for step in (*FOLDS, "gripper")
     },
     **{
-        (kind, "move"): "a stalled recorder seems to stall the router's delivery (blocking "
-        "congestion control): the heartbeat comes late and the move aborts"
+        (kind, "move"): "under CPU load a move can still abort on the 0.1 s deadman (an "
+        "echo over 40 ms late: 5 of 33 moves at load 4, one 0.1 s after a recorder restart)"
         for kind in ("record_sigkill", "record_sigstop")
     },
     **{
