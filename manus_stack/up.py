@@ -48,9 +48,11 @@ LIVELINESS = {
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
-NICE = {"planner": 5, "sequencer": 5, "record": 5, "flight": 5, "view": 10}
-"""Niceness of the services off the 60 ms loop: the simulator, bridge, controller and
-router keep the CPU first when the machine is busy (a late joint state stops a path)."""
+NICE = {"planner": 5, "record": 5, "flight": 5, "view": 10}
+"""Niceness of the services off the 60 ms loop: the simulator, bridge, guardian,
+controller, router and the sequencer keep the CPU first when the machine is busy (a late
+joint state, or a late echo of it, stops a path: the sequencer's heartbeat is on the
+deadman's path; docs/deployment.md, Deadman heartbeat)."""
 
 
 class StackError(ManusError):

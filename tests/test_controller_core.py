@@ -11,7 +11,7 @@ import pytest
 from manus.config import DEFAULT_ARM
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
-from schemas.control import CancelGoal, GripperGoal, SpeedScale, TrajectoryGoal
+from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
 from schemas.state import ArmStatus, BridgeState
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
@@ -262,6 +262,39 @@ def test_long_joint_state_outage_aborts_with_zeros() -> None:
     assert reasons["g"][0] == "aborted" and "joint states interrupted" in reasons["g"][1]
     assert "max_outage_ms 300 ms" in reasons["g"][1]
     assert reasons["grip"][0] == "aborted"
+
+
+def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
+    """A joint state 210 ms after the one before it (a late arm cycle: a gap) whose
+    predecessor was echoed in time keeps the goal; once the echoes stop, the goal aborts
+    at the same state as it would without the late one: the first whose predecessor
+    went unechoed."""
+
+    def cycle(plant: Plant, late_ms: int = 0, echo: bool = True) -> None:
+        plant.t_ns += late_ms * MS
+        plant.cycle()
+        js = plant.states[-1]
+        if echo:
+            hb = Heartbeat(stamp_ns=js.stamp_ns, seq=js.seq, source="test", ref_seq=js.seq,
+                           ref_stamp_ns=js.stamp_ns)  # fmt: skip
+            plant.core.on_heartbeat(hb)
+
+    for late in (0, 150):
+        plant = _plant()
+        assert plant.core.submit(_goal(heartbeat_timeout=0.1)).accepted
+        for _ in range(10):
+            cycle(plant)
+        cycle(plant, late_ms=150)
+        assert plant.commands[-1].counts == [0] * 8  # the gap's zeros
+        for _ in range(5):
+            cycle(plant)
+        assert plant.results == []
+        cycle(plant, late_ms=late, echo=False)  # the link is cut: no echo from here on
+        assert plant.results == []
+        cycle(plant, echo=False)
+        assert [r.status for r in plant.results] == ["aborted"]
+        assert plant.results[0].reason.startswith("lost the supervisor's heartbeat")
+        assert plant.commands[-1].counts == [0] * 8
 
 
 def test_old_or_duplicate_state_is_not_answered() -> None:

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import io
 import json
+import signal
+import subprocess
+import sys
 from collections import Counter
 from pathlib import Path
 
@@ -18,6 +21,7 @@ from schemas.base import Message
 from schemas.commands import ArmCommand
 from schemas.keys import channel_type
 from services.recorder.errors import RecordingError
+from services.recorder.journal import journal_path
 from services.recorder.reading import Recorded, Recording, decode
 from services.recorder.recover import recover
 from services.recorder.writer import RecordingWriter
@@ -180,3 +184,41 @@ def test_manus_record_recover_command(
     assert Recording(out["output"]).info.messages == out["messages"] > 0
     assert main(["record", "--recover", str(tmp_path / "missing.mcap")]) == 1
     assert "missing.mcap" in capsys.readouterr().err
+
+
+_KILLED = """
+import os, signal, sys
+import msgpack
+from services.recorder.writer import RecordingWriter
+w = RecordingWriter(sys.argv[1], prefix="arm1", journal=True)
+for i in range(200):
+    w.write_payload(f"arm1/k{i % 3}", msgpack.packb({"i": i}), 10**9 + i * 10**7)
+if sys.argv[2] == "flushed":  # the chunk reached the file, the journal was not emptied yet
+    w._writer.flush()
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+@pytest.mark.parametrize("when", ["open", "flushed"])
+def test_a_killed_journalled_recorder_loses_nothing(tmp_path: Path, when: str) -> None:
+    path = tmp_path / "killed.mcap"
+    done = subprocess.run([sys.executable, "-c", _KILLED, str(path), when], check=False)
+    assert done.returncode == -signal.SIGKILL
+    assert journal_path(path).exists()
+    fixed = tmp_path / "fixed.mcap"
+    stats = recover(path, fixed)
+    rescued = list(Recording(fixed).messages())
+    assert stats.messages == len(rescued) == 200
+    assert sorted(r.log_ns for r in rescued) == [10**9 + i * 10**7 for i in range(200)]
+    assert {r.key for r in rescued} == {"arm1/k0", "arm1/k1", "arm1/k2"}
+    assert (stats.from_journal > 0) == (when == "open")
+
+
+def test_a_closed_recording_leaves_no_journal(tmp_path: Path, published: Published) -> None:
+    path = tmp_path / "closed.mcap"
+    with RecordingWriter(path, journal=True) as writer:
+        for t, suffix, msg in published:
+            writer.write(suffix, msg, t)
+        assert journal_path(path).exists()
+    assert not journal_path(path).exists()
+    assert Recording(path).info.messages == len(published)

@@ -155,6 +155,21 @@ def completeness(
     return Completeness(expected, sum(lost.values()), dict(sorted(lost.items())))
 
 
+def token_gaps(changes: Iterable[tuple[int, bool]]) -> list[tuple[int, int]]:
+    """[vanished, back] [ns] of one liveliness token from its changes (time, up) in the
+    order seen; a token still gone at the end is gone until 2**63 - 1."""
+    gaps, down = [], None
+    for t, up in changes:
+        if not up and down is None:
+            down = t
+        elif up and down is not None:
+            gaps.append((down, t))
+            down = None
+    if down is not None:
+        gaps.append((down, 2**63 - 1))
+    return gaps
+
+
 def seq_gaps(
     records: Iterable[tuple[str, int, int]], windows: Sequence[tuple[int, int]]
 ) -> dict[str, int]:

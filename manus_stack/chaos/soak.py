@@ -47,9 +47,11 @@ LATCHED = ("arm_error", "stopped", "estopped")
 
 @dataclass
 class Life:
-    """One recorder process: its file and when it was alive [wall ns] (end 0: to the end)."""
+    """One recorder process: its file, its pid and when it was alive [wall ns] (end 0: to
+    the end): from its ``where`` token's appearance (it subscribes before it declares it)."""
 
     path: Path
+    pid: int
     start_ns: int
     end_ns: int = 0
     killed: bool = False
@@ -155,7 +157,7 @@ class Soak:
         """Bring the stack up (as ``manus up`` does) and the soak's node."""
         self.t0 = time.time_ns()
         self.stack.start(timeout=90.0)
-        self.lives.append(Life(self.options.recording, self.t0))
+        self.lives.append(Life(self.options.recording, self._child("record").proc.pid, self.t0))
         self.watcher = Watcher(client_settings(self.options.endpoint, prefix="chaos"))
         if not self._wait(lambda: self.w.phase() == "running", 60.0):
             raise RuntimeError("the bridge did not reach phase running in 60 s")
@@ -234,7 +236,8 @@ class Soak:
             else:
                 os.kill(child.proc.pid, signal.SIGCONT)
                 if fault.target == "record":
-                    self.lives[-1].pauses.append((done.fault_ns, self._recorder_back()))
+                    back = self._recorder_back(child.proc.pid)
+                    self.lives[-1].pauses.append((done.fault_ns, back))
         elif fault.action is Action.SIM:
             try:
                 reply = self._query(
@@ -282,12 +285,17 @@ class Soak:
             self._respawn(child)
             return
         path = self.run_dir / f"recording-{len(self.lives)}.mcap"
-        self._respawn(child, ["--output", str(path)])
-        self.lives.append(Life(path, self._recorder_back()))
+        started = time.time_ns()
+        new = self._respawn(child, ["--output", str(path)])
+        back = self._recorder_back(new.proc.pid)
+        self.lives.append(Life(path, new.proc.pid, back))
+        self._say(f"recorder pid {new.proc.pid} on the bus {(back - started) / 1e9:.2f} s after")
 
-    def _recorder_back(self) -> int:
-        """Wait (10 s at most) for the recorder's token; when it is up again [wall ns]."""
-        self._wait(lambda: "recorder" in self.w.node.alive_services(timeout=0.3), 10.0, 0.1)
+    def _recorder_back(self, pid: int) -> int:
+        """Wait (10 s at most) for the recorder process ``pid`` to be on the bus (its
+        ``where`` token: ``alive/recorder`` is the flight recorder's too, which never
+        left); when it is back [wall ns]."""
+        self._wait(lambda: self.w.on_bus("recorder", pid), 10.0, 0.01)
         return time.time_ns()
 
     def _clear_latched(self) -> None:
@@ -470,21 +478,13 @@ class Soak:
         if judge.first_motion(truth, sim(done.ready_ns), sim(done.next_submit_ns)) is not None:
             violated(done, "moved by itself after the recovery, before the next task")
 
-    def _token_gaps(self, service: str) -> list[tuple[int, int]]:
-        """When the soak's node saw ``service``'s token gone, [vanished, back] [wall ns]
-        (a router restart cuts every token: the recorder is not on the bus then)."""
+    def _token_gaps(self, service: str, pid: int) -> list[tuple[int, int]]:
+        """When the soak's node saw the ``where`` token of ``service``'s process ``pid``
+        gone, [vanished, back] [wall ns] (a router restart cuts every token, a stopped
+        process loses its link once its lease expires: the recorder is not on the bus)."""
         with self.w.seen.lock:
-            changes = [(t, up) for name, up, t in self.w.seen.alive if name == service]
-        gaps, down = [], None
-        for t, up in changes:
-            if not up and down is None:
-                down = t
-            elif up and down is not None:
-                gaps.append((down, t))
-                down = None
-        if down is not None:
-            gaps.append((down, 2**63 - 1))
-        return gaps
+            where = list(self.w.seen.where)
+        return judge.token_gaps([(t, up) for s, p, up, t in where if (s, p) == (service, pid)])
 
     def _completeness(self) -> judge.Completeness:
         recorded: set[tuple[str, bytes]] = set()
@@ -502,7 +502,7 @@ class Soak:
                     self._say(f"cannot recover {path}: {exc}")
                     continue
             windows += _cut(
-                life.start_ns, life.end_ns, [*life.pauses, *self._token_gaps("recorder")]
+                life.start_ns, life.end_ns, [*life.pauses, *self._token_gaps("recorder", life.pid)]
             )
             process_windows += _cut(life.start_ns, life.end_ns, life.pauses)
             with contextlib.suppress(Exception):

@@ -7,7 +7,10 @@
 - each ``sim/truth`` (the simulator's clock and true joint angles) with its receive time,
   which also gives the offset from wall clock to simulator clock;
 - the sequencer's task events and the bridge's states;
-- every liveliness change (service, up, wall ns);
+- every liveliness change (service, up, wall ns), and every change of a process's
+  ``where`` token (service, pid, up, wall ns): two processes declare ``alive/recorder``
+  (the recorder and the flight recorder), so only the ``where`` token says when *the*
+  recorder is on the bus;
 - the final events it learnt from ``sequencer/history`` rather than on the bus: like any
   client (docs/architecture.md, Learning how a task ended), once the sequencer's token is
   back after vanishing it reads the tasks' records for a while, and a final event that
@@ -46,6 +49,7 @@ class Seen:
     events: list[TaskEvent] = field(default_factory=list)
     bridge: list[BridgeState] = field(default_factory=list)
     alive: list[tuple[str, bool, int]] = field(default_factory=list)
+    where: list[tuple[str, int, bool, int]] = field(default_factory=list)
     recovered: dict[str, TaskEvent] = field(default_factory=dict)
 
 
@@ -75,6 +79,7 @@ class Watcher:
         self._reader = threading.Thread(target=self._read_history, name="chaos-history")
         self._reader.start()
         self.node.watch_liveliness(self._on_alive)
+        self.node.watch_tokens(keys.where_all, self._on_where)
 
     def _on_sample(self, sample: zenoh.Sample, rx_ns: int) -> None:
         if sample.kind != zenoh.SampleKind.PUT:
@@ -108,6 +113,18 @@ class Watcher:
             if self._sequencer_seen:  # back after vanishing
                 self._recover_until = time.monotonic() + RECOVER_S
             self._sequencer_seen = True
+
+    def _on_where(self, key: str, up: bool, rx_ns: int) -> None:
+        parts = self.node.keys.suffix(key).split("/")  # where/<service>/<host>/<pid>
+        if len(parts) == 4 and parts[3].isdigit():
+            with self.seen.lock:
+                self.seen.where.append((parts[1], int(parts[3]), up, rx_ns))
+
+    def on_bus(self, service: str, pid: int) -> bool:
+        """Whether the process ``pid``'s ``where`` token for ``service`` is up now."""
+        with self.seen.lock:
+            changes = [up for name, p, up, _ in self.seen.where if (name, p) == (service, pid)]
+        return bool(changes) and changes[-1]
 
     def _read_history(self) -> None:
         """Every 0.5 s while :data:`RECOVER_S` has not passed since the sequencer's

@@ -18,7 +18,10 @@ Contract (docs/architecture.md, Time; Freshness and safety rules):
   newest joint state its sender received; at every joint state the age of the newest echo
   (or of the goal's first joint state, before any) is judged on the bridge's stamps, and
   beyond the timeout every goal aborts ("lost the supervisor's heartbeat ...") with
-  zeros. Nothing restarts by itself when heartbeats return.
+  zeros. Nothing restarts by itself when heartbeats return. The echo of a state cannot
+  come before the state, so a late state (a gap: answered with zeros) is judged as if it
+  had come one cycle after the one before it: the deadman judges the link, the gap rules
+  the arm's side.
 - Live control (jog, :mod:`.jog`): the newest ``JogCommand`` drives the arm while no
   trajectory runs; a moving one preempts every goal (reason starting
   :data:`~schemas.jog.USER_TOOK_OVER`), goals are refused while it moves, and the same
@@ -125,6 +128,9 @@ class ControllerCore:
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
+        self.deadman_at_ns = 0
+        """When the deadman judges the newest echo's age [ns, bridge stamps]: the joint
+        state's stamp, or one cycle after the state before it if that is sooner."""
         self.jog = Jog(cfg)
         """Live control: the jog stream, its level and its reference."""
 
@@ -291,7 +297,7 @@ class ControllerCore:
         ref = since_ns
         if self.heartbeat_ref_ns is not None and self.heartbeat_ref_ns > ref:
             ref = self.heartbeat_ref_ns
-        age_ns = js.stamp_ns - ref
+        age_ns = self.deadman_at_ns - ref
         if age_ns <= limit * 1e9:
             return None
         return (
@@ -359,6 +365,9 @@ class ControllerCore:
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
         self.last_js = js
+        self.deadman_at_ns = js.stamp_ns
+        if last is not None and js.stamp_ns > last.stamp_ns:
+            self.deadman_at_ns = min(js.stamp_ns, last.stamp_ns + cfg.cycle_ns)
         usable = js.valid and js.mode == "joint"
         if gap or not usable:
             self._interrupted(js, last, gap, usable)

@@ -31,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--recover",
         metavar="FILE",
-        help="rescue the complete chunks of a crashed recording into -o "
+        help="rescue the complete chunks of a crashed recording, and its journal "
+        "(FILE.open: the chunk that was open), into -o "
         "(default: FILE with .recovered.mcap) and exit",
     )
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
@@ -42,7 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--flush-ms",
         type=float,
         default=DEFAULT_FLUSH_INTERVAL_NS / 1e6,
-        help="close and flush a chunk at least this often [ms]: the most a crash loses",
+        help="close and flush a chunk at least this often [ms]: the most a power loss "
+        "loses (a killed recorder's open chunk is in FILE.open)",
     )
     parser.add_argument(
         "--split-mib", type=float, default=0.0, help="write in parts of this size [MiB] "

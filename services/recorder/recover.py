@@ -3,9 +3,11 @@
 An MCAP file cut short has no summary and usually ends inside a record. :func:`recover`
 walks the records from the start, keeps every complete one (schemas, channels, metadata,
 and chunks whose CRC checks out), stops at the first incomplete or unreadable record, and
-writes what it kept to a new, valid file with a summary. With the recorder's small chunks
-(:data:`~services.recorder.writer.DEFAULT_FLUSH_INTERVAL_NS`), what is lost is the open
-chunk: a fraction of a second.
+writes what it kept to a new, valid file with a summary. The open chunk of a recorder
+killed outright is in its journal (``FILE.open``, :mod:`~services.recorder.journal`,
+written by ``manus record``): its records that the complete part lacks are added (a
+channel first seen there is made again from its key). Without a journal, what is lost is
+the open chunk: up to :data:`~services.recorder.writer.DEFAULT_FLUSH_INTERVAL_NS`.
 """
 
 from __future__ import annotations
@@ -20,8 +22,10 @@ from mcap.records import Channel, Chunk, Message, Metadata, Schema
 from mcap.stream_reader import MAGIC_SIZE, StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
+from schemas.keys import Keys
 from services.recorder.errors import RecordingError
-from services.recorder.writer import LIBRARY
+from services.recorder.journal import journal_path, read_journal
+from services.recorder.writer import LIBRARY, add_channel
 
 _MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEAD = 9  # opcode (1) + length (8)
@@ -38,6 +42,7 @@ class RecoverStats:
         orphans: messages dropped because their channel record was lost.
         lost_bytes: bytes after the last complete record (the incomplete tail).
         end_ns: log time of the last message kept [ns] (0: none).
+        from_journal: messages of those taken from the journal.
     """
 
     messages: int
@@ -46,6 +51,7 @@ class RecoverStats:
     orphans: int
     lost_bytes: int
     end_ns: int
+    from_journal: int = 0
 
 
 def _complete_prefix(data: bytes) -> int:
@@ -71,6 +77,10 @@ class _Copier:
         self.channels: dict[int, int] = {}
         self.messages = self.chunks = self.bad_chunks = self.orphans = 0
         self.end_ns = 0
+        self.schema_ids: dict[str, int] = {}  # name -> new id
+        self.topics: dict[str, int] = {}  # topic -> new channel id
+        self.topic_of: dict[int, str] = {}  # new channel id -> topic
+        self.kept: set[tuple[str, int, int]] = set()  # (topic, sequence, log time)
 
     def take(self, record: object) -> None:
         """One record of the source (a chunk's records one by one, not the chunk)."""
@@ -80,12 +90,15 @@ class _Copier:
                 self.schemas[record.id] = writer.register_schema(
                     record.name, record.encoding, record.data
                 )
+                self.schema_ids.setdefault(record.name, self.schemas[record.id])
         elif isinstance(record, Channel):
             if record.id not in self.channels:
                 sid = self.schemas.get(record.schema_id, 0)
                 self.channels[record.id] = writer.register_channel(
                     record.topic, record.message_encoding, sid, dict(record.metadata)
                 )
+                self.topics.setdefault(record.topic, self.channels[record.id])
+                self.topic_of[self.channels[record.id]] = record.topic
         elif isinstance(record, Message):
             cid = self.channels.get(record.channel_id)
             if cid is None:
@@ -94,6 +107,7 @@ class _Copier:
             writer.add_message(
                 cid, record.log_time, record.data, record.publish_time, record.sequence
             )
+            self.kept.add((self.topic_of[cid], record.sequence, record.log_time))
             self.messages += 1
             self.end_ns = max(self.end_ns, record.log_time)
         elif isinstance(record, Metadata):
@@ -117,6 +131,23 @@ class _Copier:
                     self.take(rec)
         except (McapError, ValueError, EOFError, struct.error):
             pass  # the end of the complete records (or a damaged one): keep what came before
+
+    def take_journal(self, path: Path) -> int:
+        """The journal's messages that are not in the file yet; how many."""
+        prefix, entries = read_journal(path)
+        keys, added = Keys(prefix), 0
+        for e in entries:
+            if (e.key, e.sequence, e.log_ns) in self.kept:
+                continue  # its chunk reached the file before the journal was emptied
+            cid = self.topics.get(e.key)
+            if cid is None:
+                cid = self.topics[e.key] = add_channel(self.writer, self.schema_ids, keys, e.key)
+            self.writer.add_message(cid, e.log_ns, e.payload, e.publish_ns, e.sequence)
+            self.kept.add((e.key, e.sequence, e.log_ns))
+            self.messages += 1
+            self.end_ns = max(self.end_ns, e.log_ns)
+            added += 1
+        return added
 
 
 def recover(src: str | Path, dst: str | Path) -> RecoverStats:
@@ -144,6 +175,9 @@ def recover(src: str | Path, dst: str | Path) -> RecoverStats:
         writer.start(library=LIBRARY + " (recovered)")
         copier = _Copier(writer)
         copier.take_all(reader)
+        journal = journal_path(src)
+        journalled = copier.take_journal(journal) if journal.exists() else 0
         writer.finish()  # type: ignore[no-untyped-call]
     c = copier
-    return RecoverStats(c.messages, c.chunks, c.bad_chunks, c.orphans, len(data) - end, c.end_ns)
+    lost = len(data) - end
+    return RecoverStats(c.messages, c.chunks, c.bad_chunks, c.orphans, lost, c.end_ns, journalled)

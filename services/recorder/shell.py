@@ -91,6 +91,7 @@ class RecorderShell:
                 chunk_size=chunk_size,
                 flush_interval_ns=flush_interval_ns,
                 source="manus record",
+                journal=True,  # a SIGKILL loses nothing: ``recover`` reads FILE.open
             )
         self._keys = keys
         self.filtered = 0

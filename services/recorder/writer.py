@@ -34,6 +34,7 @@ from manus.session import DEFAULT_PREFIX
 from schemas.base import Message
 from schemas.keys import Keys, channel_type
 from services.recorder.errors import RecordingError
+from services.recorder.journal import Journal
 
 PROFILE = ""
 """MCAP profile (none of the well-known ones applies to msgpack channels)."""
@@ -86,6 +87,25 @@ def stamp_of(payload: bytes) -> int | None:
     return None
 
 
+def add_channel(writer: Writer, schemas: dict[str, int], keys: Keys, key: str) -> int:
+    """Register the channel of ``key`` (and its message type's schema, once per name in
+    ``schemas``) with ``writer``; its channel id."""
+    suffix = keys.suffix(key)
+    msg_type = channel_type(suffix)
+    name = msg_type.TYPE_NAME if msg_type is not None else UNKNOWN_SCHEMA
+    sid = schemas.get(name)
+    if sid is None:
+        schema = msg_type.json_schema() if msg_type is not None else UNKNOWN_JSON_SCHEMA
+        data = json.dumps(schema, sort_keys=True).encode()
+        sid = schemas[name] = writer.register_schema(name, SchemaEncoding.JSONSchema, data)
+    return writer.register_channel(
+        topic=key,
+        message_encoding=MessageEncoding.MessagePack,
+        schema_id=sid,
+        metadata={"suffix": suffix},
+    )
+
+
 class RecordingWriter:
     """An MCAP file being written.
 
@@ -97,6 +117,8 @@ class RecordingWriter:
         flush_interval_ns: longest log-time span of a chunk [ns] before it is flushed.
         compression: ``"zstd"`` or ``"none"``.
         source: free text stored in the metadata (e.g. ``manus record``, ``lockstep``).
+        journal: also journal the open chunk to ``FILE.open`` (a file path only), so that
+            ``recover`` loses nothing of a killed recorder (:mod:`.journal`).
     """
 
     def __init__(
@@ -108,6 +130,7 @@ class RecordingWriter:
         flush_interval_ns: int = DEFAULT_FLUSH_INTERVAL_NS,
         compression: str = "zstd",
         source: str = "",
+        journal: bool = False,
     ) -> None:
         if compression not in ("zstd", "none"):
             raise RecordingError(f"compression {compression!r} is not 'zstd' or 'none'")
@@ -134,6 +157,7 @@ class RecordingWriter:
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
         self._writer.add_metadata(METADATA_NAME, {"prefix": prefix, "source": source})
+        self._journal = Journal(self.path, prefix) if journal and self._own else None
         self._flush_interval = flush_interval_ns
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, tuple[int, list[int]]] = {}  # key -> (id, [next seq])
@@ -143,27 +167,10 @@ class RecordingWriter:
 
     # -- channels ------------------------------------------------------------------------
 
-    def _schema_id(self, msg_type: type[Message] | None) -> int:
-        name = msg_type.TYPE_NAME if msg_type is not None else UNKNOWN_SCHEMA
-        sid = self._schemas.get(name)
-        if sid is None:
-            schema = msg_type.json_schema() if msg_type is not None else UNKNOWN_JSON_SCHEMA
-            data = json.dumps(schema, sort_keys=True).encode()
-            sid = self._writer.register_schema(name, SchemaEncoding.JSONSchema, data)
-            self._schemas[name] = sid
-        return sid
-
     def _channel(self, key: str) -> tuple[int, list[int]]:
         entry = self._channels.get(key)
         if entry is None:
-            suffix = self.keys.suffix(key)
-            msg_type = channel_type(suffix)
-            cid = self._writer.register_channel(
-                topic=key,
-                message_encoding=MessageEncoding.MessagePack,
-                schema_id=self._schema_id(msg_type),
-                metadata={"suffix": suffix},
-            )
+            cid = add_channel(self._writer, self._schemas, self.keys, key)
             entry = self._channels[key] = (cid, [0])
             self.stats.channels[key] = ChannelStats()
         return entry
@@ -230,6 +237,8 @@ class RecordingWriter:
             publish_time=publish_time_ns,
             sequence=seq[0],
         )
+        if self._journal is not None:
+            self._journal.add(key, log_time_ns, publish_time_ns, seq[0], payload)
         seq[0] += 1
         if self._chunk_start is None:
             self._chunk_start = log_time_ns
@@ -250,6 +259,8 @@ class RecordingWriter:
         if self._chunk_start is None:
             return
         self._writer.flush()  # type: ignore[no-untyped-call]
+        if self._journal is not None:  # the chunk is the operating system's now
+            self._journal.clear()
         self._chunk_start = None
         self.stats.chunks_flushed += 1
 
@@ -262,6 +273,8 @@ class RecordingWriter:
                 self._stream.close()
             else:
                 self._stream.flush()
+            if self._journal is not None:
+                self._journal.close()
         return self.stats
 
     def __enter__(self) -> RecordingWriter:
