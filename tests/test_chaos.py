@@ -190,9 +190,10 @@ OPEN: dict[tuple[str, str], str] = {
     ("sequencer_sigstop", "*"): "the heartbeat deadman stops 2 cycles + 20 ms after the last "
     "echo: at rest can fall one cycle past the limit (seen once at 180 ms)",
     **{
-        ("sequencer_sigkill", step): "the fold's heartbeat deadman (0.1 s, as a move's) stops "
-        "it 2 cycles + 20 ms after the last echo; at 15 deg/s the drives' lag can put the "
-        "first quiet cycle one cycle past the limit"
+        (kind, step): "the fold's heartbeat deadman (0.15 s: one echo may come a cycle late, "
+        "against false stops under load) stops it 3 cycles + 20 ms after the last echo: at "
+        "rest one or two cycles past the limit"
+        for kind in ("sequencer_sigkill", "router_restart")
         for step in FOLDS
     },
     **{

@@ -588,7 +588,7 @@ def test_a_fold_stopped_by_its_deadman_fails_the_task_with_the_bridge_detail() -
     rig = Rig()
     rig.start(Task(steps=[TaskStep(kind="fold_in")]))
     fold = next(q.request for q in rig.sent if isinstance(q.request, ArmCommand))
-    assert isinstance(fold, ArmCommand) and fold.heartbeat_timeout == pytest.approx(0.1)
+    assert isinstance(fold, ArmCommand) and fold.heartbeat_timeout == pytest.approx(0.15)
     rig.feed(rig.core.on_bridge_state(bridge_state("folding_in", 2), 0))
     detail = "fold_in stopped: no command from the controller answering the newest joint state"
     rig.feed(rig.core.on_bridge_state(bridge_state("stopped", 3, detail), 0))

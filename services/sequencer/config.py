@@ -30,6 +30,11 @@ class SequencerConfig:
             controller goal [s] (0: none). While a task runs the sequencer answers each
             joint state with a ``Heartbeat`` echoing it; the controller stops the arm when
             the newest echo is older than this (docs/deployment.md, Faults).
+        fold_heartbeat_timeout_s: the same deadman for folds, which the bridge drives
+            (``ArmCommand.heartbeat_timeout``) [s] (0: none). 0.15 s: one echo may come a
+            cycle late (seen in CI at a fold's start: echoes 119-144 ms old at load 3,
+            every one in time a cycle later); a lost link stops a fold one cycle (60 ms)
+            later than a move, at the fold's slow fixed speed.
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
         history: how many ended tasks ``sequencer/history`` remembers.
@@ -46,6 +51,7 @@ class SequencerConfig:
     cancel_timeout_s: float = 3.0
     progress_step: float = 0.02
     heartbeat_timeout_s: float = 0.1
+    fold_heartbeat_timeout_s: float = 0.15
     link_timeout_s: float = 0.5
     history: int = 100
     scene: str = ""
@@ -55,11 +61,12 @@ class SequencerConfig:
             value = getattr(self, name)
             if not 0.1 <= value <= 3600.0:
                 raise ConfigError(f"sequencer {name} = {value!r} s is outside 0.1..3600 s")
-        if not 0.0 <= self.heartbeat_timeout_s <= 10.0:
-            raise ConfigError(
-                f"sequencer heartbeat_timeout_s = {self.heartbeat_timeout_s!r} s is outside "
-                "0..10 s (0: no deadman)"
-            )
+        for name in ("heartbeat_timeout_s", "fold_heartbeat_timeout_s"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 10.0:
+                raise ConfigError(
+                    f"sequencer {name} = {value!r} s is outside 0..10 s (0: no deadman)"
+                )
         if not 1 <= self.history <= 10_000:
             raise ConfigError(f"sequencer history = {self.history!r} is outside 1..10000")
         if not 0.1 <= self.link_timeout_s <= 3600.0:

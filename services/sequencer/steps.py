@@ -475,7 +475,7 @@ class FoldStep(Step):
         cmd = ArmCommand(
             action=self.spec.kind,
             source="sequencer",
-            heartbeat_timeout=self.ctx.config.heartbeat_timeout_s,
+            heartbeat_timeout=self.ctx.config.fold_heartbeat_timeout_s,
         )
         return [self.ctx.query(ep.BRIDGE_COMMAND, cmd, ArmCommandReply, wait=True)]
 
