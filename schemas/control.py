@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import Any
 
 from schemas.base import Message, field
 from schemas.collision import ClearanceReport
@@ -56,6 +57,18 @@ RESULT_STATUSES = tuple(ResultStatus)
 GOAL_KINDS = tuple(GoalKind)
 
 
+def _heartbeat_timeout() -> Any:
+    """The deadman field of every goal the controller runs (manus/deadman.py)."""
+    return field(
+        "deadman: abort (zeros) when the newest Heartbeat refers to a joint state older than "
+        "this, judged on joint-state stamps (0: no heartbeat needed)",
+        unit="s",
+        default=0.0,
+        minimum=0.0,
+        maximum=10.0,
+    )
+
+
 @dataclass(frozen=True)
 class TrajectoryGoal(Message):
     """Follow a joint trajectory."""
@@ -91,14 +104,7 @@ class TrajectoryGoal(Message):
     speed_scale: float = field(
         "initial speed scaling (1: as planned)", default=1.0, minimum=0.05, maximum=1.0
     )
-    heartbeat_timeout: float = field(
-        "deadman: abort (zeros) when the newest Heartbeat refers to a joint state older than "
-        "this, judged on joint-state stamps (0: no heartbeat needed)",
-        unit="s",
-        default=0.0,
-        minimum=0.0,
-        maximum=10.0,
-    )
+    heartbeat_timeout: float = _heartbeat_timeout()
 
 
 @dataclass(frozen=True)
@@ -132,14 +138,7 @@ class GripperGoal(Message):
     opening: float = field("target opening", unit="m", minimum=0.0, maximum=0.09)
     tolerance: float = field("done when within this of the target", unit="m", default=0.001)
     timeout: float = field("abort if not reached within this time", unit="s", default=10.0)
-    heartbeat_timeout: float = field(
-        "deadman: abort (zeros) when the newest Heartbeat refers to a joint state older than "
-        "this, judged on joint-state stamps (0: no heartbeat needed)",
-        unit="s",
-        default=0.0,
-        minimum=0.0,
-        maximum=10.0,
-    )
+    heartbeat_timeout: float = _heartbeat_timeout()
 
 
 @dataclass(frozen=True)

@@ -97,6 +97,23 @@ class Rig(TaskLockStep):
         ]
 
 
+def _echoing(arm: ControlledArm) -> Link:
+    """A supervisor that echoes every joint state in a Heartbeat while its link is up."""
+    link = Link()
+    beats = iter(range(1, 1_000_000))
+
+    def supervisor(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
+        assert isinstance(msg, JointState)
+        if not link.up:
+            return []
+        hb = Heartbeat(stamp_ns=t_ns, seq=next(beats), source="test", ref_seq=msg.seq,
+                       ref_stamp_ns=msg.stamp_ns)  # fmt: skip
+        return [("heartbeat", hb)]
+
+    arm.ls.subscribe("state/joints", supervisor)
+    return link
+
+
 @pytest.mark.parametrize("offset_ms", [5, 25, 45])
 def test_cut_link_stops_the_arm_within_two_cycles_and_nothing_resumes(offset_ms: int) -> None:
     rig = Rig()
@@ -162,18 +179,7 @@ def test_deadman_abort_replays_bit_for_bit() -> None:
     through a fresh core gives the same commands and the same abort, bit for bit."""
     arm = ControlledArm(SimConfig(start_pose="unfolded"))
     arm.start()
-    link = Link()
-    beats = iter(range(1, 1_000_000))
-
-    def supervisor(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
-        assert isinstance(msg, JointState)
-        if not link.up:
-            return []
-        hb = Heartbeat(stamp_ns=t_ns, seq=next(beats), source="test", ref_seq=msg.seq,
-                       ref_stamp_ns=msg.stamp_ns)  # fmt: skip
-        return [("heartbeat", hb)]
-
-    arm.ls.subscribe("state/joints", supervisor)
+    link = _echoing(arm)
     trajectory = arm.plan(PATHS / "thesis_square.txt")
     goal = TrajectoryGoal(goal_id="sq", trajectory=trajectory, heartbeat_timeout=0.1)
     assert arm.submit(goal).accepted
@@ -247,18 +253,7 @@ def test_a_gripper_goal_has_the_deadman_too() -> None:
     heartbeats stop, judged on the stamps like a trajectory's; without it, it goes on."""
     arm = ControlledArm(SimConfig(start_pose="unfolded"))
     arm.start()
-    link = Link()
-    beats = iter(range(1, 1_000_000))
-
-    def supervisor(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
-        assert isinstance(msg, JointState)
-        if not link.up:
-            return []
-        hb = Heartbeat(stamp_ns=t_ns, seq=next(beats), source="test", ref_seq=msg.seq,
-                       ref_stamp_ns=msg.stamp_ns)  # fmt: skip
-        return [("heartbeat", hb)]
-
-    arm.ls.subscribe("state/joints", supervisor)
+    link = _echoing(arm)
     goal = GripperGoal(goal_id="g", opening=0.08, heartbeat_timeout=0.1)
     assert arm.query(ep.GRIPPER_GOAL, goal).accepted
     arm.ls.run_for(0.3)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from manus.deadman import echo_too_old, judged_at
 from manus.protocol import CYCLE_S
 
 NS = 1_000_000_000
@@ -59,24 +60,14 @@ class FoldDeadman:
         echoes, None: none yet): why the fold must stop (None: it goes on)."""
         if self.since_ns is None:
             self.since_ns = stamp_ns
-        judged_ns, last = stamp_ns, self.last_ns
-        self.last_ns = stamp_ns
-        if last is not None and stamp_ns > last:
-            judged_ns = min(stamp_ns, last + CYCLE_NS)
-            if stamp_ns - last > self.missed_to_stop * CYCLE_NS:  # a bridge held up (SIGSTOP)
-                return (
-                    f"no joint state for {(stamp_ns - last) / 1e6:.0f} ms before seq {seq} "
-                    f"(more than {self.missed_to_stop} cycles: the arm's side was held up)"
-                )
-        ref = self.since_ns if echo_ns is None or echo_ns < self.since_ns else echo_ns
-        age_ns = judged_ns - ref
-        if age_ns <= self.heartbeat_timeout_s * NS:
-            return None
-        return (
-            f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
-            f"{age_ns / 1e6:.0f} ms before joint state seq {seq}, more than heartbeat_timeout "
-            f"{self.heartbeat_timeout_s * 1000:.0f} ms"
-        )
+        last, self.last_ns = self.last_ns, stamp_ns
+        if last is not None and stamp_ns - last > self.missed_to_stop * CYCLE_NS:
+            return (  # a bridge held up (SIGSTOP)
+                f"no joint state for {(stamp_ns - last) / 1e6:.0f} ms before seq {seq} "
+                f"(more than {self.missed_to_stop} cycles: the arm's side was held up)"
+            )
+        judged = judged_at(stamp_ns, last, CYCLE_NS)
+        return echo_too_old(judged, seq, self.since_ns, echo_ns, self.heartbeat_timeout_s)
 
     def on_sync(self, state_this_cycle: bool, controller_fresh: bool) -> tuple[bool, str | None]:
         """A clean sync: (send the fold frame, why the fold must stop or None).

@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from manus.deadman import echo_too_old, judged_at
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
@@ -294,17 +295,8 @@ class ControllerCore:
     def _echo_too_old(self, js: JointState, limit: float, since_ns: int) -> str | None:
         """Why a goal with ``heartbeat_timeout`` ``limit`` [s], judged from the joint state
         stamped ``since_ns``, must stop at ``js`` (None: it need not)."""
-        ref = since_ns
-        if self.heartbeat_ref_ns is not None and self.heartbeat_ref_ns > ref:
-            ref = self.heartbeat_ref_ns
-        age_ns = self.deadman_at_ns - ref
-        if age_ns <= limit * 1e9:
-            return None
-        return (
-            f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
-            f"{age_ns / 1e6:.0f} ms before joint state seq {js.seq}, more than "
-            f"heartbeat_timeout {limit * 1000:.0f} ms (stopped; nothing resumes by itself)"
-        )
+        lost = echo_too_old(self.deadman_at_ns, js.seq, since_ns, self.heartbeat_ref_ns, limit)
+        return None if lost is None else f"{lost} (stopped; nothing resumes by itself)"
 
     def _active(self) -> bool:
         goals = self.pending is not None or self.run is not None or self.gripper is not None
@@ -365,9 +357,9 @@ class ControllerCore:
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
         self.last_js = js
-        self.deadman_at_ns = js.stamp_ns
-        if last is not None and js.stamp_ns > last.stamp_ns:
-            self.deadman_at_ns = min(js.stamp_ns, last.stamp_ns + cfg.cycle_ns)
+        self.deadman_at_ns = judged_at(
+            js.stamp_ns, None if last is None else last.stamp_ns, cfg.cycle_ns
+        )
         usable = js.valid and js.mode == "joint"
         if gap or not usable:
             self._interrupted(js, last, gap, usable)

@@ -1,0 +1,46 @@
+"""The supervisor's deadman, judged the same wherever the arm is driven: by the controller
+for moves and gripper goals, by the bridge for folds (docs/architecture.md, Freshness and
+safety rules).
+
+The supervisor (the sequencer) echoes every joint state it receives in a ``Heartbeat``.
+At each joint state the newest echo must refer to a state no older than the goal's
+``heartbeat_timeout``, judged on the joint states' stamps (the bridge's clock), so a
+replay judges the same. Two pure functions, so both services hold the rule once.
+"""
+
+from __future__ import annotations
+
+
+def judged_at(stamp_ns: int, last_ns: int | None, cycle_ns: int) -> int:
+    """When a joint state stamped ``stamp_ns`` is judged [ns]: its stamp, or one cycle
+    after the state before it (stamped ``last_ns``; None: none) if that is sooner. No
+    echo of a late state (the arm's side starved of CPU) can exist yet, and a late arm
+    cycle is the gap rules' business, not the link's."""
+    if last_ns is None or stamp_ns <= last_ns:
+        return stamp_ns
+    return min(stamp_ns, last_ns + cycle_ns)
+
+
+def echo_too_old(
+    judged_ns: int, seq: int, since_ns: int, echo_ns: int | None, timeout_s: float
+) -> str | None:
+    """Why the goal must stop at the joint state ``seq`` judged at ``judged_ns`` (None: it
+    need not).
+
+    Args:
+        judged_ns: :func:`judged_at` of the joint state [ns].
+        seq: its sequence number (for the message).
+        since_ns: stamp of the goal's first joint state [ns]: the reference until an echo
+            newer than it arrives.
+        echo_ns: stamp of the joint state the newest heartbeat echoes [ns] (None: none).
+        timeout_s: the goal's ``heartbeat_timeout`` [s], > 0.
+    """
+    ref = since_ns if echo_ns is None or echo_ns < since_ns else echo_ns
+    age_ns = judged_ns - ref
+    if age_ns <= timeout_s * 1e9:
+        return None
+    return (
+        f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
+        f"{age_ns / 1e6:.0f} ms before joint state seq {seq}, more than heartbeat_timeout "
+        f"{timeout_s * 1000:.0f} ms"
+    )
