@@ -397,7 +397,8 @@ class CollisionModel:
         out = []
         for check, zone, rows in self._keep_in:
             inner = self._outside.copy()
-            inner[rows] = inner_distances(zone, world[rows]) - self._radii[rows] - check.required
+            inside = inner_distances(zone, world[rows].T)
+            inner[rows] = inside - self._radii[rows] - check.required
             k = int(np.argmin(inner))
             body = self.shapes[int(self._point_body[k])].name
             per_body = np.minimum.reduceat(inner, self._body_starts)[self._moving]

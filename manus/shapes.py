@@ -38,23 +38,28 @@ def cover(shape: Shape) -> tuple[np.ndarray, float]:
     return np.array(corners), 0.0
 
 
-def inner_distances(zone: Primitive, points: np.ndarray) -> np.ndarray:
-    """Distance from each of ``points`` (k, 3) to the boundary of the convex ``zone``,
-    negative outside [m], shape (k,) (zone placed in the base frame)."""
+def inner_distances(zone: Primitive, xyz: np.ndarray) -> np.ndarray:
+    """Distance from each point to the boundary of the convex ``zone``, negative outside
+    [m] (zone placed in the base frame).
+
+    Args:
+        xyz: the points, coordinates first: shape (3, ...) (any number of points in any
+            shape: one array per coordinate keeps every step on long contiguous rows).
+
+    Returns:
+        shape ``xyz.shape[1:]``.
+    """
     T = zone.pose
-    local = (points - T[:3, 3]) @ T[:3, :3]
+    d = [xyz[i] - T[i, 3] for i in range(3)]
+    x, y, z = (d[0] * T[0, c] + d[1] * T[1, c] + d[2] * T[2, c] for c in range(3))
     if zone.shape == "box":
-        half = np.asarray(zone.size) / 2.0
-        inner = half - np.abs(local)
-        # Column by column: numpy's reduction over a short last axis is slow.
-        return np.asarray(np.minimum(np.minimum(inner[:, 0], inner[:, 1]), inner[:, 2]))
+        hx, hy, hz = (s / 2.0 for s in zone.size)
+        return np.asarray(np.minimum(np.minimum(hx - np.abs(x), hy - np.abs(y)), hz - np.abs(z)))
     if zone.shape == "sphere":
-        return np.asarray(zone.size[0] - np.linalg.norm(local, axis=1))
+        return np.asarray(zone.size[0] - np.sqrt(x * x + y * y + z * z))
     radius, length = zone.size
     if zone.shape == "cylinder":
-        radial = radius - np.hypot(local[:, 0], local[:, 1])
-        axial = length / 2.0 - np.abs(local[:, 2])
-        return np.asarray(np.minimum(radial, axial))
+        return np.asarray(np.minimum(radius - np.hypot(x, y), length / 2.0 - np.abs(z)))
     # capsule: distance to the axis segment
-    z = np.clip(local[:, 2], -length / 2.0, length / 2.0)
-    return np.asarray(radius - np.linalg.norm(local - np.c_[0 * z, 0 * z, z], axis=1))
+    along = z - np.clip(z, -length / 2.0, length / 2.0)
+    return np.asarray(radius - np.sqrt(x * x + y * y + along * along))

@@ -68,8 +68,8 @@ class Sweep(NamedTuple):
 
 class _At(NamedTuple):
     """A configuration of the motion: time [s], angles [rad] (6,), cover points [m]
-    (n, 3), per keep-in zone each body's margin [m] (B,), its grid sample (-1: between
-    samples)."""
+    (3, m) (coordinates first), per keep-in zone each body's margin [m] (B,), its grid
+    sample (-1: between samples)."""
 
     t: float
     q: np.ndarray
@@ -141,7 +141,11 @@ class _Motion:
 
     def sample(self, k: int) -> _At:
         return _At(
-            float(self.grid[k]), self.Q[k], self.points[k], [m[k] for _, m in self.keep_in], k
+            float(self.grid[k]),
+            self.Q[k],
+            self.points[:, :, k],
+            [m[:, k] for _, m in self.keep_in],
+            k,
         )
 
     def check(self, at: _At) -> _Checked:
@@ -195,7 +199,7 @@ class _Motion:
         """The configuration at ``t`` [s] (between grid samples)."""
         q = self.evaluate(np.array([t]))[0]
         points = self.bodies.world(q[None])
-        return _At(t, q, points[0], [m[0] for _, m in self.bodies.keep_in(points)], -1)
+        return _At(t, q, points[:, :, 0], [m[:, 0] for _, m in self.bodies.keep_in(points)], -1)
 
     def _bounds(
         self, out: list[_Checked], pending: list[int]
@@ -225,13 +229,13 @@ class _Motion:
         starts = starts_arr.tolist()
         points, Q, T = self.points, self.Q, grid
         if extra:
-            points = np.concatenate((points, np.array([e.points for e in extra])))
+            points = np.concatenate((points, np.stack([e.points for e in extra], axis=-1)), axis=2)
             Q = np.concatenate((Q, np.array([e.q for e in extra])))
             T = np.concatenate((grid, [e.t for e in extra]))
         at_end = np.stack((np.repeat(ra, counts), np.repeat(rb, counts)))  # (2, R)
         ts = T[rows]
         body = self.bodies
-        moved = body.displacement(points[rows][None], points[at_end])  # (2, R, B)
+        moved = body.displacement(points, rows, at_end)  # (2, R, B)
         moved += (np.abs(Q[rows][None] - Q[at_end]) @ body.moves) * body.radius
         pair = np.repeat(np.arange(len(pending)), counts)
         free = np.array([[out[i].free for i in pending], [out[i + 1].free for i in pending]])

@@ -25,6 +25,11 @@ from manus.shapes import inner_distances
 class BodyPoints:
     """The moving bodies of ``model`` as cover points, batched over configurations.
 
+    Points are kept coordinates first, ``(3, m, G)`` (coordinate, cover point of a moving
+    body, configuration): every step then runs on long contiguous rows, and no temporary
+    grows past a few hundred kilobytes (larger ones cost page faults on every call, more
+    than the arithmetic).
+
     Args:
         model: the collision model (its bodies, keep-in zones and joint placements).
     """
@@ -34,19 +39,25 @@ class BodyPoints:
         pm = model.model
         self._placements = [pm.jointPlacements[j].homogeneous for j in range(pm.njoints)]
         self._parents = [int(pm.parents[j]) for j in range(pm.njoints)]
-        self._groups = model._rows_by_joint
-        self._points = model._points
-        self._points1 = np.c_[self._points, np.ones(len(self._points))]
-        self._radii = model._radii
-        self._starts = model._body_starts
         self.moving = np.array(model._moving)
         """Indices into ``model.shapes`` of the bodies the joints move, shape (B,)."""
         self.names = [model.shapes[i].name for i in model._moving]
+        kept = np.flatnonzero(np.isin(model._point_body, self.moving))  # sorted by body
+        self._points = model._points[kept]
+        self._points1 = np.c_[self._points, np.ones(len(kept))]
+        self._radii = model._radii[kept]
+        joint = model._point_joint[kept]
+        self._groups = [(int(j), np.flatnonzero(joint == j)) for j in np.unique(joint)]
+        self._starts = np.searchsorted(model._point_body[kept], self.moving)
+        self._keep_in = [
+            (check, zone, np.flatnonzero(np.isin(kept, rows)))
+            for check, zone, rows in model._keep_in
+        ]
         joint_of = np.array([model.geom.geometryObjects[i].parentJoint for i in model._moving])
         self.moves = np.array(
             [joint_of >= j for j in range(1, pm.njoints)], dtype=float
         )  # (6, B): 1 where joint j moves body b
-        self.radius = np.maximum.reduceat(self._radii, self._starts)[self.moving]
+        self.radius = np.maximum.reduceat(self._radii, self._starts)
         """Largest cover radius of each moving body [m], shape (B,)."""
         self.levers = self._levers(joint_of)
         """Per joint and moving body, the farthest any point of the body can ever be
@@ -54,7 +65,7 @@ class BodyPoints:
 
     def world(self, Q: np.ndarray) -> np.ndarray:
         """Cover points in the base frame at each configuration ``Q`` [rad], shape
-        (G, 6) -> (G, n, 3) [m] (the same as Pinocchio's placements)."""
+        (G, 6) -> (3, m, G) [m] (the same as Pinocchio's placements)."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         G = len(Q)
         c, s = np.cos(Q.T), np.sin(Q.T)  # (6, G)
@@ -69,37 +80,36 @@ class BodyPoints:
             F[:, 1] = A[:, 1] * c[j - 1] - A[:, 0] * s[j - 1]
             F[:, 2:] = A[:, 2:]
             frames.append(F)
-        out = np.empty((len(self._points), 3, G))
+        out = np.empty((3, len(self._points), G))
         for j, rows in self._groups:
-            out[rows] = np.matmul(self._points1[rows], frames[j][:3]).transpose(1, 0, 2)
-        return np.ascontiguousarray(out.transpose(2, 0, 1))
+            out[:, rows] = np.matmul(self._points1[rows], frames[j][:3])
+        return out
 
     def keep_in(self, world: np.ndarray) -> list[tuple[Check, np.ndarray]]:
         """Per keep-in zone: its check (no body named) and each moving body's margin to
-        it [m] at each configuration, shape (G, B) (inf: a body the zone does not hold);
+        it [m] at each configuration, shape (B, G) (inf: a body the zone does not hold);
         ``world`` from :meth:`world`."""
         out = []
-        G, n = world.shape[:2]
-        for check, zone, rows in self.model._keep_in:
-            inner = np.full((G, n), np.inf)
-            held = world if len(rows) == n else world[:, rows]
-            inside = inner_distances(zone, held.reshape(-1, 3)).reshape(G, len(rows))
-            inner[:, rows] = inside - self._radii[rows] - check.required
-            out.append((check, np.minimum.reduceat(inner, self._starts, axis=1)[:, self.moving]))
+        m, G = world.shape[1:]
+        for check, zone, rows in self._keep_in:
+            inner = np.full((m, G), np.inf)
+            held = world if len(rows) == m else world[:, rows]
+            inner[rows] = inner_distances(zone, held) - self._radii[rows, None] - check.required
+            out.append((check, np.minimum.reduceat(inner, self._starts, axis=0)))
         return out
 
-    def displacement(self, points: np.ndarray, start: np.ndarray) -> np.ndarray:
-        """Per moving body, how far its farthest cover point is from where it was in
-        ``start`` (n, 3), at each of ``points`` (K, n, 3) [m], shape (K, B) (or any
-        leading shapes that broadcast)."""
-        d = points - start
-        squared = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
-        return self.farthest(np.sqrt(squared))
-
-    def farthest(self, distances: np.ndarray) -> np.ndarray:
-        """Per moving body, the largest of ``distances`` over its cover points, shape
-        (..., n) -> (..., B)."""
-        return np.asarray(np.maximum.reduceat(distances, self._starts, axis=-1)[..., self.moving])
+    def displacement(self, world: np.ndarray, rows: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Per moving body, how far its farthest cover point is at configuration
+        ``rows[r]`` (R,) from where it was at ``ends[e, r]`` (E, R), both indices into
+        ``world`` (3, m, G) [m], shape (E, R, B)."""
+        squared = None
+        for plane in world:  # (m, G), one coordinate
+            d = plane[:, rows][:, None, :] - plane[:, ends]  # (m, E, R)
+            d *= d
+            squared = d if squared is None else np.add(squared, d, out=squared)
+        assert squared is not None
+        np.sqrt(squared, out=squared)
+        return np.asarray(np.maximum.reduceat(squared, self._starts, axis=0).transpose(1, 2, 0))
 
     def _levers(self, joint_of: np.ndarray) -> np.ndarray:
         """The joint placements' lengths from joint ``j`` out to the body, plus the body's
@@ -109,7 +119,7 @@ class BodyPoints:
             float(np.linalg.norm(pm.jointPlacements[k].translation)) for k in range(pm.njoints)
         ]
         extent = np.linalg.norm(self._points, axis=1) + self._radii
-        own = np.maximum.reduceat(extent, self._starts)[self.moving]
+        own = np.maximum.reduceat(extent, self._starts)
         out = np.zeros((pm.njoints - 1, len(self.moving)))
         for b, joint in enumerate(joint_of):
             for j in range(1, joint + 1):
