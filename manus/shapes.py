@@ -50,16 +50,18 @@ def inner_distances(zone: Primitive, xyz: np.ndarray) -> np.ndarray:
         shape ``xyz.shape[1:]``.
     """
     T = zone.pose
-    d = [xyz[i] - T[i, 3] for i in range(3)]
-    x, y, z = (d[0] * T[0, c] + d[1] * T[1, c] + d[2] * T[2, c] for c in range(3))
+    flat = np.asarray(xyz, dtype=float).reshape(3, -1)
+    local = T[:3, :3].T @ (flat - T[:3, 3:4])  # (3, N): one product, small or large
     if zone.shape == "box":
-        hx, hy, hz = (s / 2.0 for s in zone.size)
-        return np.asarray(np.minimum(np.minimum(hx - np.abs(x), hy - np.abs(y)), hz - np.abs(z)))
-    if zone.shape == "sphere":
-        return np.asarray(zone.size[0] - np.sqrt(x * x + y * y + z * z))
-    radius, length = zone.size
-    if zone.shape == "cylinder":
-        return np.asarray(np.minimum(radius - np.hypot(x, y), length / 2.0 - np.abs(z)))
-    # capsule: distance to the axis segment
-    along = z - np.clip(z, -length / 2.0, length / 2.0)
-    return np.asarray(radius - np.sqrt(x * x + y * y + along * along))
+        inner = (np.asarray(zone.size)[:, None] / 2.0 - np.abs(local)).min(axis=0)
+    elif zone.shape == "sphere":
+        inner = zone.size[0] - np.sqrt((local * local).sum(axis=0))
+    else:
+        radius, length = zone.size
+        x, y, z = local
+        if zone.shape == "cylinder":
+            inner = np.minimum(radius - np.hypot(x, y), length / 2.0 - np.abs(z))
+        else:  # capsule: distance to the axis segment
+            along = z - np.clip(z, -length / 2.0, length / 2.0)
+            inner = radius - np.sqrt(x * x + y * y + along * along)
+    return np.asarray(inner).reshape(np.shape(xyz)[1:])
