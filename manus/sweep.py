@@ -50,6 +50,10 @@ GRID_M = 0.020
 grids cost more per round than they save in Coal queries)."""
 
 
+MAX_PIECES = 8
+"""Most pieces a stretch is cut into in one round."""
+
+
 class Sweep(NamedTuple):
     """What :func:`sweep` found.
 
@@ -182,17 +186,27 @@ class _Motion:
                 break
             worst = min(c.found.margin for c in out)
             lows, farthest, inner_best = self._bounds(out, pending)
-            added: list[tuple[int, _At]] = []
+            floor = max(worst - tolerance, 0.0)
+            added: list[tuple[int, list[_At]]] = []
             for n, i in enumerate(pending):
-                if lows[n] >= max(worst - tolerance, 0.0) or farthest[n] <= step:
+                if lows[n] >= floor or farthest[n] <= step:
                     continue
                 a, b = out[i].at, out[i + 1].at
+                slack = min(out[i].found.margin, out[i + 1].found.margin) - floor
+                pieces = math.ceil(farthest[n] / max(2.0 * slack, GRID_M))
+                if a.k >= 0 and b.k >= 0 and pieces > 2 and b.k - a.k > 2:
+                    ks = np.unique(np.linspace(a.k, b.k, min(pieces, MAX_PIECES) + 1).round())
+                    added.append((i, [self.sample(int(k)) for k in ks[1:-1]]))
+                    continue
                 k = inner_best(n)
-                added.append((i, self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)))
+                added.append((i, [self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)]))
             pending = []
-            for shift, (i, at) in enumerate(added):
-                out.insert(i + shift + 1, self.check(at))
-                pending += [i + shift, i + shift + 1]
+            shift = 0
+            for i, ats in added:
+                j = i + shift
+                out[j + 1 : j + 1] = [self.check(at) for at in ats]
+                pending += list(range(j, j + len(ats) + 1))
+                shift += len(ats)
         return out
 
     def at_time(self, t: float) -> _At:
