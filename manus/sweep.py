@@ -13,7 +13,8 @@ segment's peak joint speeds times each joint's farthest reach to the body. A bod
 margin anywhere in a stretch is at least the larger of what its two ends leave (margin
 minus travel from that end).
 
-It starts at the knots and adds a configuration where a stretch's bound is lowest until
+It starts at the knots and adds configurations in the stretches whose bound is too low
+(as many as their ends' margins say they need, else one where the bound is lowest) until
 every stretch is proven to stay above zero and above the smallest margin found minus
 ``tolerance`` (all open stretches bounded in one vectorised pass per round); between
 two grid samples it halves the stretch (off the grid), down to ``step``.
@@ -172,8 +173,11 @@ class _Motion:
         """Check more configurations until no stretch between two checked ones can come
         below the smallest margin found minus ``tolerance``, nor below zero: per body,
         the larger of the two ends' lower bounds (its margin there minus its travel
-        bound from there). A new configuration goes where the bound is lowest (or
-        halfway, between two grid samples); a stretch no point can cross more than
+        bound from there). A stretch on the grid is cut into as many even pieces as
+        its ends' margin above that floor says it needs (twice that slack of travel per
+        piece, at most :data:`MAX_PIECES`), which settles most stretches in one round;
+        otherwise a new configuration goes where the bound is lowest (or halfway,
+        between two grid samples); a stretch no point can cross more than
         ``step`` of is left as it is. All open stretches are bounded in one vectorised
         pass per round. Once a violation is found only the stretches before the first
         one are refined further (the first one along the motion is the one reported)."""
