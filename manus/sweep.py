@@ -199,8 +199,10 @@ class _Motion:
                 slack = min(out[i].found.margin, out[i + 1].found.margin) - floor
                 pieces = math.ceil(farthest[n] / max(2.0 * slack, GRID_M))
                 if a.k >= 0 and b.k >= 0 and pieces > 2 and b.k - a.k > 2:
-                    ks = np.unique(np.linspace(a.k, b.k, min(pieces, MAX_PIECES) + 1).round())
-                    added.append((i, [self.sample(int(k)) for k in ks[1:-1]]))
+                    p, span = min(pieces, MAX_PIECES, b.k - a.k), b.k - a.k
+                    added.append(
+                        (i, [self.sample(a.k + (2 * span * j + p) // (2 * p)) for j in range(1, p)])
+                    )
                     continue
                 k = inner_best(n)
                 added.append((i, [self.sample(k) if k >= 0 else self.at_time((a.t + b.t) / 2)]))
