@@ -36,6 +36,7 @@ margins, and each joint's reach to each body).
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, NamedTuple
 
@@ -189,6 +190,9 @@ class CollisionModel:
         self._per_body = self._split(pairs)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
         self._no_margin = np.full(len(self._moving), math.inf)
+        self._set_aside = self._no_margin
+        self._inactive: list[tuple[Any, int]] = []
+        self._partner_boxes = [_fixed_boxes(gm) for _, gm, _, _ in self._live]
         self._no_reach = np.zeros((6, len(self._moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
@@ -362,11 +366,45 @@ class CollisionModel:
         for b, gm, gd, rows in self._live:
             update(model, data, gm, gd)
             k = distances(gm, gd)
+            if k >= len(rows):
+                continue  # every pair of the body is set aside (:meth:`restrict`)
             margin = gd.distanceResults[k].min_distance
             free[b] = margin
             if margin < tight:
                 tight, tight_row = margin, rows[k]
-        return free, tight, tight_row
+        return np.minimum(free, self._set_aside, out=free), tight, tight_row
+
+    def restrict(self, lo: np.ndarray, hi: np.ndarray, near: float) -> np.ndarray:
+        """Set aside, until :meth:`unrestrict`, the pairs of each moving body with a
+        fixed object that cannot come within ``near`` [m] of the box ``lo`` .. ``hi``
+        (3, bodies) [m] that holds the body: :meth:`pair_margins` then asks Coal only
+        for the others and caps each body's margin by what the set-aside pairs are
+        sure to leave (the gap between the boxes; an object's box holds its
+        clearance). The tightest check it names is the tightest of the pairs kept.
+
+        Returns:
+            per moving body, the least margin of its set-aside pairs [m] (inf: none).
+        """
+        aside = np.full(len(self._moving), math.inf)
+        for (b, _, gd, _), (fixed, box_lo, box_hi) in zip(
+            self._live, self._partner_boxes, strict=True
+        ):
+            gaps = np.maximum(np.maximum(box_lo - hi[:, b], lo[:, b] - box_hi), 0.0)
+            gap = np.sqrt((gaps * gaps).sum(axis=1))  # (pairs,): 0 when the boxes meet
+            for k in np.flatnonzero(fixed):
+                if gap[k] >= near:
+                    gd.deactivateCollisionPair(int(k))
+                    self._inactive.append((gd, int(k)))
+                    aside[b] = min(aside[b], float(gap[k]))
+        self._set_aside = aside
+        return aside
+
+    def unrestrict(self) -> None:
+        """Every pair checked again (undo :meth:`restrict`)."""
+        for gd, k in self._inactive:
+            gd.activateCollisionPair(k)
+        self._inactive.clear()
+        self._set_aside = self._no_margin
 
     def _world_points(self) -> np.ndarray:
         """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
@@ -484,6 +522,31 @@ class CollisionModel:
             (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
             for check, zone, bodies in self._keep_in_bodies
         ]
+
+
+def _fixed_boxes(gm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each pair of a body's geometry model (the body first, its partners after):
+    whether the partner is fixed (on the base), and its box in the base frame, grown by
+    its swept-sphere radius (the clearance it carries) [m], (pairs, 3) each (an
+    unbounded partner, a plane, gets an infinite box)."""
+    fixed, lows, highs = [], [], []
+    for cp in gm.collisionPairs:
+        obj = gm.geometryObjects[cp.second]
+        geometry = obj.geometry
+        geometry.computeLocalAABB()
+        a, b = geometry.aabb_local.min_, geometry.aabb_local.max_
+        fixed.append(obj.parentJoint == 0)
+        if not (np.all(np.abs(a) < 1e6) and np.all(np.abs(b) < 1e6)):
+            lows.append(np.full(3, -math.inf))
+            highs.append(np.full(3, math.inf))
+            continue
+        corners = np.array(list(itertools.product(*zip(a, b, strict=True))))
+        M = obj.placement
+        world = corners @ M.rotation.T + M.translation
+        grow = geometry.getSweptSphereRadius()
+        lows.append(world.min(axis=0) - grow)
+        highs.append(world.max(axis=0) + grow)
+    return np.array(fixed, dtype=bool), np.array(lows), np.array(highs)
 
 
 def _line_of(scene: Scene, name: str) -> int:

@@ -48,7 +48,8 @@ class BodyPoints:
         self._radii = model._radii[kept]
         joint = model._point_joint[kept]
         self._groups = [(int(j), np.flatnonzero(joint == j)) for j in np.unique(joint)]
-        self._starts = np.searchsorted(model._point_body[kept], self.moving)
+        self.starts = np.searchsorted(model._point_body[kept], self.moving)
+        """Where each moving body's cover points start, shape (B,)."""
         self._keep_in = [
             (check, zone, np.flatnonzero(np.isin(kept, rows)))
             for check, zone, rows in model._keep_in
@@ -57,7 +58,7 @@ class BodyPoints:
         self.moves = np.array(
             [joint_of >= j for j in range(1, pm.njoints)], dtype=float
         )  # (6, B): 1 where joint j moves body b
-        self.radius = np.maximum.reduceat(self._radii, self._starts)
+        self.radius = np.maximum.reduceat(self._radii, self.starts)
         """Largest cover radius of each moving body [m], shape (B,)."""
         self.levers = self._levers(joint_of)
         """Per joint and moving body, the farthest any point of the body can ever be
@@ -95,7 +96,7 @@ class BodyPoints:
             inner = np.full((m, G), np.inf)
             held = world if len(rows) == m else world[:, rows]
             inner[rows] = inner_distances(zone, held) - self._radii[rows, None] - check.required
-            out.append((check, np.minimum.reduceat(inner, self._starts, axis=0)))
+            out.append((check, np.minimum.reduceat(inner, self.starts, axis=0)))
         return out
 
     def displacement(self, world: np.ndarray, rows: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -109,7 +110,7 @@ class BodyPoints:
             squared = d if squared is None else np.add(squared, d, out=squared)
         assert squared is not None
         np.sqrt(squared, out=squared)
-        return np.asarray(np.maximum.reduceat(squared, self._starts, axis=0).transpose(1, 2, 0))
+        return np.asarray(np.maximum.reduceat(squared, self.starts, axis=0).transpose(1, 2, 0))
 
     def _levers(self, joint_of: np.ndarray) -> np.ndarray:
         """The joint placements' lengths from joint ``j`` out to the body, plus the body's
@@ -119,7 +120,7 @@ class BodyPoints:
             float(np.linalg.norm(pm.jointPlacements[k].translation)) for k in range(pm.njoints)
         ]
         extent = np.linalg.norm(self._points, axis=1) + self._radii
-        own = np.maximum.reduceat(extent, self._starts)
+        own = np.maximum.reduceat(extent, self.starts)
         out = np.zeros((pm.njoints - 1, len(self.moving)))
         for b, joint in enumerate(joint_of):
             for j in range(1, joint + 1):

@@ -245,3 +245,31 @@ def test_manus_plan_prints_the_smallest_clearance_and_where(
     assert f"from table (environment: needs 15 mm) at t = {clearance['time_s']:.2f} s" in err
     assert main(["plan", str(ROOT / "paths" / "thesis_circle.txt"), "--scene", "none"]) == 0
     assert json.loads(capsys.readouterr().out)["clearance"] is None
+
+
+def test_pairs_set_aside_for_a_motion_only_lower_the_margins() -> None:
+    """The sweep asks Coal only for the pairs that can come near the motion's boxes:
+    every body's margin is then at most its true one (never optimistic), the true one
+    wherever something kept is within reach, and the tightest check is unchanged
+    while it is a kept pair; every pair is back afterwards."""
+    from manus.sweep import NEAR_M, _Motion
+
+    curve = random_paths(1, seed=3)[0]
+    ex = curve.extremes(1)
+    motion = _Motion(MODEL, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
+    lo, hi = motion.boxes()
+    qs = curve.evaluate(np.linspace(0.0, curve.duration, 25))
+    full = [MODEL.pair_margins(q) for q in qs]
+    aside = MODEL.restrict(lo, hi, NEAR_M)
+    try:
+        assert np.isfinite(aside).any() and (aside >= NEAR_M).all()
+        restricted = [MODEL.pair_margins(q) for q in qs]
+    finally:
+        MODEL.unrestrict()
+    for (free, tight, row), (r_free, r_tight, r_row) in zip(full, restricted, strict=True):
+        assert (r_free <= free + 1e-6).all()  # GJK warm starts differ by ~1e-7
+        near = free < aside
+        assert r_free[near] == pytest.approx(free[near], abs=1e-6)
+        if tight < aside.min():
+            assert r_row == row and r_tight == pytest.approx(tight, abs=1e-6)
+    assert [MODEL.pair_margins(q)[2] for q in qs] == [f[2] for f in full]
