@@ -11,9 +11,9 @@ gives each body its own margin. The keep-in workspace is checked apart, exactly,
 each body's convex cover (its end points or corners and a radius): a concave margin over
 a convex body is smallest at one of those points.
 
-Every check is one :class:`Check`: an arm body, what it is checked against, the class
-(``person``, ``chair``, ``environment``, ``self`` or ``zone``) and the clearance that
-class requires. A configuration's *margin* per check is distance minus clearance;
+Every check is one :class:`manus.clearance.Check`: an arm body, what it is checked
+against, the class (``person``, ``chair``, ``environment``, ``self`` or ``zone``) and
+the clearance that class requires. A configuration's *margin* per check is distance minus clearance;
 negative means violated.
 
 Self-collision pairs are declared once, in :data:`SELF_PAIRS`: the gripper, its motor,
@@ -30,25 +30,25 @@ their distances to the scene are checked once, when the model is built
 :func:`manus.sweep.sweep` checks a whole motion through
 :meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
 clear of) and :class:`manus.travel.BodyPoints` (the cover points over the motion, the
-keep-in zones); the controller's guard through :meth:`CollisionModel.probe` (the same
-margins, and each joint's reach to each body).
+keep-in zones), with the pairs that cannot come near the motion set aside
+(:meth:`CollisionModel.restrict`); the controller's guard through
+:meth:`CollisionModel.probe` (the same margins, and each joint's reach to each body).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from typing import Any, NamedTuple
+from typing import Any
 
 import coal
 import numpy as np
 import pinocchio as pin
 
+from manus.clearance import Check, Clearance, Probe
 from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
-from manus.shapes import coal_shape, cover, inner_distances
+from manus.shapes import coal_shape, cover, inner_distances, partner_boxes
 from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
-from schemas.collision import ClearanceReport
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
     ("gripper", "column"),
@@ -68,77 +68,6 @@ STATIC_BODIES = ("column", "shoulder")
 
 
 _ONES3 = np.ones(3)
-
-
-class Check(NamedTuple):
-    """One distance the model watches.
-
-    Attributes:
-        body: the arm body.
-        other: the object, zone or arm body it is kept from.
-        cls: ``person``, ``chair``, ``environment``, ``self`` or ``zone``.
-        required: the clearance [m].
-    """
-
-    body: str
-    other: str
-    cls: str
-    required: float
-
-
-class Clearance(NamedTuple):
-    """The tightest check of one configuration (or of a motion).
-
-    Attributes:
-        margin: distance minus required clearance [m] (< 0: violated).
-        distance: distance between the two [m] (a keep-in zone: to its boundary).
-        check: which check.
-        time: time along the motion [s] (0 for a single configuration).
-        q: the configuration [rad], shape (6,).
-    """
-
-    margin: float
-    distance: float
-    check: Check
-    time: float
-    q: np.ndarray
-
-    def report(self) -> ClearanceReport:
-        """The message form."""
-        c = self.check
-        return ClearanceReport(
-            distance=float(self.distance),
-            required=float(c.required),
-            body=c.body,
-            other=c.other,
-            cls=c.cls,
-            time=float(self.time),
-        )
-
-    def describe(self) -> str:
-        """``gripper 12.0 mm from head (person: needs 50 mm)``."""
-        c = self.check
-        kind = "inside" if c.cls == "zone" and c.other.startswith("keep_in ") else "from"
-        return (
-            f"{c.body} {self.distance * 1e3:.1f} mm {kind} {c.other} "
-            f"({c.cls}: needs {c.required * 1e3:.0f} mm)"
-        )
-
-
-class Probe(NamedTuple):
-    """One configuration as :meth:`CollisionModel.probe` sees it.
-
-    Attributes:
-        best: the tightest check.
-        free: per moving body, its smallest margin (never below 0) [m].
-        reach: per joint and moving body, the farthest the body is from the joint's
-            axis [m], shape (6, bodies): the body moves no faster than
-            ``|qd| @ reach`` [m/s].
-    """
-
-    best: Clearance
-    free: np.ndarray
-    reach: np.ndarray
 
 
 class CollisionModel:
@@ -192,7 +121,7 @@ class CollisionModel:
         self._no_margin = np.full(len(self._moving), math.inf)
         self._set_aside = self._no_margin
         self._inactive: list[tuple[Any, int]] = []
-        self._partner_boxes = [_fixed_boxes(gm) for _, gm, _, _ in self._live]
+        self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
         self._no_reach = np.zeros((6, len(self._moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
@@ -522,31 +451,6 @@ class CollisionModel:
             (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
             for check, zone, bodies in self._keep_in_bodies
         ]
-
-
-def _fixed_boxes(gm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each pair of a body's geometry model (the body first, its partners after):
-    whether the partner is fixed (on the base), and its box in the base frame, grown by
-    its swept-sphere radius (the clearance it carries) [m], (pairs, 3) each (an
-    unbounded partner, a plane, gets an infinite box)."""
-    fixed, lows, highs = [], [], []
-    for cp in gm.collisionPairs:
-        obj = gm.geometryObjects[cp.second]
-        geometry = obj.geometry
-        geometry.computeLocalAABB()
-        a, b = geometry.aabb_local.min_, geometry.aabb_local.max_
-        fixed.append(obj.parentJoint == 0)
-        if not (np.all(np.abs(a) < 1e6) and np.all(np.abs(b) < 1e6)):
-            lows.append(np.full(3, -math.inf))
-            highs.append(np.full(3, math.inf))
-            continue
-        corners = np.array(list(itertools.product(*zip(a, b, strict=True))))
-        M = obj.placement
-        world = corners @ M.rotation.T + M.translation
-        grow = geometry.getSweptSphereRadius()
-        lows.append(world.min(axis=0) - grow)
-        highs.append(world.max(axis=0) + grow)
-    return np.array(fixed, dtype=bool), np.array(lows), np.array(highs)
 
 
 def _line_of(scene: Scene, name: str) -> int:

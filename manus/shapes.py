@@ -1,8 +1,13 @@
 """Geometry of primitives for the collision model: Coal shapes of scene primitives, the
-convex covers of the arm's bodies, and distances to a zone's boundary from inside.
+convex covers of the arm's bodies, distances to a zone's boundary from inside, and the
+boxes of a geometry model's fixed bodies.
 """
 
 from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
 
 import coal
 import numpy as np
@@ -65,3 +70,28 @@ def inner_distances(zone: Primitive, xyz: np.ndarray) -> np.ndarray:
             along = z - np.clip(z, -length / 2.0, length / 2.0)
             inner = radius - np.sqrt(x * x + y * y + along * along)
     return np.asarray(inner).reshape(np.shape(xyz)[1:])
+
+
+def partner_boxes(gm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each pair of a body's geometry model (the body first, its partners after):
+    whether the partner is fixed (on the base), and its box in the base frame, grown by
+    its swept-sphere radius (the clearance it carries) [m], (pairs, 3) each (an
+    unbounded partner, a plane, gets an infinite box)."""
+    fixed, lows, highs = [], [], []
+    for cp in gm.collisionPairs:
+        obj = gm.geometryObjects[cp.second]
+        geometry = obj.geometry
+        geometry.computeLocalAABB()
+        a, b = geometry.aabb_local.min_, geometry.aabb_local.max_
+        fixed.append(obj.parentJoint == 0)
+        if not (np.all(np.abs(a) < 1e6) and np.all(np.abs(b) < 1e6)):
+            lows.append(np.full(3, -math.inf))
+            highs.append(np.full(3, math.inf))
+            continue
+        corners = np.array(list(itertools.product(*zip(a, b, strict=True))))
+        M = obj.placement
+        world = corners @ M.rotation.T + M.translation
+        grow = geometry.getSweptSphereRadius()
+        lows.append(world.min(axis=0) - grow)
+        highs.append(world.max(axis=0) + grow)
+    return np.array(fixed, dtype=bool), np.array(lows), np.array(highs)

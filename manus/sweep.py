@@ -39,7 +39,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus.collision import Check, Clearance, CollisionModel
+from manus.clearance import Check, Clearance
+from manus.collision import CollisionModel
 from manus.travel import BodyPoints
 
 STEP_M = 0.002

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from manus.collision import Check, CollisionModel
+from manus.clearance import Check
+from manus.collision import CollisionModel
 from manus.shapes import inner_distances
 
 

@@ -27,7 +27,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus.collision import Clearance, CollisionModel
+from manus.clearance import Clearance
+from manus.collision import CollisionModel
 from manus.config import ArmConfig
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
