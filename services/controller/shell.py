@@ -5,7 +5,9 @@ Its subscriptions, queryables and publishers are those of its wiring map
 (goals run only while the bridge is ``running``), the supervisor's deadman heartbeat;
 goals, gripper goals, cancels and speed scaling, each answered with a GoalAck; commands,
 feedback and results out; the jog stream and its level, the jog's state out. A ``jog``
-payload that does not decode is handed to the core as a bad jog (it stops the arm).
+payload that does not decode is handed to the core as a bad jog (it stops the arm). A
+service's ``alive/<service>`` token vanishing is handed to the core
+(:meth:`ControllerCore.on_token_gone`: the goals whose heartbeats it sent stop at once).
 Everything runs under the node lock, so the core sees one message at a time, in arrival
 order.
 """
@@ -53,12 +55,17 @@ class ControllerShell:
         self._publish = WIRING.publishers(self.node)  # before any callback can use it
         WIRING.attach(self.node, self.core, self._deliver, publish=self._publish)
         self.node.on_bad_payload = self._on_bad_payload
+        self.node.watch_liveliness(self._on_alive)  # its callback runs under the node lock
         self.node.announce()  # alive once it listens and answers
 
     def _on_bad_payload(self, key: str) -> None:
         if key == self.node.keys(ep.JOG):
             with self.node.lock:
                 self._deliver(self.core.on_bad_jog(BAD_JOG_PAYLOAD))
+
+    def _on_alive(self, service: str, alive: bool) -> None:
+        if not alive:
+            self._deliver(self.core.on_token_gone(service))
 
     def _deliver(self, out: Output) -> None:
         self._publish(out)
