@@ -8,8 +8,9 @@ feedback and results out; the jog stream and its level, the jog's state out. A `
 payload that does not decode is handed to the core as a bad jog (it stops the arm). A
 service's ``alive/<service>`` token vanishing is handed to the core
 (:meth:`ControllerCore.on_token_gone`: the goals whose heartbeats it sent stop at once).
-Everything runs under the node lock, so the core sees one message at a time, in arrival
-order.
+Everything runs under the node lock, in the Zenoh thread that received it (an ordered
+node), so the core sees one message at a time, in arrival order: a goal sent after the
+bridge state it depends on is judged after it.
 """
 
 from __future__ import annotations
@@ -50,7 +51,9 @@ class ControllerShell:
         session: zenoh.Session | None = None,
     ) -> None:
         self.core = ControllerCore(config)
-        self.node = Node("controller", settings, session=session, liveliness=False)
+        # ordered: a goal must not overtake the bridge state that came before it (the
+        # sequencer sends its next goal once it saw the bridge `running` after a fold)
+        self.node = Node("controller", settings, session=session, liveliness=False, ordered=True)
         self.sent: Counter[str] = Counter()
         self._publish = WIRING.publishers(self.node)  # before any callback can use it
         WIRING.attach(self.node, self.core, self._deliver, publish=self._publish)
