@@ -269,3 +269,25 @@ def test_a_killed_sequencer_in_a_task_stops_the_fold_within_the_soaks_limit() ->
     rig.ls.token_gone("sequencer")
     assert _stop_ms(rig.ls) <= judge.STOP_LIMIT_NS / MS
     assert rig.ls.bridge.phase == "stopped" and TOKEN in rig.ls.bridge.detail
+
+
+@pytest.mark.parametrize("gone", [True, False])
+def test_the_bridge_drops_the_command_of_a_controller_whose_token_went(gone: bool) -> None:
+    """A router restart cuts the controller off after its command for the coming sync
+    arrived: without its token that command is dropped, zeros at that very sync (before:
+    the arm moved one more cycle on it)."""
+    ls = running(UNFOLDED)
+    controller = VelocityController((10.0, 0, 0, 0, 0, 0))
+    ls.subscribe(ep.JOINTS, controller)
+    ls.run_for(1.0)
+    _at_offset(ls, 15)  # the command for the coming sync is in
+    cut = ls.t_ns
+    controller.stop_after_ns = cut
+    if gone:
+        ls.token_gone("controller")
+        assert ls.published(ep.BRIDGE_TOKEN_GONE)[-1].stopped.startswith(  # type: ignore[attr-defined]
+            "the controller's liveliness token went"
+        )
+    ls.run_for(0.3)
+    first = _joint_frames(ls, cut)[0]
+    assert first[1] is gone, first

@@ -193,8 +193,10 @@ class BridgeCore:
     def on_token_gone(self, service: str, rx_ns: int) -> Outputs:
         """The token ``alive/<service>`` vanished (its process died or its link was cut): a
         fold with a deadman whose heartbeats that service sent stops at once (phase
-        ``stopped``, 0x370 at the next sync; :func:`manus.deadman.tied_to`). Always
-        published as a :class:`~schemas.liveliness.TokenGone`."""
+        ``stopped``, 0x370 at the next sync; :func:`manus.deadman.tied_to`); the
+        controller's: its newest command is dropped (zeros at the next sync, not the
+        command of a controller that can no longer stop it). Always published as a
+        :class:`~schemas.liveliness.TokenGone`."""
         out = Outputs()
         deadman = self.phases.fold_deadman
         stopped = ""
@@ -203,6 +205,9 @@ class BridgeCore:
         ):
             self.phases.stop_fold(token_gone(service))
             stopped = self.phases.detail
+        if service == ep.Service.CONTROLLER and self.pending is not None:
+            self.pending = None
+            stopped = "the controller's liveliness token went: its command dropped, zeros"
         after = -1 if self.newest_state_seq is None else self.newest_state_seq
         out.messages.append(
             (ep.BRIDGE_TOKEN_GONE, TokenGone(service=service, after_seq=after, stopped=stopped))
