@@ -5,7 +5,12 @@ safety rules).
 The supervisor (the sequencer) echoes every joint state it receives in a ``Heartbeat``.
 At each joint state the newest echo must refer to a state no older than the goal's
 ``heartbeat_timeout``, judged on the joint states' stamps (the bridge's clock), so a
-replay judges the same. Two pure functions, so both services hold the rule once.
+replay judges the same. Pure functions, so both services hold the rule once.
+
+A hang (SIGSTOP) keeps the sender's liveliness token; a killed sender or a cut link
+drops it at once (Zenoh drops a session's tokens when its link closes). So a goal whose
+heartbeats came from ``source`` also stops when the token ``alive/<source>`` vanishes
+(:func:`tied_to`), without waiting for its echo to grow old.
 """
 
 from __future__ import annotations
@@ -43,4 +48,22 @@ def echo_too_old(
         f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
         f"{age_ns / 1e6:.0f} ms before joint state seq {seq}, more than heartbeat_timeout "
         f"{timeout_s * 1000:.0f} ms"
+    )
+
+
+def tied_to(service: str, source: str, since_ns: int | None, echo_ns: int | None) -> bool:
+    """A goal judged from the joint state stamped ``since_ns`` (None: not started) stops
+    when the token ``alive/<service>`` vanishes: the newest heartbeat (sent by ``source``,
+    echoing the state stamped ``echo_ns``) came from that service for this goal (it echoes
+    the goal's first state or a later one). A goal whose heartbeats come from a client
+    without a token, or none yet, is left to the echo's age."""
+    return (
+        since_ns is not None and echo_ns is not None and echo_ns >= since_ns and source == service
+    )
+
+
+def token_gone(service: str) -> str:
+    """Why a goal tied to ``alive/<service>`` (:func:`tied_to`) stops when it vanishes."""
+    return (
+        f"the {service}'s liveliness token went: process died or link cut (it sent the heartbeats)"
     )

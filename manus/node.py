@@ -10,7 +10,11 @@ service's node also answers ``<prefix>/health/<name>`` with those counts
 (``schemas.health.NodeHealth``, shown by ``manus status``).
 
 Callbacks run on Zenoh's threads. Services serialise them into their core with
-:attr:`Node.lock` (one lock per node), so the core itself needs no locking.
+:attr:`Node.lock` (one lock per node), so the core itself needs no locking. zenoh-python
+runs each subscriber's and queryable's callback in a Python thread of its own, so which
+of two inputs takes the lock first is up to the scheduler, not to their arrival: a query
+can overtake a sample that arrived before it. A node made ``ordered`` runs its callbacks
+in the Zenoh thread that receives them (one per link: the router's), in arrival order.
 
 Queries are invisible to subscribers, so every :meth:`Node.queryable` mirrors by default
 each request that decodes and each reply it sends on ``<prefix>/trace/<suffix>/request``
@@ -78,6 +82,9 @@ class Node:
         liveliness: declare the liveliness tokens now (else with :meth:`announce`).
         pid: the process its ``where`` token names (default: this one; the guardian's
             reporter names the guardian).
+        ordered: run every callback in the receiving Zenoh thread, in arrival order
+            (else each subscription and queryable in a thread of its own). Its callbacks
+            must not wait on the bus (a query from a callback would never get its reply).
     """
 
     def __init__(
@@ -88,8 +95,10 @@ class Node:
         session: zenoh.Session | None = None,
         liveliness: bool = True,
         pid: int | None = None,
+        ordered: bool = False,
     ) -> None:
         self.name = name
+        self.ordered = ordered
         self.pid = os.getpid() if pid is None else pid
         """The process the ``where`` token names (another one's for a helper process)."""
         self.settings = settings or ZenohSettings()
@@ -194,7 +203,11 @@ class Node:
                 self.handler_errors += 1
                 log.exception("%s: handler for %s failed", self.name, sample.key_expr)
 
-        self._entities.append(self.session.declare_subscriber(key, handler))
+        self._entities.append(self.session.declare_subscriber(key, self._callback(handler)))
+
+    def _callback(self, fn: Callable[[Any], None]) -> Any:
+        """``fn`` as a Zenoh handler: in the receiving thread if the node is ordered."""
+        return zenoh.handlers.Callback(fn, indirect=False) if self.ordered else fn
 
     def subscribe_raw(self, key: str, callback: Callable[[zenoh.Sample, int], None]) -> None:
         """Call ``callback(sample, receive_ns)`` for every sample (recorders, tools)."""
@@ -260,7 +273,7 @@ class Node:
             if trace is not None:
                 trace[1].put(encoded, attachment=stamp)
 
-        self._entities.append(self.session.declare_queryable(key, on_query))
+        self._entities.append(self.session.declare_queryable(key, self._callback(on_query)))
 
     def _raw_publisher(self, key: str) -> zenoh.Publisher:
         pub = self.session.declare_publisher(
@@ -319,8 +332,9 @@ class Node:
             with self.lock:
                 callback(name, sample.kind == zenoh.SampleKind.PUT)
 
+        live = self.session.liveliness()
         self._entities.append(
-            self.session.liveliness().declare_subscriber(self.keys.alive_all, handler, history=True)
+            live.declare_subscriber(self.keys.alive_all, self._callback(handler), history=True)
         )
 
     def watch_tokens(self, key: str, callback: Callable[[str, bool, int], None]) -> None:

@@ -19,7 +19,9 @@ path takes a fraction of a second and gives the same result on every run:
   ``reply_latency_ns`` after it left (CAN broadcast); :meth:`LockStep.pause_bridge` stops
   the bridge as SIGSTOP would (frames to it wait, messages to it are dropped),
   :meth:`LockStep.resume_bridge` hands it the waiting frames at once (``kill=True``:
-  never again) and :meth:`LockStep.restart_bridge` starts a new one.
+  never again) and :meth:`LockStep.restart_bridge` starts a new one;
+- :meth:`LockStep.token_gone` is a liveliness token vanishing (a process killed, a link
+  cut): the bridge and the watchers (:meth:`LockStep.watch_tokens`) take it at once.
 
 Events at the same instant run in this order: the simulator, then message deliveries (in
 publication order), then the tick.
@@ -45,6 +47,8 @@ from services.simulator.core import SimCore
 
 Handler = Callable[[Message, int], list[tuple[str, Message]]]
 """A subscriber: (message, delivery time [ns]) -> messages to publish (key suffix, message)."""
+TokenWatcher = Callable[[str, int], list[tuple[str, Message]]]
+"""A liveliness watcher: (service whose token vanished, time [ns]) -> messages to publish."""
 
 TICK_NS = 20_000_000
 """Period of the bridge's ``on_tick`` [ns]."""
@@ -121,6 +125,7 @@ class LockStep:
         self._bridge_paused = False
         self._bridge_killed = False
         self._bridge_backlog: list[Frame] = []
+        self._token_watchers: list[TokenWatcher] = []
         self._apply(self.bridge.start(0), 0)
 
     @property
@@ -142,6 +147,19 @@ class LockStep:
     def attach_node(self, node: BusNode) -> None:
         """Put another PC-side node on the bus from now on."""
         self.nodes.append(node)
+
+    def watch_tokens(self, watcher: TokenWatcher) -> None:
+        """Call ``watcher`` whenever a liveliness token vanishes (:meth:`token_gone`)."""
+        self._token_watchers.append(watcher)
+
+    def token_gone(self, service: str) -> None:
+        """The token ``alive/<service>`` vanishes now (its process killed, a link cut): the
+        bridge (unless stopped) and every watcher take it at once."""
+        if not self._bridge_paused:
+            self._apply(self.bridge.on_token_gone(service, self._t), self._t)
+        for watcher in self._token_watchers:
+            for suffix, msg in watcher(service, self._t):
+                self._publish(suffix, msg, self._t)
 
     def pause_bridge(self, *, kill: bool = False) -> None:
         """The bridge stops (SIGSTOP; ``kill``: SIGKILL): it gets nothing and sends nothing."""

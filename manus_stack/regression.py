@@ -15,8 +15,9 @@ its queryables' mirrored requests in; its publications and mirrored replies out.
   out (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
   stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
-  the live shell does), the scene and the controller's query requests in; commands,
-  feedback, results, the jog's state and the query replies out.
+  the live shell does), the scene, the liveliness tokens that vanished (as the controller
+  took them: its ``controller/token_gone`` records) and the controller's query requests
+  in; commands, feedback, results, the jog's state and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
@@ -46,7 +47,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.endpoints import LIVELINESS
 from schemas.jog import JogTaken
-from schemas.liveliness import LivelinessChange, TokenKind
+from schemas.liveliness import LivelinessChange, TokenGone, TokenKind
 from schemas.planning import PlanReply
 from schemas.state import JointState
 from services.controller.config import ControllerConfig
@@ -343,6 +344,8 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
             taken = msg.command
             out = core.on_jog(taken) if taken is not None else core.on_bad_jog(msg.error)
             outputs = CONTROLLER.published(out)
+        elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
+            outputs = CONTROLLER.published(core.on_token_gone(msg.service))
         elif msg is None:
             outputs = CONTROLLER.published(core.on_bad_jog(BAD_JOG_PAYLOAD))
         else:
@@ -363,18 +366,23 @@ def _controller_inputs(
     :class:`~schemas.jog.JogTaken` saying after which joint state it came: when the
     recording holds those, each is fed (as the command it carries) after that joint state
     and before the next, at its log time within that span, instead of the raw stream.
+    A vanished liveliness token is no sample at all: the controller's
+    :class:`~schemas.liveliness.TokenGone` records are placed the same way.
     """
     have = {c.suffix for c in recording.info.channels.values()}
-    if ep.JOG_TAKEN not in have:
-        return list(_inputs(recording, CONTROLLER.input_suffixes, window))
-    suffixes = tuple(s for s in CONTROLLER.input_suffixes if s != ep.JOG)
+    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE) if s in have)
+    suffixes = CONTROLLER.input_suffixes
+    if ep.JOG_TAKEN in have:
+        suffixes = tuple(s for s in suffixes if s != ep.JOG)
     base = list(_inputs(recording, suffixes, window))
+    if not records:
+        return base
     times = [rec.log_ns for rec, _ in base]
     states = [i for i, (_, m) in enumerate(base) if isinstance(m, JointState)]
     at_seq = {m.seq: i for i, (_, m) in enumerate(base) if isinstance(m, JointState)}
     placed: list[tuple[int, int, Recorded, Message | None]] = []
-    for order, (rec, taken) in enumerate(_inputs(recording, (ep.JOG_TAKEN,), window)):
-        assert isinstance(taken, JogTaken)
+    for order, (rec, taken) in enumerate(_inputs(recording, records, window)):
+        assert isinstance(taken, JogTaken | TokenGone)
         pos = bisect.bisect_right(times, rec.log_ns)
         after = at_seq.get(taken.after_seq)
         if after is not None:  # within (that joint state, the next one]

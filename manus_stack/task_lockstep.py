@@ -61,6 +61,9 @@ class TaskLockStep:
         for inp in SEQUENCER.inputs:
             ls.subscribe(inp.endpoint, self._sequencer_input(inp))
         ls.subscribe(ep.JOINTS, lambda m, t: self.do(self.seq.on_tick(t), t))
+        ctrl = self.controller
+        ls.watch_tokens(lambda service, t: CONTROLLER.published(ctrl.on_token_gone(service)))
+        ls.watch_tokens(lambda service, t: self.do(self.seq.on_liveliness(service, False, t), t))
         self._answerers: dict[str, tuple[Wiring[Any, Any], Any]] = {
             a.endpoint: (wiring, core)
             for wiring, core in ((CONTROLLER, self.controller), (PLANNER, self.planner))

@@ -243,6 +243,13 @@ STATUS = _pub("state/status", _BRIDGE, state.ArmStatus, "the arm's status and me
 BRIDGE_STATE = _pub("state/bridge", _BRIDGE, state.BridgeState, "bridge phase and health")
 CAN_RX = _pub("can/rx", _BRIDGE, state.CanFrame, "every frame received from the arm")
 CAN_TX = _pub("can/tx", _BRIDGE, state.CanFrame, "every frame sent to the arm")
+BRIDGE_TOKEN_GONE = _pub(
+    "bridge/token_gone",
+    _BRIDGE,
+    liveliness.TokenGone,
+    "each alive/<service> token vanishing as the bridge took it (a fold whose heartbeats "
+    "that service sent stops at once; exact replays)",
+)
 BRIDGE_COMMAND = _query(
     "bridge/command",
     _BRIDGE,
@@ -333,6 +340,13 @@ JOG_TAKEN = _pub(
     _CTRL,
     jog.JogTaken,
     "each jog command as the controller took it: after which joint state (exact replays)",
+)
+TOKEN_GONE = _pub(
+    "controller/token_gone",
+    _CTRL,
+    liveliness.TokenGone,
+    "each alive/<service> token vanishing as the controller took it: after which joint "
+    "state (goals whose heartbeats that service sent stop at once; exact replays)",
 )
 JOG_STATE = _pub(
     "controller/jog_state",
@@ -529,6 +543,7 @@ TABLE = Table(
         BRIDGE_STATE,
         CAN_RX,
         CAN_TX,
+        BRIDGE_TOKEN_GONE,
         BRIDGE_COMMAND,
         ESTOP,
         SIM_TRUTH,
@@ -545,6 +560,7 @@ TABLE = Table(
         JOG,
         JOG_LEVEL,
         JOG_TAKEN,
+        TOKEN_GONE,
         JOG_STATE,
         HEARTBEAT,
         SUBMIT,

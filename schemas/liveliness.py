@@ -97,3 +97,22 @@ class LivelinessChange(Message):
             host=host,
             pid=pid,
         )
+
+
+@dataclass(frozen=True)
+class TokenGone(Message):
+    """A service's ``alive/<service>`` token vanished, as a core took it (keys
+    ``controller/token_gone`` and ``bridge/token_gone``), published at once.
+
+    Zenoh drops a token when its session's link closes (a killed process, a router
+    restart), so the controller and the bridge stop a goal or a fold at once when the token
+    of whoever sends its heartbeats goes (docs/architecture.md, Freshness and safety
+    rules). A token is not a sample: this record is the core's input as it took it, after
+    which joint state, so a replay feeds it at the same place.
+    """
+
+    TYPE_NAME = "manus/TokenGone/1"
+
+    service: str = field("whose token vanished (alive/<service>)")
+    after_seq: int = field("seq of the newest joint state the core had (-1: none yet)")
+    stopped: str = field("what it stopped, and why ('' when nothing ran that it drove)")

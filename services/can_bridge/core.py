@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from manus.deadman import tied_to, token_gone
 from manus.protocol import (
     REPLY_IDS,
     ZERO_JOINT_MOVE,
@@ -38,6 +39,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
 from schemas.control import Heartbeat
+from schemas.liveliness import TokenGone
 from schemas.state import CanFrame
 from services.can_bridge.commands import CommandError, PendingCommand, is_fresh, to_move
 from services.can_bridge.config import BridgeConfig
@@ -100,6 +102,7 @@ class BridgeCore:
         self._ref: tuple[tuple[int, ...], int] | None = None  # plausible fields, cycle
         self._rejected: tuple[tuple[int, ...], int] | None = None
         self._echo_ns: int | None = None  # joint-state stamp the newest heartbeat echoes
+        self._echo_source = ""  # who sent that heartbeat (its alive/<source> token)
         self._state_cycle = -1  # index of the cycle of the newest joint state
         self._report_ns = 0  # stamp of the newest bridge state (kept monotonic)
 
@@ -184,7 +187,33 @@ class BridgeCore:
         at the next joint state of a fold with a deadman (:mod:`.fold_deadman`)."""
         if self._echo_ns is None or hb.ref_stamp_ns > self._echo_ns:
             self._echo_ns = hb.ref_stamp_ns
+            self._echo_source = hb.source
         return Outputs()
+
+    def on_token_gone(self, service: str, rx_ns: int) -> Outputs:
+        """The token ``alive/<service>`` vanished (its process died or its link was cut): a
+        fold with a deadman whose heartbeats that service sent stops at once (phase
+        ``stopped``, 0x370 at the next sync; :func:`manus.deadman.tied_to`); the
+        controller's: its newest command is dropped (zeros at the next sync, not the
+        command of a controller that can no longer stop it). Always published as a
+        :class:`~schemas.liveliness.TokenGone`."""
+        out = Outputs()
+        deadman = self.phases.fold_deadman
+        stopped = ""
+        if deadman is not None and tied_to(
+            service, self._echo_source, deadman.since_ns, self._echo_ns
+        ):
+            self.phases.stop_fold(token_gone(service))
+            stopped = self.phases.detail
+        if service == ep.Service.CONTROLLER and self.pending is not None:
+            self.pending = None
+            stopped = "the controller's liveliness token went: its command dropped, zeros"
+        after = -1 if self.newest_state_seq is None else self.newest_state_seq
+        out.messages.append(
+            (ep.BRIDGE_TOKEN_GONE, TokenGone(service=service, after_seq=after, stopped=stopped))
+        )
+        self._report(rx_ns, out)
+        return out
 
     def on_arm_command(self, req: ArmCommand, rx_ns: int) -> tuple[ArmCommandReply, Outputs]:
         """``stop``, ``fold_in`` / ``fold_out`` or ``clear`` (the bridge/command queryable)."""

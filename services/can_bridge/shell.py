@@ -5,7 +5,8 @@ time, feeds the core and **sends the core's frames before anything else**: the r
 a 0x37F leaves before any Zenoh call of that cycle. Only then are the core's messages
 published (``state/joints`` first when a 0x360 came in). Zenoh callbacks (the wiring map
 :data:`services.can_bridge.wiring.WIRING`: velocity commands, e-stop, the
-``bridge/command`` queryable) feed the core under ``node.lock``; the
+``bridge/command`` queryable) and the liveliness watch (a vanished ``alive/<service>``
+token: :meth:`BridgeCore.on_token_gone`) feed the core under ``node.lock``; the
 loop takes the same lock only around the core call itself, never around bus or Zenoh I/O.
 
 Times: the core works on the wall clock in ns (``time.time_ns``), the clock python-can
@@ -91,9 +92,14 @@ class BridgeShell:
         self._publish_core = WIRING.publishers(self.node)
         WIRING.attach(self.node, self.core, self._publish, now=clock, publish=self._publish_core)
         self.node.on_bad_payload = self._on_bad_payload
+        self.node.watch_liveliness(self._on_alive)  # its callback runs under the node lock
         self.node.announce()  # alive once it listens and answers
 
     # -- Zenoh side (the wiring map's callbacks run under node.lock) ---------------------------
+
+    def _on_alive(self, service: str, alive: bool) -> None:
+        if not alive:  # a fold whose heartbeats that service sent stops at once
+            self._publish(self.core.on_token_gone(service, self.clock()))
 
     def _on_bad_payload(self, key: str) -> None:
         with self.lock:

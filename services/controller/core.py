@@ -21,7 +21,11 @@ Contract (docs/architecture.md, Time; Freshness and safety rules):
   zeros. Nothing restarts by itself when heartbeats return. The echo of a state cannot
   come before the state, so a late state (a gap: answered with zeros) is judged as if it
   had come one cycle after the one before it: the deadman judges the link, the gap rules
-  the arm's side.
+  the arm's side. The deadman's sender dying or its link cut is seen at once: when the
+  token ``alive/<source>`` of the service whose heartbeats a running goal got vanishes
+  (the shell's liveliness watch, :meth:`ControllerCore.on_token_gone`), every goal aborts
+  and the command already sent for this cycle is replaced by zeros; a hang keeps the
+  token and is left to the echo's age.
 - Live control (jog, :mod:`.jog`): the newest ``JogCommand`` drives the arm while no
   trajectory runs; a moving one preempts every goal (reason starting
   :data:`~schemas.jog.USER_TOOK_OVER`), goals are refused while it moves, and the same
@@ -37,7 +41,7 @@ import math
 
 import numpy as np
 
-from manus.deadman import echo_too_old, judged_at
+from manus.deadman import echo_too_old, judged_at, tied_to, token_gone
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
@@ -56,6 +60,7 @@ from schemas.control import (
     TrajectoryGoal,
 )
 from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
+from schemas.liveliness import TokenGone
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import MS, ControllerConfig
@@ -121,6 +126,8 @@ class ControllerCore:
         """Message numbering and the results waiting for their stamp."""
         self.heartbeat_ref_ns: int | None = None
         """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
+        self.heartbeat_source = ""
+        """Who sent that heartbeat (``Heartbeat.source``: its ``alive/<source>`` token)."""
         self.guard = run_guard(cfg.scene, cfg.arm)
         """The collision guard every command passes (None: no scene)."""
         self.scene_seen = start_scene_state(cfg.scene)
@@ -271,7 +278,40 @@ class ControllerCore:
         """
         if self.heartbeat_ref_ns is None or hb.ref_stamp_ns > self.heartbeat_ref_ns:
             self.heartbeat_ref_ns = hb.ref_stamp_ns
+            self.heartbeat_source = hb.source
         return []
+
+    def on_token_gone(self, service: str) -> Output:
+        """The token ``alive/<service>`` vanished (its process died or its link was cut).
+
+        If a running goal's heartbeats came from that service (:func:`manus.deadman.tied_to`),
+        every goal aborts at once and a zero command replaces the one already sent for this
+        cycle. Always published as a :class:`~schemas.liveliness.TokenGone` (after which
+        joint state it came: the regression check feeds it there).
+        """
+        js = self.last_js
+        tied = self._tied_to(service)
+        reason = f"{token_gone(service)} (stopped; nothing resumes by itself)" if tied else ""
+        if tied:
+            self._abort_all(reason)
+        record = TokenGone(service=service, after_seq=-1 if js is None else js.seq, stopped=reason)
+        out: Output = [(ep.TOKEN_GONE, record)]
+        if js is None:
+            return out
+        if tied:  # the stop replaces this cycle's command at the next sync
+            self.last_counts = np.zeros(6, dtype=np.int64)
+            out.append((ep.JOINT_VELOCITY, self.outbox.command(js, self.last_counts, 0)))
+        return out + self._flush(js.stamp_ns)
+
+    def _tied_to(self, service: str) -> bool:
+        """A running goal with a deadman got its heartbeats from ``service``."""
+        since: list[int | None] = []
+        if self.run is not None and self.run.goal.heartbeat_timeout > 0.0:
+            since.append(self.heartbeat_since_ns)
+        if self.gripper is not None and self.gripper.goal.heartbeat_timeout > 0.0:
+            since.append(self.gripper.heartbeat_since_ns)
+        src, echo = self.heartbeat_source, self.heartbeat_ref_ns
+        return any(tied_to(service, src, s, echo) for s in since)
 
     def _heartbeat_lost(self, js: JointState) -> str | None:
         """Why the running goals must stop for want of heartbeats (None: they need not).
