@@ -8,7 +8,10 @@ hundredths of a degree after a stop).
 
 - The arm stops: the first quiet interval after the fault starts at most
   :data:`STOP_LIMIT_NS` after it: two cycles, plus one cycle because the truth samples
-  the arm once per cycle (the arm was at rest somewhere in the interval before).
+  the arm once per cycle (the arm was at rest somewhere in the interval before). A
+  fault the arm's side can only learn from the heartbeat deadman (the sequencer hung:
+  a hang keeps its liveliness token) gets the cycles that deadman waits on top
+  (:func:`stop_limit_ns`): the arm stops within two cycles of the deadman's expiry.
 - Nothing resumes by itself: after that, every interval up to the recovery is quiet;
   the recovery moves no joint more than :data:`RECOVERY_TOL`; and every interval from
   the stack being ready again to the next task is quiet. A fault kind whose task may go
@@ -35,6 +38,24 @@ from services.simulator.truth_log import TruthLine
 CYCLE_NS = 60_000_000
 STOP_LIMIT_NS = 3 * CYCLE_NS
 """Latest start of the first quiet interval after a fault [ns] (see the module docstring)."""
+
+
+def stop_limit_ns(deadman_timeout_s: float | None = None) -> int:
+    """The latest start of the first quiet interval after a fault [ns].
+
+    :data:`STOP_LIMIT_NS` for a fault the arm's side sees at once (at the first joint
+    state after it). One it can only learn from the heartbeat deadman of
+    ``deadman_timeout_s`` [s] (a hung sender) is seen later: the deadman stops at the
+    first joint state whose newest echo is older than the timeout. The echo of a state
+    cannot come before the state, so a sender that hangs just after echoing one state
+    is caught ``floor(timeout / cycle)`` states after the one at which a fault seen at
+    once would be (0.1 s: one, 0.15 s: two), and the limit grows by as many cycles.
+    """
+    if deadman_timeout_s is None:
+        return STOP_LIMIT_NS
+    return STOP_LIMIT_NS + round(deadman_timeout_s * 1e9) // CYCLE_NS * CYCLE_NS
+
+
 JOINT_TOL = float(np.radians(0.05))
 """Largest joint motion of a quiet interval [rad]."""
 GRIPPER_TOL = 1e-4

@@ -68,6 +68,9 @@ class FaultKind:
             a short stop, not the task): motion after the recovery is not judged.
         event: the task ends with a final event; False when the fault takes the sequencer
             itself away (its clients learn it from its liveliness token).
+        deadman: the arm's side can only learn of it from the heartbeat deadman (a hung
+            sequencer keeps its liveliness token): the stop is judged against the limit
+            grown by the cycles that deadman waits (:func:`judge.stop_limit_ns`).
     """
 
     name: str
@@ -80,6 +83,7 @@ class FaultKind:
     reason: tuple[str, ...] = ()
     resumes: bool = False
     event: bool = True
+    deadman: bool = False
 
     def __post_init__(self) -> None:
         signals = (Action.SIGKILL, Action.SIGSTOP)
@@ -110,7 +114,13 @@ FAULTS: tuple[FaultKind, ...] = (
     # sequencer sees the planner's token vanish and cancels it (a deceleration)
     *_signals("planner", "planner", stops=False, outcome=Outcome.ANY),
     FaultKind("sequencer_sigkill", Action.SIGKILL, "sequencer", event=False),
-    FaultKind("sequencer_sigstop", Action.SIGSTOP, "sequencer", reason=("heartbeat", "gone")),
+    FaultKind(
+        "sequencer_sigstop",
+        Action.SIGSTOP,
+        "sequencer",
+        reason=("heartbeat", "gone"),
+        deadman=True,
+    ),
     *_signals("record", "recorder", stops=False, outcome=Outcome.SUCCEEDED),
     FaultKind("router_restart", Action.ROUTER, hold_s=1.0, reason=("gone", "link", "heartbeat")),
     FaultKind(

@@ -37,6 +37,7 @@ from schemas.sequencing import SubmitReply, TaskControl, TaskEvent, TaskStatus
 from schemas.simfault import SimFault, SimFaultReply
 from services.recorder.reading import Recording, decode
 from services.recorder.recover import recover
+from services.sequencer.config import SequencerConfig
 from services.simulator.truth_log import TruthLine, read_truth_log
 
 SERVICES = {s.value for s in ep.Service}
@@ -464,8 +465,9 @@ class Soak:
             at_rest = "" if stop_ms is None else f" (at rest {stop_ms:.0f} ms after the fault)"
             violated(done, f"the arm kept moving on a stale command until the recovery{at_rest}")
             return
-        if s.stop_ns - fault_sim > judge.STOP_LIMIT_NS:
-            limit = judge.STOP_LIMIT_NS / 1e6
+        limit_ns = judge.stop_limit_ns(self._deadman_s(done.step) if fault.deadman else None)
+        if s.stop_ns - fault_sim > limit_ns:
+            limit = limit_ns / 1e6
             violated(done, f"at rest only {stop_ms:.0f} ms after the fault (limit {limit:.0f} ms)")
         if s.resumed_ns is not None:
             after = (s.resumed_ns - fault_sim) / 1e6
@@ -477,6 +479,13 @@ class Soak:
             violated(done, f"moved {np.degrees(moved):.2f} deg during the recovery")
         if judge.first_motion(truth, sim(done.ready_ns), sim(done.next_submit_ns)) is not None:
             violated(done, "moved by itself after the recovery, before the next task")
+
+    @staticmethod
+    def _deadman_s(step: str) -> float:
+        """The heartbeat timeout of the step the fault hit [s] (the sequencer's defaults,
+        which ``manus up`` runs)."""
+        cfg = SequencerConfig()
+        return cfg.fold_heartbeat_timeout_s if step.startswith("fold") else cfg.heartbeat_timeout_s
 
     def _token_gaps(self, service: str, pid: int) -> list[tuple[int, int]]:
         """When the soak's node saw the ``where`` token of ``service``'s process ``pid``
