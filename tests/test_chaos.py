@@ -17,7 +17,7 @@ from manus.errors import ConfigError, SchemaError
 from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.chaos import judge
-from manus_stack.chaos.schedule import FAULTS, TASKS, Action, FaultKind, draw
+from manus_stack.chaos.schedule import FAULTS, TASKS, Action, FaultKind, draw, select
 from manus_stack.chaos.soak import run_soak
 from schemas import endpoints as ep
 from schemas.simfault import SimFault, SimFaultReply
@@ -42,6 +42,17 @@ def test_the_schedule_is_seeded_and_draws_every_fault_before_repeating() -> None
     assert first == {f.name for f in FAULTS}
     assert [r.task for r in rounds[:4]] == list(TASKS)
     assert all(0.15 * r.task.window_s <= r.delay_s <= r.task.window_s for r in rounds)
+
+
+def test_a_targeted_soak_draws_from_the_rows_named() -> None:
+    faults = select("bridge_sigstop, bridge_sigkill", FAULTS, "fault kind(s)")
+    assert [f.name for f in faults] == ["bridge_sigkill", "bridge_sigstop"]
+    assert select("", TASKS, "task(s)") == TASKS
+    rounds = draw(3, 6, faults, select("fold", TASKS, "task(s)"))
+    assert {r.fault.name for r in rounds} == {"bridge_sigkill", "bridge_sigstop"}
+    assert {r.task.name for r in rounds} == {"fold"}
+    with pytest.raises(ConfigError, match=r"unknown task\(s\) melt \(known: square, gripper"):
+        select("fold,melt", TASKS, "task(s)")
 
 
 def test_fault_kinds_are_checked_when_built() -> None:
