@@ -83,11 +83,18 @@ def write_dump(
 ) -> int:
     """Write ``dump`` as a recording at ``path``; returns the messages written.
 
-    A full ring (about 6500 messages of the stack's traffic: 120-200 ms of CPU) written
-    in one go was a burst of one core on a machine whose other core runs the 60 ms loop;
-    under load it delayed the joint states other processes received (docs/deployment.md,
-    Chaos soak). So the messages are written in slices: after ``slice_s`` [s] of ``clock``
-    the writer calls ``pause`` (a sleep: the CPU and the GIL go to others), then goes on.
+    A full ring (about 6500 messages of the stack's traffic) written in one go is a burst
+    of 120-210 ms on one of the machine's two cores; under load it delayed the joint
+    states other processes received (docs/deployment.md, Chaos soak). So the messages are
+    written in slices, with a pause (the CPU and the GIL go to others) after each.
+
+    Args:
+        dump: what to write.
+        path: the file.
+        prefix: key prefix of the arm (the recording's channels).
+        slice_s: the longest stretch written without a pause, by ``clock`` [s].
+        pause: called between two slices (default: sleep :data:`PAUSE_S`).
+        clock: a monotonic clock [s].
     """
     with RecordingWriter(path, prefix=prefix, source="manus record --ring") as writer:
         writer.add_metadata(
