@@ -84,9 +84,10 @@ def write_dump(
     """Write ``dump`` as a recording at ``path``; returns the messages written.
 
     A full ring (about 6500 messages of the stack's traffic) written in one go is a burst
-    of 120-210 ms on one of the machine's two cores; under load it delayed the joint
-    states other processes received (docs/deployment.md, Chaos soak). So the messages are
-    written in slices, with a pause (the CPU and the GIL go to others) after each.
+    of 120-210 ms on one of the machine's two cores; under load it once delayed a joint
+    state another process received by 77 ms (docs/deployment.md, Chaos soak). So the
+    messages are written in slices, with a pause (the CPU and the GIL go to others) after
+    each.
 
     Args:
         dump: what to write.
