@@ -3,6 +3,7 @@ after it, the file validates and replays, and memory stays under the cap in a fl
 
 from __future__ import annotations
 
+import itertools
 import time
 import tracemalloc
 from pathlib import Path
@@ -194,6 +195,24 @@ def test_write_dump_writes_a_valid_file(tmp_path: Path) -> None:
     path = tmp_path / "d.mcap"
     assert write_dump(dump, path, "manus") == len(dump.samples)
     assert Recording(path).info.messages == len(dump.samples)
+
+
+def test_a_dump_is_written_in_slices_with_a_pause_between_them(tmp_path: Path) -> None:
+    """Each message takes one tick of the fake clock (1/1024 s, exact in binary): a pause
+    after every 5 (a slice of 5 ticks), and every message in the file, in order."""
+    core = FlightCore(FlightConfig(ring_s=1.0, after_s=0.5))
+    [(_, [dump])] = _stream(core, 3.0, 1.5, "error")
+    ticks = itertools.count()
+    pauses: list[int] = []
+    clock = lambda: next(ticks) / 1024  # noqa: E731
+    written = write_dump(
+        dump, tmp_path / "d.mcap", "manus", slice_s=5 / 1024, clock=clock,
+        pause=lambda: pauses.append(len(pauses)),
+    )  # fmt: skip
+    assert written == len(dump.samples) >= 50
+    assert len(pauses) == len(dump.samples) // 5
+    logged = [m.log_ns for m in Recording(tmp_path / "d.mcap").messages()]
+    assert logged == [s.log_ns for s in dump.samples]
 
 
 @pytest.mark.slow

@@ -12,12 +12,18 @@ memory before, at most (sampled every 0.25 s) and after, split as the kernel cou
 (``RssAnon``: its own heap, where the ring lives; ``RssFile``: mapped code; ``RssShmem``:
 shared memory, e.g. Zenoh's pool of another process), the bytes it held at most, the
 samples its queue dropped and the most bytes its queue held.
+
+``dump``: a full 30 s ring of the stack's own traffic (the recording's, looped) written
+as a flight file in one go and in slices (:func:`services.recorder.flight_shell.write_dump`):
+the time each takes and its longest stretch without a pause (CPU taken from the rest of the
+stack in one burst).
 """
 
 from __future__ import annotations
 
 import gc
 import json
+import math
 import signal
 import socket
 import subprocess
@@ -32,7 +38,8 @@ import psutil
 import zenoh
 
 from manus.session import client_settings, open_session, router_settings
-from services.recorder.flight import FlightConfig, FlightCore
+from services.recorder.flight import Dump, FlightConfig, FlightCore, Sample, Trigger
+from services.recorder.flight_shell import PAUSE_S, SLICE_S, write_dump
 from services.recorder.reading import Recording
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data" / "thesis_square.mcap"
@@ -195,10 +202,52 @@ def _live(seconds: float, cap: int) -> dict[str, Any]:
     }
 
 
+def _dump(ring_s: float = 30.0) -> dict[str, Any]:
+    """A full ring of the recording's traffic (once, not tenfold) written in one go and in
+    slices: messages, write time [ms], longest stretch without a pause [ms], pauses."""
+    items, span = _traffic()
+    samples: list[Sample] = []
+    offset = 0
+    while offset < ring_s * 1e9:
+        for suffix, payload, t in items:
+            samples.append(Sample(len(samples), f"manus/{suffix}", payload, offset + t, None))
+        offset += span
+    last_ns = samples[-1].log_ns
+    dump = Dump([Trigger(last_ns, "request", "bench")], samples[0].log_ns, last_ns, samples)
+    out: dict[str, Any] = {"messages": len(samples)}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, slice_s in (("one_go", math.inf), ("sliced", SLICE_S)):
+            out[name] = _timed_write(dump, Path(tmp) / f"{name}.mcap", slice_s)
+    return out
+
+
+def _timed_write(dump: Dump, path: Path, slice_s: float) -> dict[str, Any]:
+    """Write ``dump`` in slices of ``slice_s`` [s]: its time, longest stretch, pauses."""
+    stretches: list[float] = []
+    mark = time.perf_counter()
+
+    def pause() -> None:
+        nonlocal mark
+        stretches.append(time.perf_counter() - mark)
+        time.sleep(PAUSE_S)
+        mark = time.perf_counter()
+
+    start = time.perf_counter()
+    write_dump(dump, path, "manus", slice_s=slice_s, pause=pause)
+    stretches.append(time.perf_counter() - mark)  # the last, closing the file
+    return {
+        "write_ms": round((time.perf_counter() - start) * 1e3, 1),
+        "longest_stretch_ms": round(max(stretches) * 1e3, 1),
+        "pauses": len(stretches) - 1,
+    }
+
+
 def run(quick: bool = False) -> dict[str, Any]:
-    """Core and live figures (a 4 MiB cap: a 30 s ring of the tenfold traffic needs ~25)."""
+    """Core, live and dump figures (a 4 MiB cap: a 30 s ring of the tenfold traffic needs
+    ~25)."""
     cap = 4 * MIB
     return {
         "core": _core(40.0 if quick else 120.0, cap),
         "live": _live(10.0 if quick else 90.0, cap),
+        "dump": _dump(),
     }

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -201,6 +201,9 @@ TASKS: tuple[TaskKind, ...] = (
 """The tasks run back to back, in turn."""
 
 
+Row = TypeVar("Row", FaultKind, TaskKind)
+
+
 @dataclass(frozen=True)
 class Round:
     """One round of the soak: a task, and the fault that hits it ``delay_s`` after the
@@ -210,6 +213,23 @@ class Round:
     task: TaskKind
     fault: FaultKind
     delay_s: float
+
+
+def select(names: str, table: tuple[Row, ...], what: str) -> tuple[Row, ...]:
+    """The rows of ``table`` named in ``names`` (comma-separated, in the table's order;
+    empty: the whole table), for a targeted soak.
+
+    Raises:
+        ConfigError: a name that is not in the table (naming the known ones).
+    """
+    wanted = [n.strip() for n in names.split(",") if n.strip()]
+    if not wanted:
+        return table
+    known = [row.name for row in table]
+    unknown = [n for n in wanted if n not in known]
+    if unknown:
+        raise ConfigError(f"unknown {what} {', '.join(unknown)} (known: {', '.join(known)})")
+    return tuple(row for row in table if row.name in wanted)
 
 
 def draw(

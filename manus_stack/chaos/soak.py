@@ -28,7 +28,16 @@ import numpy as np
 from manus.node import QueryError
 from manus.session import client_settings
 from manus_stack.chaos import judge
-from manus_stack.chaos.schedule import Action, FaultKind, Outcome, Round, draw
+from manus_stack.chaos.schedule import (
+    FAULTS,
+    TASKS,
+    Action,
+    FaultKind,
+    Outcome,
+    Round,
+    TaskKind,
+    draw,
+)
 from manus_stack.chaos.watch import Watcher, digest
 from manus_stack.up import Child, LocalStack, StackOptions, free_port, port_in_use
 from schemas import endpoints as ep
@@ -83,13 +92,25 @@ class Soak:
         minutes: no new round starts after this long [min].
         seed: the schedule's seed.
         out: progress lines (None: nowhere).
+        faults: the fault kinds drawn from (a targeted soak: a few of them).
+        tasks: the tasks run in turn.
     """
 
-    def __init__(self, run_dir: Path, minutes: float, seed: int, out: IO[str] | None) -> None:
+    def __init__(
+        self,
+        run_dir: Path,
+        minutes: float,
+        seed: int,
+        out: IO[str] | None,
+        faults: tuple[FaultKind, ...] = FAULTS,
+        tasks: tuple[TaskKind, ...] = TASKS,
+    ) -> None:
         self.run_dir = run_dir
         self.minutes = minutes
         self.seed = seed
         self.out = out
+        self.faults = faults
+        self.tasks = tasks
         endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.truth_log = run_dir / "truth.txt"
         self.options = StackOptions(
@@ -167,7 +188,7 @@ class Soak:
     def run(self) -> None:
         """Rounds until the time is up."""
         end = time.monotonic() + self.minutes * 60.0
-        for rnd in draw(self.seed, 10_000):
+        for rnd in draw(self.seed, 10_000, self.faults, self.tasks):
             if time.monotonic() >= end:
                 break
             done = Done(rnd)
@@ -405,6 +426,8 @@ class Soak:
         return {
             "seed": self.seed,
             "minutes": self.minutes,
+            "fault_kinds": [f.name for f in self.faults],
+            "tasks": [t.name for t in self.tasks],
             "faults_injected": len(injected),
             "faults_by_kind": {k: sum(d.round.fault.name == k for d in injected) for k in kinds},
             "tasks_run": sum(1 for d in self.done if d.task_id),
@@ -542,9 +565,17 @@ def _cut(start: int, end: int, cuts: list[tuple[int, int]]) -> list[tuple[int, i
     return windows
 
 
-def run_soak(run_dir: Path, minutes: float, seed: int, out: IO[str] | None) -> dict[str, Any]:
-    """Run one soak and return its figures (the stack is always stopped)."""
-    soak = Soak(run_dir, minutes, seed, out)
+def run_soak(
+    run_dir: Path,
+    minutes: float,
+    seed: int,
+    out: IO[str] | None,
+    faults: tuple[FaultKind, ...] = FAULTS,
+    tasks: tuple[TaskKind, ...] = TASKS,
+) -> dict[str, Any]:
+    """Run one soak (of ``faults`` on ``tasks``: by default every one) and return its
+    figures (the stack is always stopped)."""
+    soak = Soak(run_dir, minutes, seed, out, faults, tasks)
     try:
         soak.start()
         soak.run()

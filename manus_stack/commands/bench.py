@@ -25,6 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", help="also write the JSON to this file")
     parser.add_argument("--minutes", type=float, help="chaos: length of the soak [min]")
     parser.add_argument("--seed", type=int, help="chaos: seed of the fault schedule")
+    parser.add_argument(
+        "--faults", help="chaos: only these fault kinds (comma-separated, e.g. bridge_sigkill)"
+    )
+    parser.add_argument("--tasks", help="chaos: only these tasks (comma-separated, e.g. fold)")
 
 
 def run(args: argparse.Namespace) -> int:

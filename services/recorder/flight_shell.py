@@ -9,11 +9,13 @@ memory past the cap. One worker feeds :class:`~services.recorder.flight.FlightCo
 when the bus is quiet, and writes each completed dump with :func:`write_dump` into
 ``out_dir`` as ``flight-<UTC time>-<trigger>.mcap``: an ordinary recording (CRCs,
 summary) that ``manus replay``, ``manus export`` and ``manus plot`` read, with a
-``flight`` metadata record (the triggers, the window). Liveliness changes are recorded and
-fed to the core as the recorder does (``<prefix>/liveliness``), so a vanished service is
-a trigger. It listens only. It runs as the recorder (tokens ``alive/recorder`` and
-``where/recorder/<host>/<pid>``, the recorder's identity in the deployed access control),
-so a recorder and a flight recorder show as two recorder processes.
+``flight`` metadata record (the triggers, the window), in slices of :data:`SLICE_S` of CPU
+with a pause of :data:`PAUSE_S` between them (see :func:`write_dump`). Liveliness changes
+are recorded and fed to the core as the recorder does (``<prefix>/liveliness``), so a
+vanished service is a trigger. It listens only. It runs as the recorder (tokens
+``alive/recorder`` and ``where/recorder/<host>/<pid>``, the recorder's identity in the
+deployed access control), so a recorder and a flight recorder show as two recorder
+processes.
 
 Its own session runs without Zenoh's shared-memory transport
 (``transport/shared_memory/enabled: false``): with it on (Zenoh 1.x's default), the first
@@ -30,6 +32,7 @@ import logging
 import queue
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -53,6 +56,11 @@ NO_SHARED_MEMORY = {"transport/shared_memory/enabled": False}
 NAME = Service.RECORDER
 """Liveliness name of the flight recorder: the recorder's."""
 
+SLICE_S = 0.005
+"""Longest stretch of CPU a dump is written in at once [s] (see :func:`write_dump`)."""
+PAUSE_S = 0.005
+"""Pause between two slices of a dump [s]."""
+
 _Item = tuple[str, bytes, int, int | None]
 
 
@@ -64,8 +72,31 @@ def dump_name(dump: Dump) -> str:
     return f"flight-{stamp}.{(t // 1_000_000) % 1000:03d}-{first.slug}.mcap"
 
 
-def write_dump(dump: Dump, path: Path, prefix: str) -> int:
-    """Write ``dump`` as a recording at ``path``; returns the messages written."""
+def write_dump(
+    dump: Dump,
+    path: Path,
+    prefix: str,
+    *,
+    slice_s: float = SLICE_S,
+    pause: Callable[[], None] = lambda: time.sleep(PAUSE_S),
+    clock: Callable[[], float] = time.perf_counter,
+) -> int:
+    """Write ``dump`` as a recording at ``path``; returns the messages written.
+
+    A full ring (about 6500 messages of the stack's traffic) written in one go is a burst
+    of 120-210 ms on one of the machine's two cores; under load it once delayed a joint
+    state another process received by 77 ms (docs/deployment.md, Chaos soak). So the
+    messages are written in slices, with a pause (the CPU and the GIL go to others) after
+    each.
+
+    Args:
+        dump: what to write.
+        path: the file.
+        prefix: key prefix of the arm (the recording's channels).
+        slice_s: the longest stretch written without a pause, by ``clock`` [s].
+        pause: called between two slices (default: sleep :data:`PAUSE_S`).
+        clock: a monotonic clock [s].
+    """
     with RecordingWriter(path, prefix=prefix, source="manus record --ring") as writer:
         writer.add_metadata(
             "flight",
@@ -78,8 +109,12 @@ def write_dump(dump: Dump, path: Path, prefix: str) -> int:
                 "truncated": str(dump.truncated),
             },
         )
+        start = clock()
         for s in dump.samples:
             writer.write_payload(s.key, s.payload, s.log_ns, s.publish_ns)
+            if clock() - start >= slice_s:
+                pause()
+                start = clock()
         return writer.stats.messages
 
 
@@ -199,6 +234,7 @@ class FlightShell:
     def _write(self, dumps: list[Dump]) -> None:
         for dump in dumps:
             path = self.out_dir / dump_name(dump)
+            started = time.perf_counter()
             try:
                 n = write_dump(dump, path, self.prefix)
             except Exception:
@@ -207,7 +243,14 @@ class FlightShell:
                 continue
             self.files.append(path)
             reasons = ", ".join(f"{t.kind} ({t.detail})" for t in dump.triggers)
-            log.warning("flight recorder: %s: %d messages, triggered by %s", path, n, reasons)
+            took = (time.perf_counter() - started) * 1e3
+            log.warning(
+                "flight recorder: %s: %d messages (written in %.0f ms), triggered by %s",
+                path,
+                n,
+                took,
+                reasons,
+            )
 
     def stats(self) -> dict[str, object]:
         """Counters of the core and the shell."""
