@@ -276,3 +276,20 @@ def test_a_running_sim_takes_faults_through_its_door(
     lines = read_truth_log(truth_file)
     assert len(lines) >= 60 and [t.seq for t in lines] == list(range(len(lines)))
     assert all(b.stamp_ns - a.stamp_ns == judge.CYCLE_NS for a, b in itertools.pairwise(lines))
+
+
+def test_ready_after_a_recovery_needs_a_bridge_state_from_after_it() -> None:
+    """A restarted bridge says nothing for seconds, and the last state the soak saw is the
+    dead bridge's `running`: the stack is not ready on it (it was, once, and the restarted
+    bridge's start-up moves were judged as the arm moving by itself)."""
+    from types import SimpleNamespace
+
+    from manus_stack.chaos.watch import Seen, Watcher
+
+    w = Watcher.__new__(Watcher)  # no bus: only what the soak saw
+    w.seen = Seen()
+    w.seen.bridge.append(SimpleNamespace(phase="running", stamp_ns=1_000))  # type: ignore[arg-type]
+    assert w.phase() == w.phase(1_000) == "running"
+    assert w.phase(1_001) == ""  # recovered at 1001: nothing from the new bridge yet
+    w.seen.bridge.append(SimpleNamespace(phase="initialising", stamp_ns=2_000))  # type: ignore[arg-type]
+    assert w.phase(1_001) == "initialising"

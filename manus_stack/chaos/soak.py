@@ -125,6 +125,8 @@ class Soak:
         self.done: list[Done] = []
         self.t0 = 0
         self.unrecorded: dict[str, int] = {}
+        self._since_ns = 0
+        """The newest recovery [wall ns]: the stack is ready on a bridge state after it."""
 
     # -- plumbing ---------------------------------------------------------------------------
 
@@ -171,7 +173,7 @@ class Soak:
     def _ready(self) -> bool:
         expected = self.stack.expected()
         alive = self.w.node.alive_services(timeout=0.3)
-        return expected <= alive and self.w.phase() == "running"
+        return expected <= alive and self.w.phase(self._since_ns) == "running"
 
     # -- the run ------------------------------------------------------------------------
 
@@ -300,6 +302,9 @@ class Soak:
             done.recovery_ns = time.time_ns()
             self._respawn(router)
             self._wait(lambda: port_in_use(self.options.endpoint), 10.0)
+        # ready means a bridge state from after the recovery: a restarted bridge's first
+        # states come seconds later, and the last one seen is the dead bridge's `running`
+        self._since_ns = done.recovery_ns
         self._clear_latched()
 
     def _restart(self, child: Child) -> None:
@@ -325,14 +330,14 @@ class Soak:
         end = time.monotonic() + 15.0
         while time.monotonic() < end:
             time.sleep(0.2)
-            if self.w.phase() in LATCHED:
+            if self.w.phase(self._since_ns) in LATCHED:
                 with contextlib.suppress(QueryError):
                     self._query(
                         ep.BRIDGE_COMMAND,
                         ArmCommand(action="clear", source="chaos"),
                         ArmCommandReply,
                     )
-            elif self.w.phase() == "running":
+            elif self.w.phase(self._since_ns) == "running":
                 return
 
     def _finish(self, done: Done, fault: FaultKind) -> None:

@@ -157,10 +157,12 @@ class Watcher:
         with self.seen.lock:
             return [t for _, t in self.seen.truth if t.stamp_ns >= sim_ns]
 
-    def phase(self) -> str:
-        """The bridge's last phase ('' before any)."""
+    def phase(self, since_ns: int = 0) -> str:
+        """The bridge's last phase, if that state is stamped at or after ``since_ns`` [wall
+        ns] ('' before any: a bridge restarted since has said nothing yet)."""
         with self.seen.lock:
-            return self.seen.bridge[-1].phase if self.seen.bridge else ""
+            last = self.seen.bridge[-1] if self.seen.bridge else None
+        return last.phase if last is not None and last.stamp_ns >= since_ns else ""
 
     def events_of(self, task_id: str) -> list[TaskEvent]:
         """The events of one task received on the bus, and its final event read from
