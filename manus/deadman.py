@@ -5,7 +5,9 @@ safety rules).
 The supervisor (the sequencer) echoes every joint state it receives in a ``Heartbeat``.
 At each joint state the newest echo must refer to a state no older than the goal's
 ``heartbeat_timeout``, judged on the joint states' stamps (the bridge's clock), so a
-replay judges the same. Pure functions, so both services hold the rule once.
+replay judges the same. Pure functions (and the few stamps :class:`RecentStates` keeps),
+so both services hold the rule once. Each echo gets a full cycle: a state that came late
+credits the echo before it with its lateness (:class:`RecentStates`).
 
 A hang (SIGSTOP) keeps the sender's liveliness token; a killed sender or a cut link
 drops it at once (Zenoh drops a session's tokens when its link closes). So a goal whose
@@ -14,6 +16,8 @@ heartbeats came from ``source`` also stops when the token ``alive/<source>`` van
 """
 
 from __future__ import annotations
+
+from collections import deque
 
 
 def judged_at(stamp_ns: int, last_ns: int | None, cycle_ns: int) -> int:
@@ -26,8 +30,48 @@ def judged_at(stamp_ns: int, last_ns: int | None, cycle_ns: int) -> int:
     return min(stamp_ns, last_ns + cycle_ns)
 
 
+class RecentStates:
+    """The stamps of the newest joint states, for the credit of :func:`echo_too_old`.
+
+    A joint state that comes late (the arm's side held up) is followed by the next one in
+    less than a cycle, so its echo has less than a cycle to come back before the next
+    state is judged: an echo 40 ms late then looked like a lost supervisor, on a machine
+    under load. :meth:`credit` moves the newest echo's reference forward by the lateness
+    of the state after it, which gives every echo a full cycle; a supervisor that hangs
+    is still caught on the same state as before wherever the states come on time.
+
+    Args:
+        cycle_ns: the arm's cycle [ns].
+        keep: how many stamps to keep (8: about half a second).
+    """
+
+    def __init__(self, cycle_ns: int, keep: int = 8) -> None:
+        self.cycle_ns = cycle_ns
+        self._stamps: deque[int] = deque(maxlen=keep)
+
+    def add(self, stamp_ns: int) -> None:
+        """A joint state, stamped ``stamp_ns`` [ns] (newer than the last)."""
+        if not self._stamps or stamp_ns > self._stamps[-1]:
+            self._stamps.append(stamp_ns)
+
+    def credit(self, ref_ns: int) -> int:
+        """``ref_ns`` (the stamp of a joint state) moved forward to one cycle before the
+        state that followed it, if that one came late [ns]; unchanged when the state is
+        not among the newest or nothing has followed it yet."""
+        stamps = self._stamps
+        for k in range(len(stamps) - 1):
+            if stamps[k] == ref_ns:
+                return max(ref_ns, stamps[k + 1] - self.cycle_ns)
+        return ref_ns
+
+
 def echo_too_old(
-    judged_ns: int, seq: int, since_ns: int, echo_ns: int | None, timeout_s: float
+    judged_ns: int,
+    seq: int,
+    since_ns: int,
+    echo_ns: int | None,
+    timeout_s: float,
+    recent: RecentStates | None = None,
 ) -> str | None:
     """Why the goal must stop at the joint state ``seq`` judged at ``judged_ns`` (None: it
     need not).
@@ -39,15 +83,22 @@ def echo_too_old(
             newer than it arrives.
         echo_ns: stamp of the joint state the newest heartbeat echoes [ns] (None: none).
         timeout_s: the goal's ``heartbeat_timeout`` [s], > 0.
+        recent: the newest joint states (None: no credit): the reference is credited
+            with the lateness of the state after it (:class:`RecentStates`).
     """
     ref = since_ns if echo_ns is None or echo_ns < since_ns else echo_ns
-    age_ns = judged_ns - ref
-    if age_ns <= timeout_s * 1e9:
+    credited = ref if recent is None else recent.credit(ref)
+    if judged_ns - credited <= timeout_s * 1e9:
         return None
+    late = (
+        ""
+        if credited == ref
+        else f" ({(credited - ref) / 1e6:.0f} ms of it the next joint state's lateness)"
+    )
     return (
         f"lost the supervisor's heartbeat: the newest echoes joint state stamp {ref} ns, "
-        f"{age_ns / 1e6:.0f} ms before joint state seq {seq}, more than heartbeat_timeout "
-        f"{timeout_s * 1000:.0f} ms"
+        f"{(judged_ns - ref) / 1e6:.0f} ms before joint state seq {seq}{late}, more than "
+        f"heartbeat_timeout {timeout_s * 1000:.0f} ms"
     )
 
 

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from manus.config import DEFAULT_ARM
+from manus.deadman import RecentStates
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
 from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
-from schemas.state import ArmStatus, BridgeState
+from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
@@ -295,6 +296,47 @@ def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
         assert [r.status for r in plant.results] == ["aborted"]
         assert plant.results[0].reason.startswith("lost the supervisor's heartbeat")
         assert plant.commands[-1].counts == [0] * 8
+
+
+def test_an_echo_gets_a_full_cycle_after_a_late_joint_state() -> None:
+    """A joint state 29 ms late and the next one on time, 31 ms after it, whose echo
+    comes 41 ms after its stamp, after the next state (seen in a soak, on a bridge just
+    restarted): no lost heartbeat, the late state credits the echo before it with its
+    lateness. A supervisor that hangs after that is caught where it always is: at the
+    second state after the last echo. The credit never reaches past the newest states."""
+
+    def state(plant: Plant, shift_ms: int = 0) -> JointState:
+        plant.t_ns += shift_ms * MS
+        plant.cycle()
+        return plant.states[-1]
+
+    def echo(plant: Plant, js: JointState) -> None:
+        hb = Heartbeat(stamp_ns=js.stamp_ns, seq=js.seq, source="test", ref_seq=js.seq,
+                       ref_stamp_ns=js.stamp_ns)  # fmt: skip
+        plant.core.on_heartbeat(hb)
+
+    plant = _plant()
+    assert plant.core.submit(_goal(heartbeat_timeout=0.1)).accepted
+    for _ in range(10):
+        echo(plant, state(plant))
+    late = state(plant, 29)
+    after = state(plant, -29)  # back on the grid: 31 ms after the late one
+    assert plant.results == [], plant.results[0].reason  # was: aborted, echo 122 ms old
+    echo(plant, late)
+    echo(plant, after)
+    state(plant)  # the supervisor hangs: no echo from here on
+    assert plant.results == []
+    state(plant)
+    assert [r.status for r in plant.results] == ["aborted"]
+    assert plant.results[0].reason.startswith("lost the supervisor's heartbeat")
+
+    recent = RecentStates(60 * MS, keep=3)
+    for stamp in (0, 60, 149, 180):
+        recent.add(stamp * MS)
+    assert recent.credit(60 * MS) == 89 * MS  # the state after it came 29 ms late
+    assert recent.credit(149 * MS) == 149 * MS  # the state after it came early
+    assert recent.credit(0) == 0  # no longer among the newest: no credit
+    assert recent.credit(180 * MS) == 180 * MS  # nothing after it yet
 
 
 def test_old_or_duplicate_state_is_not_answered() -> None:

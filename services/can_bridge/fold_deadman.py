@@ -28,9 +28,9 @@ resumes by itself.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from manus.deadman import echo_too_old, judged_at
+from manus.deadman import RecentStates, echo_too_old, judged_at
 from manus.protocol import CYCLE_S
 
 NS = 1_000_000_000
@@ -47,6 +47,7 @@ class FoldDeadman:
         since_ns: stamp of the fold's first joint state [ns] (None before it).
         missed: such syncs in a row so far.
         last_ns: stamp of the joint state before [ns] (None before the first).
+        recent: the newest joint states' stamps (each echo gets a full cycle).
     """
 
     heartbeat_timeout_s: float
@@ -54,6 +55,7 @@ class FoldDeadman:
     since_ns: int | None = None
     missed: int = 0
     last_ns: int | None = None
+    recent: RecentStates = field(default_factory=lambda: RecentStates(CYCLE_NS))
 
     def on_joint_state(self, stamp_ns: int, seq: int, echo_ns: int | None) -> str | None:
         """A joint state the bridge published (``echo_ns``: the stamp the newest heartbeat
@@ -61,13 +63,16 @@ class FoldDeadman:
         if self.since_ns is None:
             self.since_ns = stamp_ns
         last, self.last_ns = self.last_ns, stamp_ns
+        self.recent.add(stamp_ns)
         if last is not None and stamp_ns - last > self.missed_to_stop * CYCLE_NS:
             return (  # a bridge held up (SIGSTOP)
                 f"no joint state for {(stamp_ns - last) / 1e6:.0f} ms before seq {seq} "
                 f"(more than {self.missed_to_stop} cycles: the arm's side was held up)"
             )
         judged = judged_at(stamp_ns, last, CYCLE_NS)
-        return echo_too_old(judged, seq, self.since_ns, echo_ns, self.heartbeat_timeout_s)
+        return echo_too_old(
+            judged, seq, self.since_ns, echo_ns, self.heartbeat_timeout_s, self.recent
+        )
 
     def on_sync(self, state_this_cycle: bool, controller_fresh: bool) -> tuple[bool, str | None]:
         """A clean sync: (send the fold frame, why the fold must stop or None).

@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from manus.deadman import echo_too_old, judged_at, tied_to, token_gone
+from manus.deadman import RecentStates, echo_too_old, judged_at, tied_to, token_gone
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
@@ -137,6 +137,9 @@ class ControllerCore:
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
         self.deadman_at_ns = 0
+        self.recent_states = RecentStates(cfg.cycle_ns)
+        """The newest joint states' stamps: each echo gets a full cycle (a late state
+        credits the echo before it with its lateness)."""
         """When the deadman judges the newest echo's age [ns, bridge stamps]: the joint
         state's stamp, or one cycle after the state before it if that is sooner."""
         self.jog = Jog(cfg)
@@ -335,7 +338,9 @@ class ControllerCore:
     def _echo_too_old(self, js: JointState, limit: float, since_ns: int) -> str | None:
         """Why a goal with ``heartbeat_timeout`` ``limit`` [s], judged from the joint state
         stamped ``since_ns``, must stop at ``js`` (None: it need not)."""
-        lost = echo_too_old(self.deadman_at_ns, js.seq, since_ns, self.heartbeat_ref_ns, limit)
+        lost = echo_too_old(
+            self.deadman_at_ns, js.seq, since_ns, self.heartbeat_ref_ns, limit, self.recent_states
+        )
         return None if lost is None else f"{lost} (stopped; nothing resumes by itself)"
 
     def _active(self) -> bool:
@@ -400,6 +405,7 @@ class ControllerCore:
         self.deadman_at_ns = judged_at(
             js.stamp_ns, None if last is None else last.stamp_ns, cfg.cycle_ns
         )
+        self.recent_states.add(js.stamp_ns)
         usable = js.valid and js.mode == "joint"
         if gap or not usable:
             self._interrupted(js, last, gap, usable)
