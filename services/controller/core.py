@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from manus.deadman import RecentStates, echo_too_old, judged_at, tied_to, token_gone
+from manus.deadman import token_gone
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
@@ -77,6 +77,7 @@ from services.controller.guard import run_guard, scene_guard
 from services.controller.jog import Jog
 from services.controller.outbox import Outbox, Output
 from services.controller.reference import Reference
+from services.controller.supervision import Supervision
 from services.controller.tracking import Step, TrajectoryRun
 
 __all__ = ["STOPPING_PHASES", "ControllerCore", "Output"]
@@ -124,10 +125,6 @@ class ControllerCore:
         """Motor increments of the last command sent, shape (6,)."""
         self.outbox = Outbox(cfg.arm)
         """Message numbering and the results waiting for their stamp."""
-        self.heartbeat_ref_ns: int | None = None
-        """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
-        self.heartbeat_source = ""
-        """Who sent that heartbeat (``Heartbeat.source``: its ``alive/<source>`` token)."""
         self.guard = run_guard(cfg.scene, cfg.arm)
         """The collision guard every command passes (None: no scene)."""
         self.scene_seen = start_scene_state(cfg.scene)
@@ -136,12 +133,8 @@ class ControllerCore:
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
-        self.deadman_at_ns = 0
-        self.recent_states = RecentStates(cfg.cycle_ns)
-        """The newest joint states' stamps: each echo gets a full cycle (a late state
-        credits the echo before it with its lateness)."""
-        """When the deadman judges the newest echo's age [ns, bridge stamps]: the joint
-        state's stamp, or one cycle after the state before it if that is sooner."""
+        self.supervision = Supervision(cfg.cycle_ns)
+        """The supervisor's deadman: the newest echo, its sender, when states are judged."""
         self.jog = Jog(cfg)
         """Live control: the jog stream, its level and its reference."""
 
@@ -279,9 +272,7 @@ class ControllerCore:
 
         Judged at the next joint state (:meth:`on_joint_state`); never publishes.
         """
-        if self.heartbeat_ref_ns is None or hb.ref_stamp_ns > self.heartbeat_ref_ns:
-            self.heartbeat_ref_ns = hb.ref_stamp_ns
-            self.heartbeat_source = hb.source
+        self.supervision.on_heartbeat(hb)
         return []
 
     def on_token_gone(self, service: str) -> Output:
@@ -313,8 +304,7 @@ class ControllerCore:
             since.append(self.heartbeat_since_ns)
         if self.gripper is not None and self.gripper.goal.heartbeat_timeout > 0.0:
             since.append(self.gripper.heartbeat_since_ns)
-        src, echo = self.heartbeat_source, self.heartbeat_ref_ns
-        return any(tied_to(service, src, s, echo) for s in since)
+        return self.supervision.tied_to(service, since)
 
     def _heartbeat_lost(self, js: JointState) -> str | None:
         """Why the running goals must stop for want of heartbeats (None: they need not).
@@ -329,19 +319,7 @@ class ControllerCore:
             if grip.heartbeat_since_ns is None:
                 grip.heartbeat_since_ns = js.stamp_ns
             deadmen.append((grip.goal.heartbeat_timeout, grip.heartbeat_since_ns))
-        for limit, since in deadmen:
-            lost = self._echo_too_old(js, limit, since)
-            if lost is not None:
-                return lost
-        return None
-
-    def _echo_too_old(self, js: JointState, limit: float, since_ns: int) -> str | None:
-        """Why a goal with ``heartbeat_timeout`` ``limit`` [s], judged from the joint state
-        stamped ``since_ns``, must stop at ``js`` (None: it need not)."""
-        lost = echo_too_old(
-            self.deadman_at_ns, js.seq, since_ns, self.heartbeat_ref_ns, limit, self.recent_states
-        )
-        return None if lost is None else f"{lost} (stopped; nothing resumes by itself)"
+        return self.supervision.lost(js.seq, deadmen)
 
     def _active(self) -> bool:
         goals = self.pending is not None or self.run is not None or self.gripper is not None
@@ -402,10 +380,7 @@ class ControllerCore:
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
         self.last_js = js
-        self.deadman_at_ns = judged_at(
-            js.stamp_ns, None if last is None else last.stamp_ns, cfg.cycle_ns
-        )
-        self.recent_states.add(js.stamp_ns)
+        self.supervision.on_joint_state(js.stamp_ns, None if last is None else last.stamp_ns)
         usable = js.valid and js.mode == "joint"
         if gap or not usable:
             self._interrupted(js, last, gap, usable)
