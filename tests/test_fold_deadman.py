@@ -183,7 +183,7 @@ class MortalController(ControllerCore):
         return super().on_joint_state(js) if self.running else []
 
 
-def _fold_task_rig(controller: ControllerCore | None = None) -> TaskLockStep:
+def fold_task_rig(controller: ControllerCore | None = None) -> TaskLockStep:
     rig = TaskLockStep(SimConfig(start_pose="unfolded"), controller=controller)
     rig.seq = Mortal()
     for name in rig.seq.config.required_services:
@@ -196,7 +196,7 @@ def _fold_task_rig(controller: ControllerCore | None = None) -> TaskLockStep:
 
 
 def test_the_sequencer_asks_for_the_deadman_and_a_killed_one_stops_the_fold() -> None:
-    rig = _fold_task_rig()
+    rig = fold_task_rig()
     folds = [r for r in rig.requests if isinstance(r, ArmCommand)]
     assert folds[-1].heartbeat_timeout == pytest.approx(0.15)
     assert isinstance(rig.seq, Mortal)
@@ -209,7 +209,7 @@ def test_the_sequencer_asks_for_the_deadman_and_a_killed_one_stops_the_fold() ->
 
 def test_a_killed_controller_stops_the_fold_and_the_task_fails_naming_it() -> None:
     controller = MortalController()
-    rig = _fold_task_rig(controller)
+    rig = fold_task_rig(controller)
     controller.running = False
     assert _stop_ms(rig.ls) <= 2 * CYCLE_MS
     assert rig.seq.state == "failed"

@@ -15,18 +15,15 @@ from manus_stack.chaos import judge
 from manus_stack.controlled import ControlledArm
 from manus_stack.lockstep import LockStep
 from manus_stack.regression import check_controller
-from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import ArmCommand
 from schemas.control import GripperGoal, Heartbeat, TrajectoryGoal
 from schemas.liveliness import TokenGone
-from schemas.sequencing import Task, TaskStep
 from schemas.state import JointState
 from services.recorder.writer import RecordingWriter
-from services.simulator.config import SimConfig
 from tests.bridge_scenarios import MS, UNFOLDED, VelocityController, check_safety, running
-from tests.test_fold_deadman import Mortal
+from tests.test_fold_deadman import Mortal, fold_task_rig
 
 PATHS = Path(__file__).resolve().parents[1] / "paths"
 CYCLE_NS = judge.CYCLE_NS
@@ -257,14 +254,8 @@ def test_a_killed_sequencer_in_a_task_stops_the_fold_within_the_soaks_limit() ->
     """Through the sequencer core: its fold step asks for the deadman, its heartbeats carry
     source 'sequencer'; killed (heartbeats stop, the token goes), the fold is at rest
     within the soak's 180 ms (before: the 0.15 s echo deadman, 216-239 ms live)."""
-    rig = TaskLockStep(SimConfig(start_pose="unfolded"))
-    rig.seq = Mortal()
-    for name in rig.seq.config.required_services:
-        rig.seq.on_liveliness(name, True, 0)
-    rig.start_arm()
-    assert rig.submit(Task(steps=[TaskStep(kind="fold_in")])).accepted
-    rig.ls.run_for(1.5)
-    assert rig.ls.bridge.phase == "folding_in"
+    rig = fold_task_rig()
+    assert isinstance(rig.seq, Mortal)
     rig.seq.running = False
     rig.ls.token_gone("sequencer")
     assert _stop_ms(rig.ls) <= judge.STOP_LIMIT_NS / MS
