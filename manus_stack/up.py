@@ -178,6 +178,20 @@ class LocalStack:
         self.children.append(child)
         return child
 
+    def respawn(self, child: Child, args: list[str] | None = None) -> Child:
+        """Start ``child`` again (it has exited or been killed: waited for 5 s at most),
+        with its arguments or ``args``, at its place in the start order (so the stop
+        order stays the start order); its log starts afresh."""
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            child.proc.wait(timeout=5.0)
+        child.stream.close()
+        index = self.children.index(child)
+        self.children.remove(child)
+        new = self._spawn(child.name, child.argv[4:] if args is None else args, child.argv[3])
+        self.children.remove(new)
+        self.children.insert(index, new)
+        return new
+
     def _check(self, child: Child) -> None:
         code = child.proc.poll()
         if code is not None:

@@ -16,7 +16,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from subprocess import PIPE
 
@@ -25,7 +25,7 @@ import pytest
 
 from manus_stack.fuzz_live import fuzz_live
 from manus_stack.status import node_health
-from manus_stack.up import free_port
+from manus_stack.up import Child, free_port
 from schemas import endpoints as ep
 from services.sequencer.taskfile import task_from_args
 from tests.fault_stack import LEASE_MS, ROOT, SQUARE, FaultStack
@@ -157,12 +157,7 @@ def test_bridge_killed_or_hung_the_guardian_stops_the_arm_and_a_new_bridge_takes
         stops = [r for r in stack.watch.guardian if r.action == "stop_sent"]
     assert stops and stops[-1].engaged
     if sig == signal.SIGKILL:
-        bridge.proc.wait(timeout=5.0)
-        stack.stack.children.remove(bridge)
-        bridge.stream.close()
-        stack.stack._spawn(
-            "bridge", ["--can-interface", "slcan", "--can-channel", stack.stack.device]
-        )
+        stack.stack.respawn(bridge)
     else:
         os.kill(bridge.proc.pid, signal.SIGCONT)
     with stack.watch.lock:
@@ -238,6 +233,26 @@ BACK_AND_FORTH = """
 """50 mm along y and back (relative via points): the arm ends where it started."""
 
 
+def _client_through(
+    stack: FaultStack, argv: list[str], fault: Callable[[], None], timeout: float
+) -> tuple[subprocess.Popen[str], str, str, float]:
+    """Run the client ``argv`` on a task, make ``fault`` once the arm moves, and wait
+    ``timeout`` [s] for the client to exit: the process, its output and error, and how
+    long after the fault it exited [s]."""
+    proc = subprocess.Popen(argv, cwd=ROOT, stdout=PIPE, stderr=PIPE, text=True)
+    try:
+        stack.wait_moving()
+        assert proc.poll() is None, proc.communicate()
+        t_fault = time.monotonic()
+        fault()
+        out, err = proc.communicate(timeout=timeout)
+        return proc, out, err, time.monotonic() - t_fault
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
 def test_clients_notice_the_sequencer_dying_mid_task(stack: FaultStack, tmp_path: Path) -> None:
     """``manus run``, then examples/supervisor.py, each following a task, exit 1 naming the
     sequencer when its process is killed mid-task: no final event will ever come."""
@@ -247,29 +262,20 @@ def test_clients_notice_the_sequencer_dying_mid_task(stack: FaultStack, tmp_path
     run = [sys.executable, "-m", "manus_stack.cli", "run", "--plain", "--connect", endpoint]
     sup = [sys.executable, str(ROOT / "examples" / "supervisor.py"), "--connect", endpoint]
     for name, head in (("manus run", run), ("supervisor", sup)):
-        argv = [*head, "--prefix", prefix, str(path)]
-        proc = subprocess.Popen(argv, cwd=ROOT, stdout=PIPE, stderr=PIPE, text=True)
-        try:
-            stack.wait_moving()
-            assert proc.poll() is None, proc.communicate()
-            sequencer = stack.child("sequencer")
-            t_kill = time.monotonic()
+        sequencer = stack.child("sequencer")
+
+        def kill(sequencer: Child = sequencer) -> None:
             os.kill(sequencer.proc.pid, signal.SIGKILL)
             sequencer.proc.wait(timeout=5.0)
-            out, err = proc.communicate(timeout=10.0)
-            took = time.monotonic() - t_kill
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+
+        argv = [*head, "--prefix", prefix, str(path)]
+        proc, out, err, took = _client_through(stack, argv, kill, 10.0)
         _report(f"sequencer SIGKILL, {name}", exited_after=took * 1e3)
         assert proc.returncode == 1, (out, err)
         assert "sequencer" in out + err and "gone" in out + err, (out, err)
         assert took < 3.0  # the token's loss: a closed connection, well under a second
         # a new sequencer for the next client (compose would restart it)
-        stack.stack.children.remove(sequencer)
-        sequencer.stream.close()
-        stack.stack._spawn("sequencer", [])
+        stack.stack.respawn(sequencer)
         stack.wait("a sequencer", lambda: "sequencer" in stack.node.alive_services(0.5), 20.0)  # type: ignore[union-attr]
         time.sleep(1.0)  # the controller's aborted goal has stopped the arm
 
@@ -280,12 +286,7 @@ def _restart_router(stack: FaultStack, down_s: float) -> None:
     os.kill(router.proc.pid, signal.SIGKILL)
     router.proc.wait(timeout=5.0)
     time.sleep(down_s)
-    router.stream.close()
-    index = stack.stack.children.index(router)
-    stack.stack.children.remove(router)
-    new = stack.stack._spawn("router", router.argv[4:])
-    stack.stack.children.remove(new)
-    stack.stack.children.insert(index, new)  # the stop order stays the start order
+    stack.stack.respawn(router)
 
 
 def test_clients_learn_how_a_task_ended_through_a_router_restart(
@@ -307,18 +308,9 @@ def test_clients_learn_how_a_task_ended_through_a_router_restart(
         stack.wait("the stack", lambda: "sequencer" in node.alive_services(0.5), 30.0)
         stack.wait("bridge running", lambda: stack.watch.bridge[-1].phase == "running", 30.0)
         argv = [*head, "--prefix", prefix, str(path)]
-        proc = subprocess.Popen(argv, cwd=ROOT, stdout=PIPE, stderr=PIPE, text=True)
-        try:
-            stack.wait_moving()
-            assert proc.poll() is None, proc.communicate()
-            t_cut = time.monotonic()
-            _restart_router(stack, down_s=1.0)
-            out, err = proc.communicate(timeout=45.0)
-            took = time.monotonic() - t_cut
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+        proc, out, err, took = _client_through(
+            stack, argv, lambda: _restart_router(stack, down_s=1.0), 45.0
+        )
         _report(f"router restart, {name}", exited_after=took * 1e3)
         text = out + err
         assert proc.returncode == 1, (out, err)

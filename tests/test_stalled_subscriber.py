@@ -16,12 +16,14 @@ SIGCONT). The router cuts the stopped one off once its queue has stayed full for
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 import zenoh
 
@@ -50,6 +52,23 @@ session.close()
 """A subscriber of everything under the prefix that prints how many heartbeats it got
 once told to stop (a line on stdin)."""
 
+
+@contextlib.contextmanager
+def _subscriber(endpoint: str, prefix: str) -> Iterator[subprocess.Popen[str]]:
+    """The :data:`SUBSCRIBER` process (10 s lease), once ready; killed on the way out if
+    it still runs."""
+    argv = [sys.executable, "-c", SUBSCRIBER, endpoint, prefix, "10000"]
+    sub = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert sub.stdout is not None
+        assert sub.stdout.readline().strip() == "ready"
+        yield sub
+    finally:
+        if sub.poll() is None:
+            sub.kill()
+            sub.communicate()
+
+
 FILLER = 20_000
 """Bytes of each filler sample: 10 per heartbeat, 100 heartbeats a second: 20 MB/s."""
 
@@ -58,12 +77,8 @@ def test_a_stopped_subscriber_delays_no_one(
     zenoh_settings: ZenohSettings, router_endpoint: str
 ) -> None:
     prefix = zenoh_settings.prefix
-    argv = [sys.executable, "-c", SUBSCRIBER, router_endpoint, prefix, "10000"]
-    sub = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     sent: list[float] = []  # send time of heartbeat seq i [monotonic s]
-    try:
-        assert sub.stdout is not None
-        assert sub.stdout.readline().strip() == "ready"
+    with _subscriber(router_endpoint, prefix) as sub:
         with (
             Node("publisher", zenoh_settings, liveliness=False) as node,
             Node("listener", zenoh_settings, liveliness=False) as listener,
@@ -103,10 +118,6 @@ def test_a_stopped_subscriber_delays_no_one(
             finally:
                 os.kill(sub.pid, signal.SIGCONT)
         out, _ = sub.communicate("stop\n", timeout=30.0)
-    finally:
-        if sub.poll() is None:
-            sub.kill()
-            sub.communicate()
     assert sub.returncode == 0
     assert int(out.split()[-1]) <= len(sent), (out, len(sent))  # cut off: it reconnects
 
@@ -117,27 +128,21 @@ def test_a_slow_subscriber_loses_nothing(
     """Stopped for 0.5 s at the stack's own byte rate (about 20 kB/s: the queues never
     fill), it keeps its link and gets every heartbeat once continued."""
     prefix = zenoh_settings.prefix
-    argv = [sys.executable, "-c", SUBSCRIBER, router_endpoint, prefix, "10000"]
-    sub = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     sent = 0
-    try:
-        assert sub.stdout is not None
-        assert sub.stdout.readline().strip() == "ready"
-        with Node("publisher", zenoh_settings, liveliness=False) as node:
-            beats = node.publisher(node.keys(ep.HEARTBEAT))
-            time.sleep(0.5)
-            os.kill(sub.pid, signal.SIGSTOP)
-            try:
-                for _ in range(50):
-                    beats.put(Heartbeat(stamp_ns=time.time_ns(), seq=sent, source="test",
-                                        ref_seq=0, ref_stamp_ns=0))  # fmt: skip
-                    sent += 1
-                    time.sleep(0.01)
-            finally:
-                os.kill(sub.pid, signal.SIGCONT)
-            out, _ = sub.communicate("stop\n", timeout=30.0)
-    finally:
-        if sub.poll() is None:
-            sub.kill()
-            sub.communicate()
+    with (
+        _subscriber(router_endpoint, prefix) as sub,
+        Node("publisher", zenoh_settings, liveliness=False) as node,
+    ):
+        beats = node.publisher(node.keys(ep.HEARTBEAT))
+        time.sleep(0.5)
+        os.kill(sub.pid, signal.SIGSTOP)
+        try:
+            for _ in range(50):
+                beats.put(Heartbeat(stamp_ns=time.time_ns(), seq=sent, source="test",
+                                    ref_seq=0, ref_stamp_ns=0))  # fmt: skip
+                sent += 1
+                time.sleep(0.01)
+        finally:
+            os.kill(sub.pid, signal.SIGCONT)
+        out, _ = sub.communicate("stop\n", timeout=30.0)
     assert int(out.split()[-1]) == sent, (out, sent)

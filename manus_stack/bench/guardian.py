@@ -283,10 +283,7 @@ def _live_trials(
         if fault == "stop":
             os.kill(bridge.proc.pid, signal.SIGCONT)
         else:
-            bridge.proc.wait(5.0)
-            stack.children.remove(bridge)
-            bridge.stream.close()
-            stack._spawn("bridge", ["--can-interface", "slcan", "--can-channel", stack.device])
+            stack.respawn(bridge)
         t_back = time.time_ns()
         _wait("the bridge running again", lambda: watch.phase() == "running", 30.0)
         time.sleep(1.0)

@@ -16,7 +16,6 @@ import contextlib
 import json
 import os
 import signal
-import subprocess
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -142,17 +141,6 @@ class Soak:
 
     def _child(self, name: str) -> Child:
         return [c for c in self.stack.children if c.name == name][-1]
-
-    def _respawn(self, child: Child, args: list[str] | None = None) -> Child:
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            child.proc.wait(timeout=5.0)
-        child.stream.close()
-        index = self.stack.children.index(child)
-        self.stack.children.remove(child)
-        new = self.stack._spawn(child.name, child.argv[4:] if args is None else args)
-        self.stack.children.remove(new)
-        self.stack.children.insert(index, new)  # the stop order stays the start order
-        return new
 
     def _query(self, suffix: str, request: Any, reply: type[Any], timeout: float = 3.0) -> Any:
         node = self.w.node
@@ -300,7 +288,7 @@ class Soak:
             os.kill(router.proc.pid, signal.SIGKILL)
             time.sleep(fault.hold_s)
             done.recovery_ns = time.time_ns()
-            self._respawn(router)
+            self.stack.respawn(router)
             self._wait(lambda: port_in_use(self.options.endpoint), 10.0)
         # ready means a bridge state from after the recovery: a restarted bridge's first
         # states come seconds later, and the last one seen is the dead bridge's `running`
@@ -309,11 +297,11 @@ class Soak:
 
     def _restart(self, child: Child) -> None:
         if child.name != "record":
-            self._respawn(child)
+            self.stack.respawn(child)
             return
         path = self.run_dir / f"recording-{len(self.lives)}.mcap"
         started = time.time_ns()
-        new = self._respawn(child, ["--output", str(path)])
+        new = self.stack.respawn(child, ["--output", str(path)])
         back = self._recorder_back(new.proc.pid)
         self.lives.append(Life(path, new.proc.pid, back))
         self._say(f"recorder pid {new.proc.pid} on the bus {(back - started) / 1e9:.2f} s after")
