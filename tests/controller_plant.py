@@ -18,16 +18,29 @@ from manus.config import UNFOLDED_Q_DEG
 from manus.joint_map import dh_to_encoder, encoder_to_dh
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
-from schemas.control import ControllerFeedback, GoalResult
+from schemas.control import ControllerFeedback, GoalAck, GoalResult
 from schemas.planning import Trajectory
 from schemas.state import JointState
 from services.controller.core import ControllerCore
 from services.controller.estimator import lag_advance
+from services.controller.wiring import WIRING
 
 MS = 1_000_000
 CYCLE_NS = 60 * MS
 UNIT = math.radians(0.1)
 Q0 = np.radians(UNFOLDED_Q_DEG)
+
+
+def ask(core: ControllerCore, queryable: str, request: Message) -> GoalAck:
+    """Ask the controller's queryable (e.g. ``ep.GOAL``) as its shell would."""
+    reply, _ = WIRING.answer(queryable).handle(core, request, 0)
+    assert isinstance(reply, GoalAck)
+    return reply
+
+
+def feed(core: ControllerCore, suffix: str, msg: Message) -> list[tuple[str, Message]]:
+    """Hand the controller one publication (e.g. ``ep.HEARTBEAT``) as its shell would."""
+    return WIRING.feed(core, suffix, msg, 0)
 
 
 @dataclass

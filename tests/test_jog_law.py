@@ -17,12 +17,18 @@ from manus.config import UNFOLDED_Q_DEG
 from manus.errors import ConfigError, SchemaError
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
+from schemas.collision import ClearanceReport
+from schemas.control import Refusal
 from schemas.jog import JogCommand, JogLevel, JogState
+from schemas.state import JointState
+from services.controller.command_source import Refused
 from services.controller.config import ControllerConfig
-from services.controller.jog import Jog, JogError, resolve
+from services.controller.jog import JogSource
+from services.controller.jog_command import JogError, resolve
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogRun, JogTarget, rodrigues
 from services.controller.jog_limits import measures, slowdown
+from services.controller.outbox import GoalOutcome
 
 CFG = JogConfig()
 CONFIG = ControllerConfig()
@@ -137,38 +143,73 @@ def test_config_is_checked() -> None:
 # -- the intake: deadman, latching, levels -----------------------------------------------------
 
 
-def moving(jog: Jog) -> bool:
+class Host:
+    """What the jog asks of the controller core, set by the test: the newest joint state
+    (its stamp) and why nothing may move (None: it may)."""
+
+    def __init__(self) -> None:
+        self.config = CONFIG
+        self.last_js: JointState | None = None
+        self.not_ready: str | None = None
+
+    def at(self, stamp_ns: int | None, not_ready: str | None = None) -> Host:
+        """The newest joint state stamped ``stamp_ns`` (None: none yet)."""
+        self.not_ready = not_ready
+        if stamp_ns is None:
+            self.last_js = None
+            return self
+        self.last_js = JointState(
+            stamp_ns=stamp_ns, seq=0, position=list(UNFOLDED), gripper=0.0, valid=True,
+            mode="joint", encoder=[0] * 7, applied=[0] * 8, applied_kind="none", applied_seq=-1,
+        )  # fmt: skip
+        return self
+
+    def admission(self, source: object) -> Refused | None:
+        return None if self.not_ready is None else Refused(Refusal.NOT_READY, self.not_ready)
+
+    def finish(self, outcome: GoalOutcome) -> None:
+        raise AssertionError(f"the jog ends no goal: {outcome}")
+
+    def clearance(self, goal_id: str) -> ClearanceReport | None:
+        return None
+
+
+def moving(jog: JogSource) -> bool:
     """``jog.engaged``, read afresh (no narrowing across calls)."""
     return jog.engaged
 
 
 def test_refusal_and_stops_latch_until_a_zero_command() -> None:
-    jog = Jog(CONFIG)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)
+    host = Host()
+    jog = JogSource(host)
+    host.at(1_000)
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert moving(jog)
-    jog.receive(cmd(linear=[0.5, 0.0, 0.0]), 1_000, None)  # above the cap
+    jog.on_command(cmd(linear=[0.5, 0.0, 0.0]))  # above the cap
     assert not moving(jog) and jog.refused == 1
     assert "above the cap" in jog.reason and "release the controls" in jog.reason
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)  # still held
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))  # still held
     assert not moving(jog)
-    jog.receive(cmd(), 1_000, None)  # released
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)
+    jog.on_command(cmd())  # released
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert moving(jog)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), None, None)
+    host.at(None)
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert not moving(jog) and "no valid joint state" in jog.reason
     stopped = "the bridge is in phase 'stopped'"
-    jog.receive(cmd(), 2_000, stopped)  # a release is always taken
+    host.at(2_000, stopped)
+    jog.on_command(cmd())  # a release is always taken
     assert jog.refused == 2 and not jog.latched
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)  # held: one refusal
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))  # held: one refusal
     assert jog.refused == 3 and not moving(jog) and stopped in jog.reason
 
 
 def test_levels() -> None:
-    jog = Jog(CONFIG)
+    jog = JogSource(Host())
     assert jog.level == 3
-    assert jog.set_level(5) is None and jog.level == 5
-    assert jog.set_level(6) == "level 6 outside 1..5"
+    assert jog.set_level(JogLevel(level=5)).accepted and jog.level == 5
+    assert jog.set_level(JogLevel(level=6)).reason == "level 6 outside 1..5"
     assert jog.level == 5
 
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from manus.protocol import FrameId, decode_move
+from manus.wiring import BAD_PAYLOAD
 from manus_stack.jog_lockstep import JogArm, line_drift
 from manus_stack.regression import check_controller
 from manus_stack.task_lockstep import TaskLockStep
@@ -26,7 +27,8 @@ from schemas.planning import Trajectory
 from schemas.sequencing import Task, TaskStep
 from schemas.state import ArmStatus
 from services.controller.core import ControllerCore
-from services.controller.jog import BAD_JOG_PAYLOAD
+from services.controller.jog import JogSource
+from services.controller.wiring import WIRING as CONTROLLER
 from services.recorder.writer import RecordingWriter
 from services.sequencer.taskfile import task_from_args
 from services.simulator.config import SimConfig
@@ -120,7 +122,9 @@ def test_a_10_hz_stream_with_jitter_keeps_jogging_and_a_7_hz_one_trips_the_deadm
     while arm.ls.t_ns < end:
         arm.send(units="unitless", linear=X)
         arm.run(1.0 / hz + float(rng.uniform(-0.02, 0.02)))
-    assert (arm.core.jog.deadman_stops > 0) == stops, arm.core.jog.reason
+    assert (arm.core.source(JogSource).deadman_stops > 0) == stops, arm.core.source(
+        JogSource
+    ).reason
     assert arm.samples[-1].at_rest == stops
 
 
@@ -168,14 +172,16 @@ def test_a_garbage_payload_stops_the_jog() -> None:
     core = ControllerCore()
     arm = _arm(5)
     arm.stream(0.5, units="unitless", linear=X)
-    out = arm.core.on_bad_jog("the payload does not decode")
+    out = CONTROLLER.feed_bad(arm.core, ep.JOG, BAD_PAYLOAD, 0)
     assert [s for s, _ in out] == [ep.JOG_TAKEN, ep.JOINT_VELOCITY]  # taken, and stopped
     taken = out[0][1]
     assert isinstance(taken, JogTaken) and taken.command is None
     assert taken.error == "the payload does not decode"
-    assert not arm.core.jog.engaged and arm.core.jog.refused == 1
-    assert [s for s, _ in core.on_bad_jog("junk")] == [ep.JOG_TAKEN]  # idle: only counted
-    assert core.jog.refused == 1
+    assert not arm.core.source(JogSource).engaged and arm.core.source(JogSource).refused == 1
+    assert [s for s, _ in CONTROLLER.feed_bad(core, ep.JOG, "junk", 0)] == [
+        ep.JOG_TAKEN
+    ]  # idle: only counted
+    assert core.source(JogSource).refused == 1
 
 
 @pytest.mark.parametrize("stop", ["estop", "arm_error", "bridge_stop"])
@@ -193,9 +199,11 @@ def test_the_stops_of_a_trajectory_stop_a_jog(stop: str) -> None:
     rest = arm.rest_from(t)
     assert rest is not None
     assert rest - t <= 300_000_000, (rest - t) / 1e6
-    assert not arm.core.jog.engaged
-    assert arm.core.jog.latched  # stopped until the user releases the controls
-    assert arm.core.jog.refused <= 1  # a joystick held through the stop is one refusal
+    assert not arm.core.source(JogSource).engaged
+    assert arm.core.source(JogSource).latched  # stopped until the user releases the controls
+    assert (
+        arm.core.source(JogSource).refused <= 1
+    )  # a joystick held through the stop is one refusal
 
 
 def test_goals_are_refused_while_jogging_and_a_jog_preempts_a_trajectory() -> None:
@@ -266,7 +274,7 @@ def test_a_jog_session_replays_byte_for_byte(tmp_path: Path) -> None:
     arm.stream(0.3, units="unitless", linear=X, gripper=0.5)
     # a garbage payload on jog, as the live shell hands it over (recorded as it travelled)
     garbage_ns: int | None = arm.ls.t_ns
-    for suffix, msg in arm.core.on_bad_jog(BAD_JOG_PAYLOAD):
+    for suffix, msg in CONTROLLER.feed_bad(arm.core, ep.JOG, BAD_PAYLOAD, 0):
         arm.ls.publish(suffix, msg)
     _hold(arm, 0.2)
     arm.stream(0.3, units="unitless", linear=X)
@@ -281,7 +289,7 @@ def test_a_jog_session_replays_byte_for_byte(tmp_path: Path) -> None:
     result = check_controller(path)
     assert result.ok, result.difference
     assert result.compared > 100
-    assert arm.core.jog.refused == 2
+    assert arm.core.source(JogSource).refused == 2
 
 
 def test_a_joint_jog_toward_the_wrist_singularity_stops_before_it_on_the_truth() -> None:
