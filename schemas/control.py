@@ -238,7 +238,17 @@ class GoalAck(Message):
 
     accepted: bool = field("accepted")
     goal_id: str = field("the goal concerned")
-    reason: str = field("why it was refused", default="")
+    reason: str = field("why it was refused, in words", default="")
+    refusal: str = field(
+        "why it was refused, the kind a client decides on ('' when accepted)",
+        default=Refusal.NONE,
+        choices=Refusal,
+    )
+    held_by: str = field(
+        "refusal `busy`: the command source that holds the arm ('' otherwise)",
+        default="",
+        choices=("", *CommandSourceKind),
+    )
 
 
 @dataclass(frozen=True)
@@ -276,13 +286,19 @@ class ControllerFeedback(Message):
 class GoalResult(Message):
     """The one result of a goal."""
 
-    TYPE_NAME = "manus/GoalResult/1"
+    TYPE_NAME = "manus/GoalResult/2"
 
-    stamp_ns: int = field("stamp of the joint state at which the goal ended", unit="ns")
+    stamp_ns: int = field(
+        "the bridge's clock (a JointState, ArmStatus or BridgeState stamp): the message "
+        "the controller answered when the result left, the joint state at which the goal "
+        "ended, or, for an end caused by a request, the next joint state",
+        unit="ns",
+    )
     seq: int = field("sequence number", minimum=0)
     goal_id: str = field("the goal")
     kind: str = field("trajectory or gripper", choices=GoalKind)
     status: str = field("how it ended", choices=ResultStatus)
+    cause: str = field("why it ended: the kind a client decides on", choices=EndCause)
     reason: str = field("why it ended that way, in words")
     via_errors: list[float] = field(
         "gripper position error at each knot time, measured (FK of the encoders)",

@@ -96,7 +96,7 @@ def test_warning_codes_goal_aborts_and_requests_trigger_only_when_chosen() -> No
     assert dump.triggers[0].kind == "arm_warning"
     core = FlightCore(FlightConfig(ring_s=2.0, after_s=0.0))
     aborted = GoalResult(stamp_ns=1, seq=0, goal_id="g1", kind="trajectory", status="aborted",
-                         reason="path tolerance")  # fmt: skip
+                         cause="tolerance", reason="path tolerance")  # fmt: skip
     [d1] = core.on_sample("manus/controller/result", aborted.encode(), 1 * S)
     request = FlightTrigger(stamp_ns=2, seq=0, source="operator", reason="odd noise")
     [d2] = core.on_sample(f"manus/{FLIGHT_TRIGGER}", request.encode(), 2 * S)

@@ -22,6 +22,7 @@ from schemas.control import (
     GoalAck,
     GoalResult,
     GripperGoal,
+    ResultStatus,
     TrajectoryGoal,
 )
 from schemas.guardian import GuardianReport
@@ -33,6 +34,7 @@ from services.sequencer.core import Action, Publish, Query, SequencerCore
 from services.sequencer.poses import pose_path, remainder_path
 from services.sequencer.taskfile import TaskFileError, parse_task_text, task_from_args
 from services.sequencer.validate import Validator
+from tests.sequencer_fakes import CAUSES
 
 ROOT = FilePath(__file__).resolve().parent.parent
 SQUARE = str(ROOT / "paths" / "thesis_square.txt")
@@ -314,11 +316,12 @@ class Rig:
     def goals(self) -> list[Message]:
         return [q.request for q in self.sent if isinstance(q.request, TrajectoryGoal | GripperGoal)]
 
-    def result(self, status: str, reason: str = "") -> None:
+    def result(self, status: str, reason: str = "", cause: str | None = None) -> None:
         goal = self.goals()[-1]
         kind = "gripper" if isinstance(goal, GripperGoal) else "trajectory"
+        cause = cause or CAUSES[ResultStatus(status)]
         res = GoalResult(stamp_ns=self.now, seq=1, goal_id=goal.goal_id, kind=kind,  # type: ignore[attr-defined]
-                         status=status, reason=reason)  # fmt: skip
+                         status=status, cause=cause, reason=reason)  # fmt: skip
         self.feed(self.core.on_result(res, self.now))
 
     def feedback(self, t: float) -> None:

@@ -71,7 +71,8 @@ _ZERO = np.zeros(6, dtype=np.int64)
 def _ack(goal_id: str, refused: Refused | None = None) -> GoalAck:
     if refused is None:
         return GoalAck(accepted=True, goal_id=goal_id)
-    return GoalAck(accepted=False, goal_id=goal_id, reason=refused.reason)
+    reason, refusal, held_by = refused.reason, refused.refusal, refused.held_by
+    return GoalAck(accepted=False, goal_id=goal_id, reason=reason, refusal=refusal, held_by=held_by)
 
 
 class GoalSource(CommandSource):

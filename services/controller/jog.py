@@ -35,7 +35,7 @@ from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
 from manus.quantize import gripper_counts
 from schemas import endpoints as ep
-from schemas.control import CommandSourceKind, EndCause, GoalAck, ResultStatus
+from schemas.control import CommandSourceKind, EndCause, GoalAck, Refusal, ResultStatus
 from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogState, JogTaken
 from schemas.state import JointState
 from services.controller.command_source import (
@@ -119,7 +119,7 @@ class JogSource(CommandSource):
         level = req.level
         if not 1 <= level <= self.cfg.levels:
             reason = f"level {level!r} outside 1..{self.cfg.levels}"
-            return GoalAck(accepted=False, goal_id="", reason=reason)
+            return GoalAck(accepted=False, goal_id="", reason=reason, refusal=Refusal.INVALID)
         self.level, self.announce = level, True
         return GoalAck(accepted=True, goal_id="")
 

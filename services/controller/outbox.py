@@ -76,6 +76,7 @@ class Outbox:
                 goal_id=o.goal_id,
                 kind=o.kind,
                 status=o.status,
+                cause=o.cause,
                 reason=o.reason,
                 via_errors=list(o.via_errors),
                 via_stamps=list(o.via_stamps),

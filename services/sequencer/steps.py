@@ -40,14 +40,17 @@ from schemas.base import Message
 from schemas.commands import ArmAction, ArmCommand, ArmCommandReply
 from schemas.control import (
     CancelGoal,
+    CommandSourceKind,
     ControllerFeedback,
+    EndCause,
     GoalAck,
     GoalResult,
     GripperGoal,
+    Refusal,
     ResultStatus,
     TrajectoryGoal,
 )
-from schemas.jog import JOGGING, USER_TOOK_OVER
+from schemas.jog import USER_TOOK_OVER
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
 from schemas.state import BridgePhase, BridgeState
@@ -227,7 +230,7 @@ class GoalStep(Step):
             return self.ctx.fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self.goal_id = ""
-            return self._refused(reply.reason)
+            return self._refused(reply)
         self.phase = Phase.ACTIVE
         if self.ctx.cancel_requested:
             return self.cancel()
@@ -236,10 +239,10 @@ class GoalStep(Step):
             return self._stop_goal(Phase.PAUSING)
         return []
 
-    def _refused(self, reason: str) -> list[Action]:
-        if reason.startswith(JOGGING):  # the user jogs: pause, not fail
-            return self.ctx.paused(USER_TOOK_OVER)
-        return self.ctx.fail(f"controller refused the goal: {reason}")
+    def _refused(self, reply: GoalAck) -> list[Action]:
+        if reply.refusal == Refusal.BUSY and reply.held_by == CommandSourceKind.JOG:
+            return self.ctx.paused(USER_TOOK_OVER)  # the user jogs: pause, not fail
+        return self.ctx.fail(f"controller refused the goal: {reply.reason}")
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
@@ -257,7 +260,7 @@ class GoalStep(Step):
         if res.status == ResultStatus.CANCELLED and self.phase == Phase.PAUSING:
             self._remember_pause()
             return self.ctx.paused()
-        if res.status == ResultStatus.PREEMPTED and res.reason.startswith(USER_TOOK_OVER):
+        if res.status == ResultStatus.PREEMPTED and res.cause == EndCause.USER_TOOK_OVER:
             self._remember_pause()  # a jog took the arm: pause where it stopped
             return self.ctx.paused(USER_TOOK_OVER)
         return self.ctx.fail(f"controller: goal {res.status}: {res.reason}")
