@@ -13,6 +13,7 @@ import pytest
 from manus.errors import SchemaError
 from schemas import endpoints as ep
 from schemas.base import Message
+from schemas.jog import JogCommand
 from schemas.keys import Keys, channel_types
 from schemas.planning import Path, PlanRequest, ViaPoint
 from schemas.state import JointState
@@ -20,8 +21,28 @@ from schemas.state import JointState
 TYPES = sorted({t for t in channel_types().values()}, key=lambda t: t.TYPE_NAME)
 
 
+RULED: dict[type[Message], Message] = {
+    JogCommand: JogCommand(
+        stamp_ns=1,
+        seq=1,
+        source="t",
+        kind="twist",
+        units="si",
+        frame="gripper",
+        linear=[0.1, 0.0, 0.0],
+        angular=[0.0, 0.0, 0.2],
+        gripper=0.01,
+        drink=True,
+        pour=0.1,
+    ),
+}
+"""Examples of the types whose fields depend on each other (``schema_rules``)."""
+
+
 def example(cls: type[Message]) -> Message:
     """A valid instance of ``cls`` with every field set (nested types recursively)."""
+    if cls in RULED:
+        return RULED[cls]
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]

@@ -27,7 +27,7 @@ from schemas.control import (
 )
 from schemas.guardian import GuardianReport
 from schemas.planning import PlanRequest
-from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, Task, TaskControl, TaskEvent, TaskStep
 from schemas.state import BridgeState, JointState
 from services.planner.core import PlannerCore
 from services.sequencer.core import Action, Publish, Query, SequencerCore
@@ -250,6 +250,16 @@ def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
     assert reply.ok and reply.trajectory is not None
     end = fk(reply.trajectory.positions[-1], DEFAULT_ARM)[:3, 3]
     assert end == pytest.approx(fk(UNFOLDED, DEFAULT_ARM)[:3, 3], abs=1e-6)
+
+
+def test_a_pose_step_without_a_duration_takes_the_default() -> None:
+    """``duration`` is optional for a pose (the schema's default 0: 4 s), as for a task file."""
+    start = [0.3, *UNFOLDED[1:]]
+    task = Task(steps=[TaskStep(kind="pose", pose="home")])
+    checked = validate(task, start)
+    assert checked.errors == []
+    plan = checked.plans[0]
+    assert plan is not None and plan.times[-1] >= DEFAULT_POSE_DURATION_S
 
 
 def test_remainder_path_keeps_the_unreached_knots_and_their_pace() -> None:

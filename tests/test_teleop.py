@@ -15,7 +15,7 @@ import pytest
 
 from manus.session import ZenohSettings
 from manus_stack.teleop import Teleop, screen
-from schemas.jog import JogCommand, JogState
+from schemas.jog import JogCaps, JogCommand, JogState
 from services.controller.jog import JogSource
 from services.controller.shell import ControllerShell
 from tests.conftest import eventually
@@ -26,10 +26,11 @@ MANUS = Path(sys.executable).with_name("manus")
 
 def _state(**kw: object) -> JogState:
     base: dict[str, object] = {
-        "stamp_ns": 0, "seq": 0, "active": True, "kind": "twist", "frame": "base",
-        "drink": False, "level": 3, "levels": 5, "scale": 1.0, "reason": "", "command_seq": 1,
-        "refused": 0, "deadman_stops": 0, "actual_xyz": [0.2, 0.1, 0.3],
-        "actual_ypr": [0.0, -math.pi / 3, 0.0],
+        "stamp_ns": 0, "seq": 0, "state": "running", "active": True, "cause": "",
+        "kind": "twist", "frame": "base", "drink": False, "level": 3, "levels": 5,
+        "caps": JogCaps(linear=0.09, angular=0.3, joints=0.5, gripper=0.018), "scale": 1.0,
+        "limits": [], "reason": "", "command_seq": 1, "refused": 0, "deadman_stops": 0,
+        "folded": False, "actual_xyz": [0.2, 0.1, 0.3], "actual_ypr": [0.0, -math.pi / 3, 0.0],
     }  # fmt: skip
     return JogState(**(base | kw))  # type: ignore[arg-type]
 

@@ -44,6 +44,7 @@ from schemas.state import JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
+from services.controller.guard import Verdict
 from services.controller.outbox import GoalOutcome, Output
 
 
@@ -93,12 +94,12 @@ class Sent(NamedTuple):
     Attributes:
         js: the joint state it answers.
         command: the message published.
-        guard: what the collision guard did to it ('' : nothing; None: not guarded).
+        guard: what the collision guard did to it, in words ('' : nothing or not guarded).
     """
 
     js: JointState
     command: JointVelocityCommand
-    guard: str | None
+    guard: str
 
 
 class End(NamedTuple):
@@ -218,8 +219,8 @@ class CommandSource(ABC):
     def command(self, cycle: Cycle) -> Command | None:
         """This cycle's command (None: it does not hold the arm; the next source may)."""
 
-    def guarded(self, command: Command, scale: float, reason: str) -> None:
-        """The collision guard scaled its command by ``scale`` (0: stopped) for ``reason``."""
+    def guarded(self, command: Command, verdict: Verdict) -> None:
+        """The collision guard scaled its command down (``verdict.scale``; 0: stopped)."""
         return None
 
     @abstractmethod

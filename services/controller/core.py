@@ -341,12 +341,12 @@ class ControllerCore:
     def _answer(self, js: JointState, command: Command, source: CommandSource | None) -> Output:
         """The pipeline's end: the guard, the command, every source's reports, results."""
         counts = np.asarray(command.counts, dtype=np.int64)
-        guarded = "" if self.guard is None else None
+        guarded = ""
         if self.guard is not None and js.valid:
             verdict = self.guard.command(js, counts, command.goal_id)
             counts, guarded = verdict.counts, verdict.reason
             if source is not None and verdict.scale < 1.0:
-                source.guarded(command, verdict.scale, verdict.reason)
+                source.guarded(command, verdict)
         self.last_counts = counts
         cmd = self.outbox.command(js, counts, command.grip)
         out: Output = [(ep.JOINT_VELOCITY, cmd)]

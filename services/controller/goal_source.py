@@ -59,6 +59,7 @@ from services.controller.goals import (
     trajectory_error,
 )
 from services.controller.gripper import GripperRun, gripper_command
+from services.controller.guard import Verdict
 from services.controller.modes import LAWS
 from services.controller.outbox import GoalOutcome, Output
 from services.controller.reference import Reference
@@ -237,12 +238,12 @@ class GoalSource(CommandSource):
             counts, grip = _ZERO, 0
         return Command(counts, grip, run.goal.goal_id if run is not None else "")
 
-    def guarded(self, command: Command, scale: float, reason: str) -> None:
+    def guarded(self, command: Command, verdict: Verdict) -> None:
         """The guard stopped the trajectory's command: the goal aborts."""
         ran = self._ran[1] if self._ran is not None else None
-        if scale == 0.0 and ran is not None and self.run is ran[1]:
-            end = End(ResultStatus.ABORTED, EndCause.COLLISION, f"collision guard {reason}")
-            self._end_run(ran[1], end)
+        if verdict.scale == 0.0 and ran is not None and self.run is ran[1]:
+            why = f"collision guard {verdict.reason}"
+            self._end_run(ran[1], End(ResultStatus.ABORTED, EndCause.COLLISION, why))
 
     def reports(self, sent: Sent) -> Output:
         """The feedback of a cycle in which a goal ran."""

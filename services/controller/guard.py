@@ -48,12 +48,15 @@ class Verdict(NamedTuple):
         scale: the factor applied (1: unchanged, 0: stopped).
         reason: why it scaled or stopped ("" when unchanged).
         clearance: the tightest clearance computed this cycle (None: none computed).
+        near: when it scaled or stopped: the clearance, where the arm is now (the
+            snapshot), of the check that decided it (None: unchanged).
     """
 
     counts: np.ndarray
     scale: float
     reason: str
     clearance: Clearance | None
+    near: Clearance | None = None
 
 
 class _Anchor(NamedTuple):
@@ -131,7 +134,7 @@ class Guard:
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
         if m_next.margin < floor:
-            return self._stopped(counts, m_next, "already in flight")
+            return self._stopped(counts, m_next, "already in flight", self._now(now, m_next, q_s))
         m_end = self._margin(q_end)
         scale = 1.0
         if m_end.margin < floor:
@@ -154,13 +157,30 @@ class Guard:
                     scale,
                     f"slowed to {scale:.2f}: {check.describe()} ahead",
                     now.clearance,
+                    now.clearance,
                 )
-        return self._stopped(counts, m_end, "ahead at the commanded speed")
+        near = self._now(now, m_end, q_s)
+        return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _stopped(self, counts: np.ndarray, found: Clearance, when: str) -> Verdict:
-        return Verdict(np.zeros_like(counts), 0.0, f"stopped: {found.describe()} {when}", found)
+    def _stopped(self, counts: np.ndarray, found: Clearance, when: str, near: Clearance) -> Verdict:
+        reason = f"stopped: {found.describe()} {when}"
+        return Verdict(np.zeros_like(counts), 0.0, reason, found, near)
+
+    def _now(self, now: _AnchorResult, found: Clearance, q: np.ndarray) -> Clearance:
+        """The clearance at ``q`` (where the arm is) of ``found``'s check: the tightest
+        one there if it is the same (most cycles), else computed."""
+        if found.check == now.clearance.check:
+            return now.clearance
+        model = self.model
+        self.computed += 1
+        margins = model.margins(q)
+        pairs = [(float(m), c) for m, c in zip(margins, model.checks, strict=True)]
+        for margin, check in pairs + model.keep_in_margins():
+            if check == found.check:
+                return Clearance(margin, margin + check.required, check, 0.0, q)
+        return now.clearance
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1

@@ -27,16 +27,12 @@ joint state it came: the regression check feeds it there).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from manus.kinematics import fk
-from manus.orientation import matrix_to_ypr
 from manus.quantize import gripper_counts
 from schemas import endpoints as ep
 from schemas.control import CommandSourceKind, EndCause, GoalAck, Refusal, ResultStatus
-from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogState, JogTaken
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
 from schemas.state import JointState
 from services.controller.command_source import (
     Command,
@@ -49,9 +45,12 @@ from services.controller.command_source import (
     SourceInput,
 )
 from services.controller.estimator import DriveEstimator
+from services.controller.guard import Verdict
 from services.controller.jog_command import JogError, resolve
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogRun, JogTarget, jog_counts, predicted_dh
+from services.controller.jog_limits import FREE, Slowdown
+from services.controller.jog_state import guard_limit, jog_reason, jog_state
 from services.controller.outbox import Output
 
 _ZERO = np.zeros(6, dtype=np.int64)
@@ -75,17 +74,23 @@ class JogSource(CommandSource):
         self.cfg: JogConfig = config.jog
         self.level = self.cfg.default_level
         self.target: JogTarget | None = None
-        """The speeds being executed (None: stopped)."""
+        """The speeds being executed (None: none)."""
         self.ref_ns = 0
         """Stamp [ns] of the newest joint state before the newest command (deadman)."""
         self.command_seq = -1
-        self.latched = ""
-        """Why the jog stopped ('' : armed); a zero command re-arms it."""
-        self.reason = ""
-        self.scale = 1.0
+        self.stopped: End | None = None
+        """Why the jog stopped (None: armed); a zero command re-arms it."""
+        self.cause: EndCause | None = None
+        """Why it last stopped (None: never)."""
+        self.counted = False
+        """This stop has counted its refusal (moving commands held back count once)."""
         self.refused = 0
         self.deadman_stops = 0
         self.run: JogRun | None = None
+        self.limit = FREE
+        """The jog law's slow-down this cycle (motors' speed cap, a zone)."""
+        self.guard: Slowdown | None = None
+        """What the collision guard did to this cycle's command (None: nothing)."""
         self.announce = False
         """Publish a JogState at the next joint state (a change to show)."""
         self.sender = ""
@@ -96,6 +101,11 @@ class JogSource(CommandSource):
     def engaged(self) -> bool:
         """A non-zero jog command is being executed."""
         return self.target is not None
+
+    @property
+    def reason(self) -> str:
+        """The jog state's words (:func:`.jog_state.jog_reason`)."""
+        return jog_reason(self.stopped, self.cause, self.limits())
 
     # -- the stream --------------------------------------------------------------------------
 
@@ -136,7 +146,7 @@ class JogSource(CommandSource):
     def stop(self, end: End) -> None:
         """A fault stops a moving jog until the controls are released."""
         if self.engaged:
-            self._latch(end.reason)
+            self._latch(end)
 
     # -- the cycle ---------------------------------------------------------------------------
 
@@ -150,14 +160,44 @@ class JogSource(CommandSource):
             counts, grip, self.run = _ZERO, 0, None
         return Command(counts, grip)
 
+    def guarded(self, command: Command, verdict: Verdict) -> None:
+        """The collision guard slowed or stopped the jog: a limit in its state."""
+        self.guard = guard_limit(verdict)
+
     def reports(self, sent: Sent) -> Output:
         """The JogState while a jog runs, and once after each change."""
-        jog = self._state(sent.js)
-        if jog is None:
+        show = self.engaged or self.announce
+        self.announce = False
+        limits = self.limits()
+        self.guard = None
+        if not show:
             return []
-        if sent.guard and jog.active:  # the collision guard slowed or stopped the jog
-            jog = dataclasses.replace(jog, reason=f"collision guard {sent.guard}")
-        return [(ep.JOG_STATE, jog)]
+        msg = jog_state(
+            sent.js,
+            self._seq,
+            target=self.target,
+            stopped=self.stopped,
+            cause=self.cause,
+            limits=limits,
+            level=self.level,
+            cfg=self.cfg,
+            counts=(self.command_seq, self.refused, self.deadman_stops),
+            arm=self.config.arm,
+        )
+        self._seq += 1
+        return [(ep.JOG_STATE, msg)]
+
+    def limits(self) -> list[Slowdown]:
+        """What holds the running jog back now: the level's caps, the jog law's limit,
+        the collision guard (empty when it does not run)."""
+        if self.target is None:
+            return []
+        found = list(self.target.caps)
+        if self.limit.scale < 1.0:
+            found.append(self.limit)
+        if self.guard is not None:
+            found.append(self.guard)
+        return found
 
     # -- internals ---------------------------------------------------------------------------
 
@@ -176,37 +216,43 @@ class JogSource(CommandSource):
             self._refuse(f"{what}: {exc}")
             return
         if target is not None and (stamp_ns is None or not_ready is not None):
-            # counted once per stop: a joystick held through an e-stop is one refusal
-            self.refused += 0 if self.latched else 1
-            self._latch(
-                f"{what}: {not_ready or 'no valid joint state yet (is the bridge running?)'}"
-            )
+            why = not_ready or "no valid joint state yet (is the bridge running?)"
+            self._hold_back(End(ResultStatus.ABORTED, EndCause.NOT_READY, f"{what}: {why}"))
             return
         self.command_seq = cmd.seq
         if target is None or stamp_ns is None:
-            if self.target is not None or self.latched:
-                self.reason, self.announce = ("released" if self.latched else ""), True
-            self.target, self.run, self.latched = None, None, ""
+            if self.target is not None or self.stopped is not None:
+                self.cause, self.announce = EndCause.RELEASED, True
+            self.target, self.run, self.stopped = None, None, None
             return
-        if self.latched:
-            return  # still held: the user must release the controls first
+        if self.stopped is not None:
+            self._hold_back(None)  # still held: the user must release the controls first
+            return
         if self.target is None:
             self.announce = True
         self.target, self.ref_ns = target, stamp_ns
 
     def _refuse(self, why: str) -> None:
-        """Count a refused command and stop."""
+        """Count a bad command and stop (a stop already in force stays as it is)."""
         self.refused += 1
-        self._latch(why)
+        self.announce = True
+        if self.stopped is None:
+            self._latch(End(ResultStatus.ABORTED, EndCause.BAD_COMMAND, why), counted=True)
 
-    def _latch(self, why: str) -> None:
+    def _hold_back(self, end: End | None) -> None:
+        """A moving command that may not move the arm: the jog stops with ``end`` if it
+        runs; the stop counts one refusal, however many commands it holds back."""
+        if self.stopped is None and end is not None:
+            self._latch(end)
+        if not self.counted:
+            self.refused += 1
+            self.counted = True
+        self.announce = True
+
+    def _latch(self, end: End, *, counted: bool = False) -> None:
         """Stop (zeros from the next cycle) until a zero command re-arms the jog."""
-        if self.target is None and self.latched:
-            self.reason = why
-            return
         self.target, self.run = None, None
-        self.latched = why
-        self.reason = f"stopped: {why}; release the controls (a zero command) to jog again"
+        self.stopped, self.cause, self.counted = end, end.cause, counted
         self.announce = True
 
     def _deadman(self, js: JointState) -> None:
@@ -216,15 +262,16 @@ class JogSource(CommandSource):
         age = js.stamp_ns - self.ref_ns
         if age > self.cfg.timeout_ns:
             self.deadman_stops += 1
-            self._latch(
+            why = (
                 f"deadman: no jog command within jog_timeout {self.cfg.timeout_ms:g} ms (the "
                 f"newest arrived after the joint state {age / 1e6:.0f} ms before seq {js.seq})"
             )
+            self._latch(End(ResultStatus.ABORTED, EndCause.DEADMAN, why))
 
     def _counts(self, est: DriveEstimator) -> tuple[np.ndarray, int]:
         """This cycle's motor counts, shape (6,), and gripper counts."""
         target = self.target
-        self.scale = 1.0
+        self.limit = FREE
         if target is None:
             return np.zeros(6, dtype=np.int64), 0
         grip = gripper_counts(target.gripper)
@@ -235,33 +282,6 @@ class JogSource(CommandSource):
         if self.run is None or not self.run.follows(target):
             self.run = JogRun.start(target, q_pred, self.config)
         step = self.run.step(target, q_pred, self.cfg, self.config)
-        self.scale, self.reason = step.limit.scale, step.limit.reason
+        self.limit = step.limit
         holding = step.limit.scale <= 0.0  # stopped at a zone: hold without a limit cycle
         return jog_counts(step.q_target, est, self.config, holding), grip
-
-    def _state(self, js: JointState) -> JogState | None:
-        """The JogState to publish with this joint state (None: nothing to show)."""
-        if not (self.engaged or self.announce):
-            return None
-        self.announce = False
-        T = fk(js.position, self.config.arm)
-        target = self.target
-        msg = JogState(
-            stamp_ns=js.stamp_ns,
-            seq=self._seq,
-            active=target is not None,
-            kind=target.kind if target is not None else "",
-            frame=target.frame if target is not None else "",
-            drink=target.drink if target is not None else False,
-            level=self.level,
-            levels=self.cfg.levels,
-            scale=self.scale,
-            reason=self.reason,
-            command_seq=self.command_seq,
-            refused=self.refused,
-            deadman_stops=self.deadman_stops,
-            actual_xyz=[float(v) for v in T[:3, 3]],
-            actual_ypr=[float(v) for v in matrix_to_ypr(T[:3, :3])],
-        )
-        self._seq += 1
-        return msg

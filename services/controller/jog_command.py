@@ -5,7 +5,10 @@ that is not finite, outside -1..1 (unitless), above the top level's caps (SI), o
 unknown kind, frame or units, or with values that do not belong to its kind; else it
 returns the speeds (:class:`~services.controller.jog_law.JogTarget`): unitless
 deflections scaled to the caps times level / levels, SI speeds limited to that, by one
-factor for a twist so that its direction is kept.
+factor for a twist so that its direction is kept. A command the level's caps scale down
+is never changed silently: the target carries the caps that did it, and the jog state
+reports them (``JogState.limits``, kind ``speed_cap``) while they hold. The fields each
+kind uses are :data:`schemas.jog.KIND_FIELDS`, the table the JSON Schema shows.
 """
 
 from __future__ import annotations
@@ -13,9 +16,18 @@ from __future__ import annotations
 import math
 
 from manus.errors import ManusError
-from schemas.jog import JogCommand, JogFrame, JogKind, JogUnits
+from schemas.jog import (
+    KIND_FIELDS,
+    SPEED_FIELDS,
+    JogCommand,
+    JogFrame,
+    JogKind,
+    JogUnits,
+    LimitKind,
+)
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogTarget
+from services.controller.jog_limits import Slowdown
 
 _TOLERANCE = 1e-9
 """Relative slack of the range checks (a value at the cap is allowed)."""
@@ -50,12 +62,14 @@ def _check_values(cmd: JogCommand) -> None:
             raise JogError(f"`{name}` = {value!r} is not a finite number")
         if cmd.units == JogUnits.UNITLESS and abs(value) > 1.0 + _TOLERANCE:
             raise JogError(f"`{name}` = {value!r} is outside -1..1 (unitless deflection)")
-    if cmd.kind == JogKind.JOINTS and (
-        any(cmd.linear) or any(cmd.angular) or cmd.drink or cmd.pour
-    ):
-        raise JogError("a `joints` command carries joint speeds (and the gripper's) only")
-    if cmd.kind == JogKind.TWIST and any(cmd.joints):
-        raise JogError("a `twist` command carries no joint speeds (use kind `joints`)")
+    uses = KIND_FIELDS.get(cmd.kind, ())
+    if cmd.kind != JogKind.STOP:
+        for name in (*SPEED_FIELDS, "drink"):
+            value = getattr(cmd, name)
+            if name not in uses and (any(value) if isinstance(value, list) else value):
+                raise JogError(
+                    f"a `{cmd.kind}` command carries no `{name}` (it uses {', '.join(uses)})"
+                )
     if cmd.drink and (cmd.angular[0] or cmd.angular[1]):
         raise JogError(
             f"drink mode holds the cup level: `angular[0]` = {cmd.angular[0]!r} and "
@@ -63,6 +77,10 @@ def _check_values(cmd: JogCommand) -> None:
         )
     if cmd.pour and not cmd.drink:
         raise JogError(f"`pour` = {cmd.pour!r} needs drink mode (`drink` true)")
+
+
+def _capped(name: str, scale: float) -> Slowdown:
+    return Slowdown(scale, LimitKind.SPEED_CAP, name, 0.0, f"the level's {name} speed cap")
 
 
 def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
@@ -95,14 +113,19 @@ def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
                 raise JogError(
                     f"`{name}` speed {size * k:.1f} {unit} is above the cap {cap * k:.1f} {unit}"
                 )
-    # One factor for a twist (its direction, and a straight line, are kept).
+    # One factor for a twist (its direction, and a straight line, are kept), reported.
     sizes = (
-        (_norm(lin), cfg.max_linear),
-        (_norm(ang) + abs(pour), cfg.max_angular),
-        (max(map(abs, joints)), cfg.max_joint),
+        ("linear", _norm(lin), cfg.max_linear),
+        ("angular", _norm(ang) + abs(pour), cfg.max_angular),
+        ("joints", max(map(abs, joints)), cfg.max_joint),
     )
-    f = min([1.0] + [cap * share / size for size, cap in sizes if size > 0.0])
-    grip = max(-cfg.max_gripper * share, min(cfg.max_gripper * share, grip))
+    f = min([1.0] + [cap * share / size for _, size, cap in sizes if size > 0.0])
+    binding = [name for name, size, cap in sizes if size > 0.0 and cap * share / size == f]
+    caps = [_capped(binding[0], f)] if f < 1.0 - _TOLERANCE else []  # not a rounding
+    top = cfg.max_gripper * share
+    if abs(grip) > top * (1.0 + _TOLERANCE):
+        caps.append(_capped("gripper", top / abs(grip)))
+    grip = max(-top, min(top, grip))
     target = JogTarget(
         cmd.kind,
         cmd.frame,
@@ -112,6 +135,7 @@ def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
         grip,
         cmd.drink,
         pour * f,
+        tuple(caps),
     )
     if not target.arm_moves and target.gripper == 0.0:
         return None

@@ -52,7 +52,7 @@ from schemas.control import (
 )
 from schemas.jog import USER_TOOK_OVER
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
-from schemas.sequencing import StepKind, Task, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
 from schemas.state import BridgePhase, BridgeState
 from services.sequencer.actions import Action, Query
 from services.sequencer.config import SequencerConfig
@@ -330,9 +330,9 @@ class MoveStep(GoalStep):
             problems = []
             if spec.pose not in POSES:
                 problems.append(f"unknown pose {spec.pose!r} (known: {', '.join(POSES)})")
-            if not 0.0 < spec.duration <= MAX_WAIT_S:
+            if not 0.0 <= spec.duration <= MAX_WAIT_S:  # 0: the default
                 problems.append(
-                    f"pose duration {spec.duration:g} s is outside (0, {MAX_WAIT_S:g}] s"
+                    f"pose duration {spec.duration:g} s is outside [0, {MAX_WAIT_S:g}] s"
                 )
             return problems
         if spec.path is None:
@@ -597,6 +597,6 @@ def step_path(step: TaskStep, start: list[float] | None, arm: ArmConfig) -> Path
     other kinds or a bad pose name)."""
     if step.kind == StepKind.MOVE:
         return step.path
-    if step.kind == StepKind.POSE and step.pose in POSES and step.duration > 0.0:
-        return pose_path(step.pose, step.duration, arm, start=start)
+    if step.kind == StepKind.POSE and step.pose in POSES and step.duration >= 0.0:
+        return pose_path(step.pose, step.duration or DEFAULT_POSE_DURATION_S, arm, start=start)
     return None
