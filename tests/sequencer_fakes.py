@@ -86,7 +86,8 @@ class FakeBridge:
                 stamp = time.time_ns()
                 self._joints.put(JointState(stamp_ns=stamp, seq=self._seq, position=list(self.q),
                                             gripper=self.gripper, valid=True, mode="joint",
-                                            encoder=[0] * 7, applied=[0] * 8,
+                                            encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                                            applied_gripper_velocity=0.0,
                                             applied_kind="none", applied_seq=-1))  # fmt: skip
                 self._state.put(BridgeState(stamp_ns=stamp, seq=self._seq, phase=self.phase,
                                             estop=False, cycles=self._seq, period_ms=60.0,

@@ -13,6 +13,7 @@ from manus.deadman import RecentStates
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
 from schemas import endpoints as ep
+from schemas.commands import JointVelocityCommand
 from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
@@ -20,7 +21,7 @@ from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.goal_source import GoalSource
 from services.controller.reference import Reference
-from tests.controller_plant import MS, Q0, Plant, ask, feed, line_trajectory
+from tests.controller_plant import MS, Q0, Plant, ask, feed, line_trajectory, steps
 
 
 def _plant(**config: object) -> Plant:
@@ -43,7 +44,7 @@ def test_idle_answers_every_state_with_zeros() -> None:
     assert len(plant.commands) == 3
     for js, cmd in zip(plant.states, plant.commands, strict=True):
         assert cmd.ref_seq == js.seq
-        assert cmd.counts == [0] * 8
+        assert steps(cmd) == [0] * 8
         assert cmd.velocity == [0.0] * 6
     assert plant.feedback == [] and plant.results == []
 
@@ -61,7 +62,7 @@ def test_goal_succeeds_with_one_result_and_via_errors(mode: str) -> None:
     assert result.kind == "trajectory" and result.duration >= 3.0
     plant.run(5)
     assert [r.goal_id for r in plant.results] == ["g"]
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     assert np.max(np.abs(plant.q - np.asarray(goal.trajectory.positions[-1]))) < math.radians(0.3)
 
 
@@ -106,7 +107,7 @@ def test_path_tolerance_abort_names_joint_error_and_tolerance() -> None:
         "path tolerance: joint 1 error" in result.reason and "exceeds 0.0200 rad" in result.reason
     )
     plant.run(2)
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     assert len(plant.results) == 1
 
 
@@ -129,11 +130,11 @@ def test_cancel_decelerates_within_the_bound_then_reports() -> None:
     ask(plant.core, ep.GOAL, _goal(delta=(60, 0, 0, 0, 0, 0), duration=2.0))
     plant.run(14)  # mid-way: near top speed
     before = len(plant.commands)
-    assert max(abs(c) for c in plant.commands[-1].counts or []) >= 5
+    assert max(abs(c) for c in steps(plant.commands[-1])) >= 5
     assert ask(plant.core, ep.CANCEL, CancelGoal(goal_id="g")).accepted
     result = plant.run_until_result("g")
     assert result.status == "cancelled"
-    counts = np.array([c.counts for c in plant.commands[before - 1 :]])[:, 1:7]
+    counts = np.array([steps(c) for c in plant.commands[before - 1 :]])[:, 1:7]
     step = config.cancel_decel * config.cycle_s / COUNT_RAD_S  # 0.72 counts per cycle
     drops = np.abs(counts[:-1]) - np.abs(counts[1:])
     assert drops.min() >= 0  # never speeds up
@@ -184,9 +185,9 @@ def test_replace_while_moving_splices_without_a_jump() -> None:
     assert first.status == "preempted" and "spliced" in first.reason
     refs = np.array([f.reference for f in plant.feedback[n - 3 : n + 4]])
     # The reference keeps moving joint 1 on through the splice: no jump, no stop.
-    steps = np.diff(refs[:, 0])
-    assert np.all(steps > 0) and np.max(np.abs(np.diff(steps))) < math.radians(0.5)
-    counts = np.array([c.counts for c in plant.commands])[:, 1:7]
+    moves = np.diff(refs[:, 0])
+    assert np.all(moves > 0) and np.max(np.abs(np.diff(moves))) < math.radians(0.5)
+    counts = np.array([steps(c) for c in plant.commands])[:, 1:7]
     assert np.max(np.abs(np.diff(counts, axis=0))) <= 3
 
 
@@ -231,7 +232,7 @@ def test_arm_error_stops_and_aborts_with_the_arms_message() -> None:
     assert statuses["g"] == ("aborted", "arm error: absolute encoder error")
     assert statuses["grip"][0] == "aborted"
     plant.run(2)
-    assert all(c.counts == [0] * 8 for c in plant.commands[-2:])
+    assert all(steps(c) == [0] * 8 for c in plant.commands[-2:])
     refused = ask(plant.core, ep.GOAL, _goal("h", q0=np.asarray(plant.states[-1].position)))
     assert not refused.accepted and "absolute encoder error" in refused.reason
     ok = dataclasses.replace(st, msg_class="none", msg_code=0, text="")
@@ -244,7 +245,7 @@ def test_short_joint_state_gap_stops_for_a_cycle_then_resumes(kind: str) -> None
     plant = _plant()
     ask(plant.core, ep.GOAL, _goal())
     plant.run(10)
-    assert any(plant.commands[-1].counts or [])
+    assert any(steps(plant.commands[-1]))
     running = plant.core.source(GoalSource).run
     tau_before = running.tau if running else 0.0
     if kind == "seq":
@@ -253,7 +254,7 @@ def test_short_joint_state_gap_stops_for_a_cycle_then_resumes(kind: str) -> None
         plant.cycle(skip=True)  # a whole cycle without a joint state
     plant.cycle()
     cmd = plant.commands[-1]
-    assert cmd.counts == [0] * 8 and cmd.ref_seq == plant.states[-1].seq
+    assert steps(cmd) == [0] * 8 and cmd.ref_seq == plant.states[-1].seq
     run = plant.core.source(GoalSource).run
     waited = tau_before + (0.06 if kind == "seq" else 0.0)  # nothing added over the gap
     assert run is not None and run.tau == pytest.approx(waited)
@@ -269,7 +270,7 @@ def test_long_joint_state_outage_aborts_with_zeros() -> None:
     for _ in range(6):
         plant.cycle(skip=True)
     plant.cycle()
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     reasons = {r.goal_id: (r.status, r.reason) for r in plant.results}
     assert reasons["g"][0] == "aborted" and "joint states interrupted" in reasons["g"][1]
     assert "max_outage_ms 300 ms" in reasons["g"][1]
@@ -297,7 +298,7 @@ def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
         for _ in range(10):
             cycle(plant)
         cycle(plant, late_ms=150)
-        assert plant.commands[-1].counts == [0] * 8  # the gap's zeros
+        assert steps(plant.commands[-1]) == [0] * 8  # the gap's zeros
         for _ in range(5):
             cycle(plant)
         assert plant.results == []
@@ -306,7 +307,7 @@ def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
         cycle(plant, echo=False)
         assert [r.status for r in plant.results] == ["aborted"]
         assert plant.results[0].reason.startswith("lost the supervisor's heartbeat")
-        assert plant.commands[-1].counts == [0] * 8
+        assert steps(plant.commands[-1]) == [0] * 8
 
 
 def test_an_echo_gets_a_full_cycle_after_a_late_joint_state() -> None:
@@ -360,7 +361,8 @@ def test_invalid_state_gets_zeros() -> None:
     js = dataclasses.replace(plant.joint_state(), valid=False)
     out = plant.core.on_joint_state(js)
     assert out[0][0] == "cmd/joint_velocity"
-    assert out[0][1].counts == [0] * 8  # type: ignore[attr-defined]
+    cmd = out[0][1]
+    assert isinstance(cmd, JointVelocityCommand) and steps(cmd) == [0] * 8
 
 
 @pytest.mark.parametrize("target", [0.06, 0.005])

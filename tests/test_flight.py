@@ -40,7 +40,8 @@ S = 1_000_000_000
 def _joints(seq: int, t_ns: int) -> bytes:
     return JointState(
         stamp_ns=t_ns, seq=seq, position=[0.1 * seq % 1, 0.5, -0.5, 0.0, -1.0, 0.0],
-        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied=[0] * 8,
+        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+        applied_gripper_velocity=0.0,
         applied_kind="joint", applied_seq=seq - 1,
     ).encode()  # fmt: skip
 

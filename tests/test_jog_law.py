@@ -214,7 +214,8 @@ class Host:
             return self
         self.last_js = JointState(
             stamp_ns=stamp_ns, seq=0, position=list(UNFOLDED), gripper=0.0, valid=True,
-            mode="joint", encoder=[0] * 7, applied=[0] * 8, applied_kind="none", applied_seq=-1,
+            mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+            applied_gripper_velocity=0.0, applied_kind="none", applied_seq=-1,
         )  # fmt: skip
         return self
 

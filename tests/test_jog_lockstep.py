@@ -33,6 +33,7 @@ from services.recorder.writer import RecordingWriter
 from services.sequencer.taskfile import task_from_args
 from services.simulator.config import SimConfig
 from services.simulator.faults import InjectedMessage
+from tests.controller_plant import steps
 
 PATHS = Path(__file__).resolve().parents[1] / "paths"
 CYCLE_NS = 60_000_000
@@ -148,7 +149,7 @@ def test_a_zero_command_stops_at_once() -> None:
     corrections = arm.ls.published(ep.JOINT_VELOCITY)[before:]
     assert len(corrections) == 1  # the stop replaces this cycle's command at once
     assert isinstance(corrections[0], JointVelocityCommand)
-    assert corrections[0].counts == [0] * 8
+    assert steps(corrections[0]) == [0] * 8
     arm.run(0.5)
     rest = arm.rest_from(released)  # zeros act within 100 ms, then the lag's 92 ms
     assert rest is not None

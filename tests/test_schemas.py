@@ -120,11 +120,11 @@ def joint_state(**changes: Any) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("changes", "match"),
     [
-        ({"position": [0.0] * 5}, r"JointState/1.position: expected 6 values, got 5"),
-        ({"gripper": "wide"}, r"JointState/1.gripper: expected a number, got 'wide'"),
-        ({"seq": -1}, r"JointState/1.seq: -1 is below the minimum 0"),
-        ({"mode": "dance"}, r"JointState/1.mode: 'dance' is not one of"),
-        ({"valid": 1}, r"JointState/1.valid: expected a boolean"),
+        ({"position": [0.0] * 5}, r"JointState/2.position: expected 6 values, got 5"),
+        ({"gripper": "wide"}, r"JointState/2.gripper: expected a number, got 'wide'"),
+        ({"seq": -1}, r"JointState/2.seq: -1 is below the minimum 0"),
+        ({"mode": "dance"}, r"JointState/2.mode: 'dance' is not one of"),
+        ({"valid": 1}, r"JointState/2.valid: expected a boolean"),
         ({"gripper": float("nan")}, r"expected a finite number"),
         ({"extra": 1}, r"unknown field\(s\) \['extra'\]"),
     ],
@@ -137,7 +137,7 @@ def test_bad_fields_are_named(changes: dict[str, Any], match: str) -> None:
 def test_missing_field_and_garbage_are_schema_errors() -> None:
     data = joint_state()
     del data["seq"]
-    with pytest.raises(SchemaError, match=r"JointState/1.seq: missing required field"):
+    with pytest.raises(SchemaError, match=r"JointState/2.seq: missing required field"):
         JointState.decode(msgpack.packb(data))
     with pytest.raises(SchemaError, match="not MessagePack"):
         JointState.decode(b"\xc1\xc1\xc1")

@@ -46,7 +46,8 @@ FAR = "[3000, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2.0, 0]"  # 3 m away: unreachable
 
 def joint_state(q: list[float], seq: int = 1) -> JointState:
     return JointState(stamp_ns=seq, seq=seq, position=q, gripper=0.0, valid=True,
-                      mode="joint", encoder=[0] * 7, applied=[0] * 8, applied_kind="none",
+                      mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                      applied_gripper_velocity=0.0, applied_kind="none",
                       applied_seq=-1)  # fmt: skip
 
 

@@ -4,7 +4,9 @@ Frames and units: docs/protocol.md, Frames from the arm; Encoder map.
 
 Joint fields are motor angles in 0.1 deg; the joint map (:mod:`manus.joint_map`) turns
 them into DH angles [rad]. The gripper field is the opening in 0.1 mm (the project's
-choice), published in metres.
+choice), published in metres. The speed steps the arm executes are published as DH
+joint and gripper velocities (:func:`manus.quantize.step_rates`): past the bridge,
+every service sees SI only.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from manus.protocol import (
     StatusFrame,
     message_text,
 )
+from manus.quantize import GRIPPER_COUNT_M_S, step_rates
 from schemas.state import ArmStatus, JointState
 
 _MODE_NAMES = {
@@ -73,7 +76,8 @@ def joint_state(
         stamp_ns: receive time of the 0x360 [ns].
         seq: this stream's sequence number.
         valid: the positions are meaningful.
-        applied: lift, motors 1..6 [counts], gripper [counts] sent at the previous sync.
+        applied: lift, motors 1..6 [counts], gripper [counts] sent at the previous sync
+            (published as what they are: DH joint and gripper velocities).
         applied_kind: what was sent then (:data:`schemas.state.APPLIED_KINDS`).
         applied_seq: seq of the velocity command sent then (-1: none).
     """
@@ -87,7 +91,8 @@ def joint_state(
         valid=valid,
         mode=mode_name(status.mode),
         encoder=list(encoder_fields(status, position)),
-        applied=list(applied),
+        applied_velocity=step_rates(applied[1:7]),
+        applied_gripper_velocity=applied[7] * GRIPPER_COUNT_M_S,
         applied_kind=applied_kind,
         applied_seq=applied_seq,
     )

@@ -31,8 +31,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from manus.joint_map import dh_to_encoder_list
-from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
+from manus.joint_map import dh_increments_to_encoder_list, dh_to_encoder_list
 from manus.scene import start_scene_state
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -62,8 +61,8 @@ S = TypeVar("S", bound=CommandSource)
 STOPPING_PHASES = ("stopped", "estopped", "arm_error", "folding_in", "folding_out", "shutdown")
 """Bridge phases in which nothing may move: entering one stops every source."""
 
-_NO_COUNTS = (0.0,) * 8
-"""``JointState.applied`` when the command in flight is not a joint move."""
+_STILL = (0.0,) * 6
+"""The motors' speeds in flight when the frame in flight is not a joint move [rad/s]."""
 _ZERO = np.zeros(6, dtype=np.int64)
 _IDLE = Command(_ZERO, 0)
 
@@ -321,15 +320,18 @@ class ControllerCore:
 
     def _estimate(self, js: JointState, position: list[float], dt_ns: int | float) -> None:
         """Update the motor, belt and gripper estimates with this snapshot and the
-        increments in flight (``dt_ns``: time since the last state, 0 after a gap)."""
+        speeds in flight (``dt_ns``: time since the last state, 0 after a gap).
+
+        The drives are modelled where they are, per motor (:mod:`.estimator`: each motor's
+        speed lag, each encoder's 0.1 deg cell): the DH angles and velocities go through
+        the joint map into motor coordinates here, in SI (rad, rad/s)."""
         dt = dt_ns / 1e9
-        applied = js.applied if js.applied_kind == "joint" else _NO_COUNTS
-        motors = self.joints.update(
-            dh_to_encoder_list(position), [c * COUNT_RAD_S for c in applied[1:7]], dt
-        )
+        joint = js.applied_kind == "joint"
+        rates = dh_increments_to_encoder_list(js.applied_velocity) if joint else _STILL
+        motors = self.joints.update(dh_to_encoder_list(position), rates, dt)
         if self.play.active:
             self.play.update(np.array(motors))
-        self.grip.update([js.gripper], [applied[7] * GRIPPER_COUNT_M_S], dt)
+        self.grip.update([js.gripper], [js.applied_gripper_velocity if joint else 0.0], dt)
 
     def _outage(self, js: JointState, last: JointState) -> int:
         """How long the joint states were missing [ns] (0: none)."""

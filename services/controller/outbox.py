@@ -12,8 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus.joint_map import encoder_increments_to_dh_list
-from manus.quantize import COUNT_RAD_S
+from manus.quantize import step_rates
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import ClearanceReport
@@ -90,18 +89,16 @@ class Outbox:
         return out
 
     def command(self, js: JointState, counts: np.ndarray, grip: int) -> JointVelocityCommand:
-        """The command answering ``js``: motor ``counts`` (6,) and gripper ``grip`` counts."""
-        motor: list[int] = counts.tolist()
-        # counts_to_joint_rates on plain floats (the same products; a zero rate is +0.0)
-        velocity = [r * COUNT_RAD_S for r in encoder_increments_to_dh_list(motor)]
+        """The command answering ``js``: the velocities of the motor speed steps
+        ``counts`` (6,) and the gripper's ``grip`` (on the arm's speed table, so the bridge
+        sends exactly these steps)."""
         cmd = JointVelocityCommand(
             stamp_ns=js.stamp_ns,
             seq=self._cmd_seq,
             source="controller",
             ref_seq=js.seq,
-            velocity=velocity,
+            velocity=step_rates(counts.tolist()),
             gripper_velocity=gripper_speed(grip),
-            counts=[0, *motor, int(grip)],
         )
         self._cmd_seq += 1
         return cmd

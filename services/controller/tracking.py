@@ -6,7 +6,7 @@ calls, implemented in :mod:`.modes` (:data:`.modes.LAWS`), the arithmetic in :mo
 - ``default``, built for the arm's interface. One global time base: trajectory time 0 is
   the moment the first command acts (the start snapshot + ``command_delay_ms``). The
   command computed from the snapshot at s acts during [s+60, s+120) ms, while the one
-  sent before it (``JointState.applied``) acts during [s, s+60): so the motor angles at
+  sent before it (``JointState.applied_velocity``) acts during [s, s+60): so the motor angles at
   s+60 are predicted from the estimate at s and the increments in flight, through the
   drives' speed lag, and the command is the constant speed that brings them onto the
   reference at s+120 (a dead-beat law in motor space). Its rounding error is not lost:
