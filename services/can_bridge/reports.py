@@ -1,4 +1,4 @@
-"""From the arm's frames to SI messages: joint state and arm status.
+"""From the arm's frames to SI messages: joint state, arm status, the frames themselves.
 
 Frames and units: docs/protocol.md, Frames from the arm; Encoder map.
 
@@ -19,6 +19,7 @@ from manus.joint_map import encoder_to_dh
 from manus.protocol import (
     GRIPPER_UNIT_MM,
     JOINT_UNIT_DEG,
+    Frame,
     MessageClass,
     Mode,
     PositionFrame,
@@ -26,7 +27,7 @@ from manus.protocol import (
     message_text,
 )
 from manus.quantize import GRIPPER_COUNT_M_S, step_rates
-from schemas.state import ArmStatus, JointState
+from schemas.state import ArmStatus, CanFrame, JointState
 
 _MODE_NAMES = {
     Mode.NONE: "none",
@@ -108,4 +109,16 @@ def arm_status(status: StatusFrame, *, stamp_ns: int, seq: int) -> ArmStatus:
         msg_class=_CLASS_NAMES[status.msg_class],
         msg_code=status.msg_code,
         text=message_text(status.msg_class, status.msg_code),
+    )
+
+
+def can_frame(frame: Frame, stamp_ns: int, seq: int) -> CanFrame:
+    """A frame as ``can/rx`` and ``can/tx`` carry it (``stamp_ns``: receive or send time)."""
+    return CanFrame(
+        stamp_ns=stamp_ns,
+        seq=seq,
+        id=frame.id & 0x7FF,
+        data=frame.data,
+        remote=frame.remote,
+        dlc=min(frame.dlc, 8),
     )
