@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from manus.config import DEFAULT_ARM
+from manus.config import DEFAULT_ARM, FOLDED_Q_DEG
+from manus.scene import default_scene
 from manus_stack.cli import main
 from manus_stack.recordings import record_thesis_run
+from manus_stack.scene_view import draw_scene
 from services.recorder.plot import load_plot_data, plot_recording
 
 
@@ -25,6 +29,33 @@ def test_scene_show_draws_the_arm_and_names_the_tightest_clearance(
     )
     assert out[1] == f"plot: {png}"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_picture_has_a_legend_and_names_file_format_and_scene_version(
+    tmp_path: Path,
+) -> None:
+    q = np.radians(FOLDED_Q_DEG)
+    picture = draw_scene(default_scene(), q, tmp_path / "scene.png", arm=DEFAULT_ARM)
+    # The file says `version: 1` (its format); the scene version counts run-time updates.
+    assert picture.heading == "wheelchair.yaml (file format 1), scene version 0"
+    assert picture.legend == [
+        "person (needs 50 mm)",
+        "chair (needs 15 mm)",
+        "environment (needs 15 mm)",
+        "keep-out zone",
+        "keep-in workspace",
+        "arm (self: needs 10 mm)",
+        "gripper_motor: tightest clearance",
+    ]
+
+
+def test_scene_check_names_the_file_format_and_the_scene_version(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["scene", "check"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["file_format"], out["scene_version"]) == (1, 0)
+    assert "version" not in out
 
 
 def test_scene_check_refuses_a_malformed_file(

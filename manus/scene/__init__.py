@@ -34,7 +34,7 @@ from manus.scene.file import (
 from manus.scene.model import (
     CLASSES,
     DEFAULT_CLEARANCE_MM,
-    SCENE_VERSION,
+    FILE_FORMAT,
     SHAPES,
     ZONE_KINDS,
     ZONE_LINKS,
@@ -52,8 +52,8 @@ from manus.scene.setting import SCENE_ENV, scene_from_setting, scene_path, start
 __all__ = [
     "CLASSES",
     "DEFAULT_CLEARANCE_MM",
+    "FILE_FORMAT",
     "SCENE_ENV",
-    "SCENE_VERSION",
     "SHAPES",
     "SHIPPED_SOURCE",
     "ZONE_KINDS",

@@ -16,7 +16,7 @@ import yaml
 from manus.scene.model import (
     CLASSES,
     DEFAULT_CLEARANCE_MM,
-    SCENE_VERSION,
+    FILE_FORMAT,
     SHAPES,
     ZONE_KINDS,
     ZONE_LINKS,
@@ -96,12 +96,12 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
     if root is None:
         raise SceneError(f"{source}: the scene file is empty")
     top = reader.mapping(root, "", ("version", "mount", "objects"), ("clearance_mm", "zones"))
-    version = reader.number(top["version"], "version")
-    if version != SCENE_VERSION:
+    file_format = reader.number(top["version"], "version")
+    if file_format != FILE_FORMAT:
         raise reader.fail(
             top["version"],
             "version",
-            f"this stack reads version {SCENE_VERSION}, got {top['version'].value}",
+            f"the file format: this stack reads format {FILE_FORMAT}, got {top['version'].value}",
         )
     mount_fields = reader.mapping(top["mount"], "mount", ("xyz_mm",), ("rpy_deg",))
     mount = reader.pose(mount_fields, "mount")

@@ -32,8 +32,9 @@ ZONE_LINKS = ("all", "gripper")
 DEFAULT_CLEARANCE_MM = {"person": 50.0, "chair": 15.0, "environment": 15.0, "self": 10.0}
 """Smallest allowed distance per class [mm] (``self``: between the arm's own bodies)."""
 
-SCENE_VERSION = 1
-"""The schema version this module reads."""
+FILE_FORMAT = 1
+"""The scene file format this stack reads: the file's ``version:`` key. Not the *scene
+version* (:attr:`Scene.version`), which counts a running stack's updates of the scene."""
 
 
 class SceneError(ManusError, ValueError):
@@ -105,7 +106,9 @@ class Scene:
         zones: the protection zones (at most one ``keep_in``).
         clearance: smallest distance per class and ``self`` [m].
         source: the file it came from (for messages).
-        version: run-time version (0: as loaded; a supervisor's update counts up).
+        version: the scene version, a run-time count (0: as read from the file; each
+            update a supervisor makes counts up). Not the file format
+            (:data:`FILE_FORMAT`, the file's ``version:`` key).
     """
 
     mount: np.ndarray = field(repr=False)
@@ -163,7 +166,8 @@ def describe(scene: Scene) -> dict[str, Any]:
         by_class[obj.cls].append(obj.name)
     return {
         "source": scene.source,
-        "version": scene.version,
+        "file_format": FILE_FORMAT,
+        "scene_version": scene.version,
         "objects": by_class,
         "zones": {z.name: z.kind for z in scene.zones},
         "clearance_mm": {k: round(v * 1e3, 3) for k, v in scene.clearance.items()},

@@ -38,7 +38,7 @@ def scene_from_setting(setting: str) -> Scene | None:
 
 def start_scene_state(setting: str) -> SceneState | None:
     """The scene of a service's ``scene`` setting as the planner announces it before any
-    run-time update (version 0, the file's text, its name); None: no scene.
+    run-time update (scene version 0, the file's text, its name); None: no scene.
 
     Raises:
         SceneError: the file cannot be read.

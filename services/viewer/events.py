@@ -117,7 +117,9 @@ class EventLog:
     def scene(msg: SceneState, parsed: Scene | None, problem: str = "") -> list[LogLine]:
         """A scene the planner published: drawn (``parsed``), or not (``problem``)."""
         if parsed is None:
-            return [LogLine("warning", "planner", f"scene {msg.version} not drawn: {problem}")]
+            return [
+                LogLine("warning", "planner", f"scene version {msg.version} not drawn: {problem}")
+            ]
         text = (
             f"scene version {msg.version} ({parsed.source}): {len(parsed.objects)} objects, "
             f"{len(parsed.zones)} zones"
