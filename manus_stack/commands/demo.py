@@ -122,6 +122,8 @@ def _overview(recording: Path, out: Path, title: str) -> None:
         f"overview: {summary.output} (from the recording: {summary.goals} path(s), "
         f"mean {summary.mean_mm:.2f} mm, max {summary.max_mm:.2f} mm)"
     )
+    if summary.clearance is not None:
+        print(f"clearances (simulator's truth): {summary.clearance_verdict}")
 
 
 def _report(

@@ -90,8 +90,8 @@ class PlannerCore:
             return SceneReply(
                 accepted=False,
                 version=version,
-                error=f"the update replaces version {update.base_version}, but version "
-                f"{version} is in use: read it again",
+                error=f"the update replaces scene version {update.base_version}, but scene "
+                f"version {version} is in use: read it again",
             )
         try:
             scene = parse_scene(update.text, update.source or "<scene update>")
