@@ -12,7 +12,8 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
 4. work area: a motion that would straighten the elbow further inside the stretched
    margin (warning 2) or take the gripper deeper into the forbidden area (warning 1) is
    refused, the arm holds;
-5. gripper (0..max), then the belts: the true joint follows its motor through a dead band,
+5. gripper (0..max; not below the width of an object held between the jaws), then the
+   belts: the true joint follows its motor through a dead band,
    and joint 1 has a scale error;
 6. the scene (:mod:`services.simulator.contact`): a motion that would take a body of the
    true arm deeper into an object (or the arm itself) is refused, the arm holds where
@@ -84,6 +85,8 @@ class Intent:
             rates are zero (paused).
         stuck: motors that cannot move, shape (6,) of bool.
         checks: refuse motion into the stretched elbow or the forbidden area.
+        gripper_min_mm: the jaws cannot close below this (an object held between them)
+            [mm].
     """
 
     rates_deg_s: np.ndarray
@@ -91,6 +94,7 @@ class Intent:
     fold_target_deg: np.ndarray | None = None
     stuck: np.ndarray | None = None
     checks: bool = True
+    gripper_min_mm: float = 0.0
 
 
 class StepResult(NamedTuple):
@@ -175,7 +179,7 @@ class ArmModel:
             if refused is not None:
                 warnings.add(refused)
                 x, v = x0, np.zeros(6)
-        g, gv = self._gripper(state, intent.gripper_mm_s, dt_s)
+        g, gv = self._gripper(state, intent.gripper_mm_s, dt_s, intent.gripper_min_mm)
         out = backlash(state.output_deg, x, self.width)
         end = ArmState(x, v, out, g, gv)
         after = self.contacts.distance(self.q_true_deg(end), g)
@@ -233,7 +237,9 @@ class ArmModel:
             self._area_cache[key] = cached
         return cached
 
-    def _gripper(self, state: ArmState, rate_mm_s: float, dt_s: float) -> tuple[float, float]:
+    def _gripper(
+        self, state: ArmState, rate_mm_s: float, dt_s: float, lowest_mm: float
+    ) -> tuple[float, float]:
         gx, gv = lag_step(
             np.array([state.gripper_mm]),
             np.array([state.gripper_speed_mm_s]),
@@ -242,8 +248,9 @@ class ArmModel:
             self.tau_s,
         )
         g, speed = float(gx[0]), float(gv[0])
-        if g <= 0.0 or g >= self.gripper_max_mm:
-            return min(max(g, 0.0), self.gripper_max_mm), 0.0
+        lowest = min(max(lowest_mm, 0.0), self.gripper_max_mm)
+        if g <= lowest or g >= self.gripper_max_mm:
+            return min(max(g, lowest), self.gripper_max_mm), 0.0
         return g, speed
 
 
