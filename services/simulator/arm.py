@@ -16,8 +16,9 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
    belts: the true joint follows its motor through a dead band,
    and joint 1 has a scale error;
 6. the scene (:mod:`services.simulator.contact`): a motion that would take a body of the
-   true arm deeper into an object (or the arm itself) is refused, the arm holds where
-   the body met it (warning 3, "motor blocked"), also during a fold.
+   true arm, or the object it holds (:attr:`ArmModel.held`), deeper into an object (or
+   the arm itself) is refused, the arm holds where the body met it (warning 3, "motor
+   blocked"), also during a fold.
 
 :meth:`ArmModel.step` is pure, so the core also uses it to evaluate the truth between ticks.
 """
@@ -25,6 +26,7 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -37,6 +39,10 @@ from services.simulator.config import SimConfig
 from services.simulator.contact import ContactModel, Distance
 from services.simulator.drives import backlash, lag_step, move_toward
 from services.simulator.workspace import area_violation, stretch_violation
+
+Measure = Callable[[np.ndarray, float], Distance | None]
+"""The smallest true distance of something the arm carries, at DH angles [deg] and a
+gripper opening [mm] (None: nothing to measure)."""
 
 _DQ_DE = np.diag(M_ENCODER_TO_DH).copy()
 """d q_i / d e_i: how DH joint i moves with its own motor (the diagonal of the map)."""
@@ -136,6 +142,10 @@ class ArmModel:
         # transmission accumulates with its motion from there.
         self._q1_start = float(config.start_q_deg[0])
         self.contacts = ContactModel(config.scene, config.arm, config.start_gripper_mm * 1e-3)
+        self.held: Measure | None = None
+        """The held object's smallest true distance to the scene at DH angles [deg] and a
+        gripper opening [mm] (None: nothing to hold; set by the simulator's objects,
+        :mod:`services.simulator.object_world`): it meets the scene as a body does."""
 
     def initial_state(self) -> ArmState:
         """At rest in the configured start pose, every belt's slack centred."""
@@ -184,19 +194,31 @@ class ArmModel:
         end = ArmState(x, v, out, g, gv)
         after = self.contacts.distance(self.q_true_deg(end), g)
         contact = ""
-        if after is not None and after.distance < 0.0 and not np.array_equal(x, x0):
-            before = self.contacts.distance(self.q_true_deg(state), state.gripper_mm)
-            assert before is not None
-            if after.distance < before.distance - _EPS:
+        if not np.array_equal(x, x0):
+            contact = self._meets(self.contacts.distance, state, end, after)
+            if not contact and self.held is not None:
+                contact = self._meets(self.held, state, end)
+            if contact:
                 warnings.add(WARN_MOTOR_BLOCKED)
-                contact = after.pair
                 end = ArmState(x0, np.zeros(6), state.output_deg, g, gv)
                 x = x0
-                after = before
+                after = self.contacts.distance(self.q_true_deg(state), state.gripper_mm)
         arrived = intent.fold_target_deg is not None and bool(
             np.all(np.abs(intent.fold_target_deg - x) <= _EPS)
         )
         return StepResult(end, frozenset(warnings), arrived, after, contact)
+
+    def _meets(
+        self, measure: Measure, state: ArmState, end: ArmState, after: Distance | None = None
+    ) -> str:
+        """``body/object`` when the step from ``state`` to ``end`` takes that pair deeper
+        into contact ('': it does not)."""
+        if after is None:
+            after = measure(self.q_true_deg(end), end.gripper_mm)
+        if after is None or after.distance >= 0.0:
+            return ""
+        before = measure(self.q_true_deg(state), state.gripper_mm)
+        return after.pair if before is None or after.distance < before.distance - _EPS else ""
 
     def _limit(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         # Each DH joint i is set by its own motor i (joint 3 relative to motor 2), so clamp

@@ -120,6 +120,7 @@ class SimCore:
         scene = scene_from_setting(cfg.scene)
         self.objects = ObjectWorld(cfg, scene)
         """The objects: resting, held, falling (:mod:`services.simulator.object_world`)."""
+        self.model.held = self.objects.held_distance
         self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
         """The simulated camera (None: switched off)."""
         self._messages: list[tuple[int, str, Message]] = []
@@ -269,6 +270,8 @@ class SimCore:
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
         if self.objects.objects:
+            if result.contact:
+                self.objects.blocked(t, result.contact)
             self._move_objects(t)
         self.contact_record.update(result)
         self._board.raise_warnings(result.warnings)

@@ -29,6 +29,7 @@ from manus.scene import Scene
 from manus.shapes import coal_shape
 from schemas.objects import ContactClass, ObjectContact
 from services.simulator.arm_bodies import Body, distance
+from services.simulator.contact import Distance
 from services.simulator.objects import HELD, SimObject
 
 CONTACT_DEPTH = 1e-4
@@ -110,6 +111,29 @@ class ObjectContacts:
         """Nothing moved since the last tick: the same contacts last one tick longer."""
         for pair in self._current:
             self._records[pair].ticks += 1
+
+    def scene_distance(self, obj: SimObject, pose: np.ndarray) -> Distance:
+        """The smallest distance of ``obj`` at ``pose`` to the scene's objects [m]: exact
+        for those whose bounding spheres meet it, else the gap between the spheres (a
+        lower bound: enough to tell that they do not touch)."""
+        centre, radius = pose[:3, 3], obj.radius
+        best = Distance(math.inf, "")
+        for fixed in self._fixed:
+            gap = float(np.linalg.norm(fixed.centre - centre)) - radius - fixed.radius
+            d = gap if gap > 0.0 else distance(self.shape(obj), pose, fixed.geometry, fixed.pose)
+            if d < best.distance:
+                best = Distance(d, f"{obj.id}/{fixed.name}")
+        return best
+
+    def blocked(self, t_ns: int, pair: str) -> None:
+        """The arm stopped because the held object would have gone into ``pair``'s scene
+        object (``object/scene object``): a contact of depth 0 (it never got in)."""
+        first, _, second = pair.partition("/")
+        cls = next((f.cls for f in self._fixed if f.name == second), ContactClass.ENVIRONMENT)
+        record = self._records.get((first, second))
+        if record is None:
+            record = self._records[(first, second)] = _Record(cls, t_ns)
+        record.ticks += 1
 
     def contacts(self) -> list[ObjectContact]:
         """Every pair that touched since power-up, in the order they first did."""

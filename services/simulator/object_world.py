@@ -26,6 +26,7 @@ from manus.scene import Scene
 from schemas.objects import ObjectTruth
 from services.simulator.arm_bodies import ArmBodies, Body
 from services.simulator.config import SimConfig
+from services.simulator.contact import Distance
 from services.simulator.grasp import between_jaws, holds
 from services.simulator.object_contacts import ObjectContacts
 from services.simulator.objects import FALLING, HELD, RESTING, SimObject, load_objects, upright
@@ -132,6 +133,23 @@ class ObjectWorld:
         self._key = key
         self._contacts(t_ns, bodies, gripper)
 
+    def held_distance(self, q_deg: np.ndarray, opening_mm: float) -> Distance | None:
+        """The held object's smallest true distance to the scene with the arm at
+        ``q_deg`` [deg] and the jaws ``opening_mm`` [mm] apart (None: nothing held):
+        :attr:`services.simulator.arm.ArmModel.held`, so that it meets the scene as the
+        arm's bodies do."""
+        held = self._held
+        if held is None:
+            return None
+        _, gripper = self.bodies.place(np.radians(q_deg), opening_mm * 1e-3)
+        return self.contacts.scene_distance(held, gripper @ held.grip)
+
+    def blocked(self, t_ns: int, pair: str) -> None:
+        """The arm stopped at ``t_ns`` on a contact ``pair`` (``body/object``): recorded
+        among the objects' contacts when the held object made it."""
+        if self._held is not None and pair.startswith(f"{self._held.id}/"):
+            self.contacts.blocked(t_ns, pair)
+
     def pose_at(self, obj: SimObject, t_ns: int, gripper: np.ndarray) -> np.ndarray:
         """Where ``obj`` is at ``t_ns`` (at or after its last change) with the gripper at
         ``gripper`` (chair frame), (4, 4)."""
@@ -200,8 +218,8 @@ class ObjectWorld:
         they passed is held, or slips."""
         for obj in self.objects:
             contact = between_jaws(obj, self.pose_at(obj, t_ns, gripper), gripper, before)
-            if contact is None or opening >= contact.width:
-                continue
+            if contact is None or not opening <= contact.width < before:
+                continue  # not between the jaws, or not reached in this tick
             if holds(contact, self.tolerance):
                 obj.state, obj.grip, obj.support = HELD, contact.grip, ""
                 self._held, self._width = obj, contact.width
