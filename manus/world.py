@@ -1,30 +1,32 @@
 """The world model at run time: the objects perception reports, kept as versioned diffs.
 
 A deterministic core (no clock, no threads): :meth:`WorldModel.observe` takes a
-:class:`~schemas.objects.Perception` (one frame of a perception source) and
-:meth:`WorldModel.on_time` the stamp of a joint state (the stack's clock); both return
-the :class:`~schemas.objects.WorldUpdate` messages to publish. Every change is a diff
-from the version before it, applied by :func:`apply_update`, the same function a
-follower uses, so the diffs rebuild the model's set exactly; the whole set goes out
-every ``full_every_ms`` (judged on the stamps) for followers that start late or missed
+:class:`~schemas.objects.Perception` (one frame of a perception source) and returns the
+:class:`~schemas.objects.WorldUpdate` messages to publish. Every change is a diff from
+the version before it, applied by :func:`apply_update`, the same function a follower
+uses, so the diffs rebuild the model's set exactly; the whole set goes out every
+``full_every_ms`` (judged on the frames' stamps) for followers that start late or missed
 a diff (MoveIt's planning scene does the same with its diffs and full scenes).
 
 Rules (docs/objects.md):
 
 - an observation adds or moves its object; one older than the object's last observation
   is ignored; ``removed`` removes;
-- an object not observed for more than ``stale_after_s`` of the model's time is stale
-  (its age: :meth:`WorldModel.age_s`; a plan to it is refused naming the age,
-  :meth:`WorldModel.stale_reason`);
+- an object not observed for more than ``stale_after_s`` is stale: marked so in the
+  update of the first frame that finds it so, and judged again at any later time by
+  :meth:`WorldModel.age_s` and :meth:`WorldModel.stale_reason` (a plan to it is refused
+  naming its age, on the planner's own clock: its newest joint state);
 - an observation farther from the last one than ``max_speed`` times the interval plus
   ``jump_tolerance`` is a jump: kept (perception is the stack's only view of the world)
   and reported in the update (:class:`~schemas.objects.ObjectJump`);
 - a malformed perception message is refused whole and nothing changes; the refusal is
   counted and named in the next update.
 
-The model's time is the newest stamp it has seen (joint states and observations: both
-are on the publishing computers' synchronised clocks live, on the simulated clock in
-lock-step). Until its first perception message it publishes nothing.
+The model's time is the newest frame stamp it has seen: its updates depend on the
+perception stream alone, so a replay of a recording reproduces them whatever the other
+streams did meanwhile. Frames stop coming (perception lost): nothing is published, and
+the ages grow on a follower's own clock (``stamp_ns`` of each object; the stamps are the
+computers' synchronised clocks live, the simulated clock in lock-step).
 """
 
 from __future__ import annotations
@@ -166,12 +168,11 @@ class WorldModel:
         """The objects by id, as the last update left them."""
         self.version = 0
         self.now_ns: int | None = None
-        """The model's time: the newest stamp seen [ns] (None: none yet)."""
+        """The model's time: the newest frame stamp seen [ns] (None: none yet)."""
         self.refused = 0
         self.error = ""
         self.jumps = 0
         """Jumps seen since start."""
-        self._active = False  # a perception message has come: updates go out
         self._full_ns: int | None = None
 
     # -- inputs -----------------------------------------------------------------------------
@@ -189,7 +190,6 @@ class WorldModel:
             self.refused += 1
             self.error = str(exc)
             return []
-        self._active = True
         self._advance(msg.stamp_ns)
         changed: dict[str, WorldObject] = {}
         jumps: list[ObjectJump] = []
@@ -218,36 +218,30 @@ class WorldModel:
         changed.update(self._staling(exclude=changed))
         return self._emit(list(changed.values()), removed, jumps)
 
-    def on_time(self, stamp_ns: int) -> list[WorldUpdate]:
-        """The stack's clock moved on (a joint state's stamp): objects that went stale,
-        and the whole set when it is due (nothing before the first perception message)."""
-        self._advance(stamp_ns)
-        if not self._active:
-            return []
-        return self._emit(list(self._staling().values()), [], [])
-
     # -- readings -----------------------------------------------------------------------------
 
-    def age_s(self, object_id: str) -> float:
-        """Time since ``object_id`` was last observed, on the model's clock [s].
+    def age_s(self, object_id: str, now_ns: int | None = None) -> float:
+        """Time since ``object_id`` was last observed [s], at ``now_ns`` (default, or when
+        earlier: the newest frame's stamp).
 
         Raises:
             WorldError: no such object.
         """
         obj = self._get(object_id)
-        assert self.now_ns is not None  # an object exists: a stamp was seen
-        return max(0.0, (self.now_ns - obj.stamp_ns) / 1e9)
+        assert self.now_ns is not None  # an object exists: a frame was seen
+        now = self.now_ns if now_ns is None else max(now_ns, self.now_ns)
+        return max(0.0, (now - obj.stamp_ns) / 1e9)
 
-    def stale_reason(self, object_id: str) -> str:
-        """Why a plan to ``object_id`` is refused ('' when it is fresh): its age, who saw it
-        last and the limit.
+    def stale_reason(self, object_id: str, now_ns: int | None = None) -> str:
+        """Why a plan to ``object_id`` is refused at ``now_ns`` ('' when it is fresh): its
+        age, who saw it last and the limit.
 
         Raises:
             WorldError: no such object.
         """
         obj = self._get(object_id)
-        age = self.age_s(object_id)
-        if not obj.stale:
+        age = self.age_s(object_id, now_ns)
+        if age <= self.config.stale_after_s:
             return ""
         return (
             f"object {object_id!r} ({obj.cls}) was last observed {age:.1f} s ago by "
@@ -263,6 +257,7 @@ class WorldModel:
             objects=list(self.objects.values()),
             refused=self.refused,
             error=self.error,
+            stale_after_s=self.config.stale_after_s,
         )
 
     # -- the rules ------------------------------------------------------------------------------
@@ -328,6 +323,7 @@ class WorldModel:
                 jumps=jumps,
                 refused=self.refused,
                 error=self.error,
+                stale_after_s=self.config.stale_after_s,
             )
             self.objects = apply_update(self.objects, self.version, diff)
             self.version = diff.version

@@ -102,8 +102,8 @@ class WorldObject(Message):
     stamp_ns: int = field("capture time of its last observation", unit="ns")
     source: str = field("who observed it last")
     stale: bool = field(
-        "not observed for longer than the world model's stale_after_s (a plan to it is "
-        "refused; its age is the update's stamp_ns minus this stamp_ns)",
+        "not observed for longer than stale_after_s at the update's stamp_ns (its age then: "
+        "the update's stamp_ns minus this stamp_ns; a plan to it is refused)",
         default=False,
     )
 
@@ -132,8 +132,7 @@ class WorldUpdate(Message):
     TYPE_NAME = "manus/WorldUpdate/1"
 
     stamp_ns: int = field(
-        "the world model's time: the newest stamp of a joint state or an observation",
-        unit="ns",
+        "the world model's time: the capture time of the newest perception frame", unit="ns"
     )
     version: int = field("the version after this update", minimum=0)
     base_version: int = field(
@@ -150,6 +149,13 @@ class WorldUpdate(Message):
     )
     refused: int = field("perception messages refused since start", default=0, minimum=0)
     error: str = field("why the last refused one was refused ('': none)", default="")
+    stale_after_s: float = field(
+        "an object not observed for longer than this is stale (for a follower judging ages "
+        "on its own clock)",
+        unit="s",
+        default=0.0,
+        minimum=0.0,
+    )
 
 
 @dataclass(frozen=True)

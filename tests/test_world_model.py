@@ -47,7 +47,6 @@ def diffs(updates: list[WorldUpdate]) -> list[WorldUpdate]:
 
 def test_add_move_remove_make_one_versioned_diff_each() -> None:
     world = WorldModel()
-    assert world.on_time(0) == []  # nothing before the first perception message
     first = world.observe(frame(0.1, seen("cup"), seen("phone", cls="phone")))
     (add,) = diffs(first)
     assert (add.version, add.base_version) == (1, 0)
@@ -71,18 +70,23 @@ def test_an_older_frame_does_not_move_an_object_back() -> None:
 def test_an_object_not_observed_goes_stale_with_its_age() -> None:
     world = WorldModel(WorldConfig(stale_after_s=2.0))
     world.observe(frame(1.0, seen("cup"), seen("bottle", cls="bottle")))
-    assert diffs(world.on_time(round(2.9 * S))) == []
-    world.observe(frame(2.9, seen("bottle", cls="bottle")))
-    assert diffs(world.on_time(round(3.0 * S))) == []  # exactly 2 s: not yet
-    (stale,) = diffs(world.on_time(round(3.2 * S)))
+    (bottle,) = diffs(world.observe(frame(3.0, seen("bottle", cls="bottle"))))
+    assert [(o.id, o.stale) for o in bottle.objects] == [("bottle", False)]  # 2 s: not yet
+    (stale,) = diffs(world.observe(frame(3.2)))  # nothing seen, but the time moved on
     assert [(o.id, o.stale) for o in stale.objects] == [("cup", True)]
-    assert world.age_s("cup") == pytest.approx(2.2)
-    assert world.age_s("bottle") == pytest.approx(0.3)
+    assert stale.stale_after_s == 2.0
+    (bottle,) = diffs(world.observe(frame(3.3, seen("bottle", cls="bottle"))))
+    assert [(o.id, o.stale) for o in bottle.objects] == [("bottle", False)]  # said once
+    assert world.age_s("cup") == pytest.approx(2.3)
+    assert world.age_s("bottle") == pytest.approx(0.0)
     assert world.stale_reason("cup") == (
-        "object 'cup' (cup) was last observed 2.2 s ago by camera (stale after 2 s)"
+        "object 'cup' (cup) was last observed 2.3 s ago by camera (stale after 2 s)"
     )
     assert world.stale_reason("bottle") == ""
-    assert diffs(world.on_time(round(3.5 * S))) == []  # said once
+    # Perception lost: the planner judges the ages on its own clock (its joint states).
+    assert world.age_s("bottle", round(6.0 * S)) == pytest.approx(2.7)
+    assert "last observed 2.7 s ago" in world.stale_reason("bottle", round(6.0 * S))
+    assert world.age_s("bottle", 0) == pytest.approx(0.0)  # never before the newest frame
     (fresh,) = diffs(world.observe(frame(3.6, seen("cup"))))
     assert [(o.id, o.stale) for o in fresh.objects] == [("cup", False)]
     with pytest.raises(WorldError, match=r"no object 'mug' in the world model \(known: bottle"):
@@ -128,7 +132,7 @@ def test_a_malformed_frame_is_refused_whole(bad: Perception, message: str) -> No
     assert world.refused == 1 and world.error.endswith(message), world.error
     assert world.error.startswith("perception from 'camera' frame 10: ")
     assert sorted(world.objects) == ["phone"] and world.version == 1
-    (update,) = world.on_time(round(1.6 * S))  # the next whole set names it
+    (update,) = world.observe(frame(1.6))  # the next whole set names it
     assert (update.refused, update.error) == (1, world.error)
 
 
@@ -137,7 +141,7 @@ def test_the_whole_set_goes_out_every_period_on_the_stamps() -> None:
     world.observe(frame(1.0, seen("cup")))
     wholes = []
     for k in range(1, 31):
-        wholes += [u for u in world.on_time(round((1.0 + 0.1 * k) * S)) if u.base_version == FULL]
+        wholes += [u for u in world.observe(frame(1.0 + 0.1 * k)) if u.base_version == FULL]
     assert [u.stamp_ns for u in wholes] == [2 * S, 3 * S, 4 * S]
     assert all([o.id for o in u.objects] == ["cup"] for u in wholes)
 
@@ -167,13 +171,13 @@ NAMES = st.sampled_from(["cup", "bottle", "phone", "mug"])
 
 @st.composite
 def perception_runs(draw: st.DrawFn) -> list[tuple[str, object]]:
-    """A run of frames (some late, some removing) and clock ticks."""
+    """A run of frames (some late, some removing, some empty)."""
     steps: list[tuple[str, object]] = []
     t = 0.0
     for _ in range(draw(st.integers(1, 25))):
         t += draw(st.floats(0.01, 1.5))
         if draw(st.booleans()):
-            steps.append(("time", round(t * S)))
+            steps.append(("frame", frame(t)))
             continue
         late = draw(st.floats(0.0, 0.5))
         names = draw(st.lists(NAMES, unique=True, max_size=3))
@@ -192,14 +196,9 @@ def test_a_follower_that_applies_every_update_holds_the_models_set(
     world = WorldModel(WorldConfig(stale_after_s=1.0))
     held: dict[str, WorldObject] = {}
     version = 0
-    for kind, value in steps:
-        if kind == "time":
-            assert isinstance(value, int)
-            updates = world.on_time(value)
-        else:
-            assert isinstance(value, Perception)
-            updates = world.observe(value)
-        for update in updates:
+    for _, value in steps:
+        assert isinstance(value, Perception)
+        for update in world.observe(value):
             held = apply_update(held, version, update)
             version = update.version
         assert held == world.objects and version == world.version

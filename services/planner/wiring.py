@@ -1,5 +1,5 @@
-"""The planner's wiring: joint states (the default start, the world model's clock),
-``planner/plan``, ``planner/scene`` and perception (the world model, ``planner/objects``).
+"""The planner's wiring: joint states (the default start), ``planner/plan``,
+``planner/scene`` and perception (the world model, ``planner/objects``).
 
 Drives the live shell (:mod:`.shell`, which plans outside the node lock), the lock-step
 harness (``manus_stack.task_lockstep``) and the regression check
@@ -13,7 +13,7 @@ import logging
 from manus.wiring import Answer, Input, Publications, Wiring, messages
 from schemas import endpoints as ep
 from schemas.collision import SceneReply, SceneUpdate
-from schemas.objects import Perception, WorldUpdate
+from schemas.objects import Perception
 from schemas.state import JointState
 from services.planner.core import PlannerCore
 
@@ -21,11 +21,9 @@ log = logging.getLogger("manus.planner")
 
 
 def _on_joint_state(core: PlannerCore, js: JointState, t_ns: int) -> Publications:
-    """The default start; now and then the scene in use (late joiners, recordings); the
-    world model's clock (objects going stale, its whole set)."""
+    """The default start; now and then the scene in use (late joiners, recordings)."""
     state = core.on_joint_state(js)
-    out: Publications = [] if state is None else [(ep.SCENE_STATE, state)]
-    return out + _world(core, core.world.on_time(js.stamp_ns))
+    return [] if state is None else [(ep.SCENE_STATE, state)]
 
 
 def _on_perception(core: PlannerCore, msg: Perception, t_ns: int) -> Publications:
@@ -35,11 +33,6 @@ def _on_perception(core: PlannerCore, msg: Perception, t_ns: int) -> Publication
     updates = core.world.observe(msg)
     if core.world.refused != refused:
         log.warning("refused a perception message: %s", core.world.error)
-    return _world(core, updates)
-
-
-def _world(core: PlannerCore, updates: list[WorldUpdate]) -> Publications:
-    """Log what the updates say (jumps, objects gone stale) and publish them."""
     for update in updates:
         for jump in update.jumps:
             log.warning(
