@@ -83,6 +83,11 @@ class Camera:
         self._seq = 0
         self._reported: set[str] = set()
 
+    @property
+    def fixed_occluders(self) -> int:
+        """How many of the scene's objects may block its view."""
+        return self._fixed.count
+
     def next_event_ns(self) -> int:
         """When the camera next captures or publishes [ns]."""
         if self._pending:
