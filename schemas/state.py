@@ -234,7 +234,8 @@ class SimTruth(Message):
         "smallest `clearance` at any tick since power-up (None: no scene)", unit="m", default=None
     )
     contacts: int = field(
-        "ticks on which a body met an object (or the arm itself) and the arm was stopped",
+        "ticks on which a body, or the object the gripper holds, met an object (or the arm "
+        "itself) and the arm was stopped",
         default=0,
         minimum=0,
     )
