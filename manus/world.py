@@ -215,7 +215,7 @@ class WorldModel:
                     jumps.append(jump)
             changed[new.id] = new
         removed = [name for name in dict.fromkeys(msg.removed) if name in self.objects]
-        changed.update(self._staling(exclude=changed))
+        changed.update(self._staling(exclude={*changed, *removed}))
         return self._emit(list(changed.values()), removed, jumps)
 
     # -- readings -----------------------------------------------------------------------------
@@ -288,13 +288,12 @@ class WorldModel:
         assert self.now_ns is not None
         return (self.now_ns - stamp_ns) > self.config.stale_after_s * 1e9
 
-    def _staling(self, exclude: dict[str, WorldObject] | None = None) -> dict[str, WorldObject]:
-        """Objects whose staleness changed with the clock (now stale, not yet marked)."""
-        skip = exclude or {}
+    def _staling(self, exclude: set[str]) -> dict[str, WorldObject]:
+        """Objects (but ``exclude``) that the clock made stale, not marked so yet."""
         return {
             o.id: replace(o, stale=True)
             for o in self.objects.values()
-            if o.id not in skip and not o.stale and self._is_stale(o.stamp_ns)
+            if o.id not in exclude and not o.stale and self._is_stale(o.stamp_ns)
         }
 
     def _jump(self, old: WorldObject, new: WorldObject) -> ObjectJump | None:

@@ -60,6 +60,14 @@ def test_add_move_remove_make_one_versioned_diff_each() -> None:
     assert sorted(world.objects) == ["cup"]
 
 
+def test_a_stale_object_removed_is_gone() -> None:
+    world = WorldModel(WorldConfig(stale_after_s=1.0))
+    world.observe(frame(1.0, seen("cup")))
+    (gone,) = diffs(world.observe(frame(2.5, removed=("cup",))))
+    assert (gone.removed, gone.objects) == (["cup"], [])
+    assert world.objects == {}
+
+
 def test_an_older_frame_does_not_move_an_object_back() -> None:
     world = WorldModel()
     world.observe(frame(0.5, seen("cup", 1.0)))
