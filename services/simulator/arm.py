@@ -192,12 +192,13 @@ class ArmModel:
         g, gv = self._gripper(state, intent.gripper_mm_s, dt_s, intent.gripper_min_mm)
         out = backlash(state.output_deg, x, self.width)
         end = ArmState(x, v, out, g, gv)
-        after = self.contacts.distance(self.q_true_deg(end), g)
+        q_end = self.q_true_deg(end)
+        after = self.contacts.distance(q_end, g)
         contact = ""
         if not np.array_equal(x, x0):
-            contact = self._meets(self.contacts.distance, state, end, after)
+            contact = self._meets(self.contacts.distance, state, q_end, g, after)
             if not contact and self.held is not None:
-                contact = self._meets(self.held, state, end)
+                contact = self._meets(self.held, state, q_end, g)
             if contact:
                 warnings.add(WARN_MOTOR_BLOCKED)
                 end = ArmState(x0, np.zeros(6), state.output_deg, g, gv)
@@ -209,12 +210,18 @@ class ArmModel:
         return StepResult(end, frozenset(warnings), arrived, after, contact)
 
     def _meets(
-        self, measure: Measure, state: ArmState, end: ArmState, after: Distance | None = None
+        self,
+        measure: Measure,
+        state: ArmState,
+        q_end: np.ndarray,
+        gripper_mm: float,
+        after: Distance | None = None,
     ) -> str:
-        """``body/object`` when the step from ``state`` to ``end`` takes that pair deeper
-        into contact ('': it does not)."""
+        """``body/object`` when the step from ``state`` to true DH angles ``q_end`` [deg]
+        and opening ``gripper_mm`` [mm] takes that pair deeper into contact ('': it
+        does not)."""
         if after is None:
-            after = measure(self.q_true_deg(end), end.gripper_mm)
+            after = measure(q_end, gripper_mm)
         if after is None or after.distance >= 0.0:
             return ""
         before = measure(self.q_true_deg(state), state.gripper_mm)
