@@ -94,11 +94,17 @@ class ObjectContacts:
         frame, in the objects' order)."""
         self.held_clearance = None
         touching: list[tuple[str, str, str, float]] = []
+        centres = np.array([b.pose[:3, 3] for b in bodies]).reshape(-1, 3)
+        radii = np.array([b.radius for b in bodies])
         for i, obj in enumerate(objects):
             if obj.state == HELD:
                 self._held(obj, poses[i], objects, poses, touching)
-            else:
-                self._free(obj, poses[i], bodies, touching)
+                continue
+            # Bounding spheres first: only the bodies whose spheres meet the object's.
+            gaps = np.linalg.norm(centres - poses[i][:3, 3], axis=1) - radii - obj.radius
+            near = [bodies[k] for k in np.flatnonzero(gaps <= 0.0)]
+            if near:
+                self._free(obj, poses[i], near, touching)
         self._current = [(first, second) for first, second, _, _ in touching]
         for first, second, cls, depth in touching:
             record = self._records.get((first, second))
@@ -186,13 +192,8 @@ class ObjectContacts:
         bodies: list[Body],
         touching: list[tuple[str, str, str, float]],
     ) -> None:
-        centre, radius = pose[:3, 3], obj.radius
-        shape = None
+        shape = self.shape(obj)
         for body in bodies:
-            gap = float(np.linalg.norm(body.pose[:3, 3] - centre)) - radius - body.radius
-            if gap > 0.0:
-                continue
-            shape = shape if shape is not None else self.shape(obj)
             d = distance(body.geometry, body.pose, shape, pose)
             if d < -CONTACT_DEPTH:
                 touching.append((body.name, obj.id, ContactClass.OBJECT, -d))
