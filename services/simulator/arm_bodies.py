@@ -110,9 +110,13 @@ def transform(pose: np.ndarray) -> coal.Transform3s:
     return coal.Transform3s(np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3]))
 
 
-def distance(a: Any, pose_a: np.ndarray, b: Any, pose_b: np.ndarray) -> float:
-    """The signed distance between two Coal shapes at their poses [m] (< 0: penetrating)."""
+def distance(a: Any, pose_a: np.ndarray | Any, b: Any, pose_b: np.ndarray | Any) -> float:
+    """The signed distance between two Coal shapes at their poses [m] (< 0: penetrating);
+    a pose is (4, 4) or already a Coal placement."""
+    where_a = transform(pose_a) if isinstance(pose_a, np.ndarray) else pose_a
+    where_b = transform(pose_b) if isinstance(pose_b, np.ndarray) else pose_b
     result = coal.DistanceResult()
-    return float(
-        coal.distance(a, transform(pose_a), b, transform(pose_b), coal.DistanceRequest(), result)
-    )
+    return float(coal.distance(a, where_a, b, where_b, _REQUEST, result))
+
+
+_REQUEST = coal.DistanceRequest()

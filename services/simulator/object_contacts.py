@@ -28,7 +28,7 @@ import numpy as np
 from manus.scene import Scene
 from manus.shapes import coal_shape
 from schemas.objects import ContactClass, ObjectContact
-from services.simulator.arm_bodies import Body, distance
+from services.simulator.arm_bodies import Body, distance, transform
 from services.simulator.contact import Distance
 from services.simulator.objects import HELD, SimObject
 
@@ -49,9 +49,7 @@ class _Fixed:
     name: str
     cls: str
     geometry: Any
-    pose: np.ndarray
-    centre: np.ndarray
-    radius: float  # inf: a plane
+    where: Any  # its Coal placement
 
 
 class ObjectContacts:
@@ -63,15 +61,20 @@ class ObjectContacts:
 
     def __init__(self, scene: Scene | None) -> None:
         self._fixed: list[_Fixed] = []
+        centres, radii = [], []
         for obj in scene.objects if scene is not None else ():
             geometry, pose = coal_shape(obj.body)
             if obj.body.shape == "plane":
-                radius, centre = math.inf, np.zeros(3)
+                centres.append(np.zeros(3))
+                radii.append(math.inf)  # its gap is -inf: always asked
             else:
                 geometry.computeLocalAABB()
-                radius = float(geometry.aabb_radius)
-                centre = pose[:3, 3] + pose[:3, :3] @ geometry.aabb_center
-            self._fixed.append(_Fixed(obj.name, obj.cls, geometry, pose, centre, radius))
+                centres.append(pose[:3, 3] + pose[:3, :3] @ geometry.aabb_center)
+                radii.append(float(geometry.aabb_radius))
+            self._fixed.append(_Fixed(obj.name, obj.cls, geometry, transform(pose)))
+        self._centres = np.array(centres).reshape(-1, 3)
+        self._radii = np.array(radii)
+        self._person = np.array([f.cls == ContactClass.PERSON for f in self._fixed], dtype=bool)
         self._shapes: dict[str, Any] = {}
         self._records: dict[tuple[str, str], _Record] = {}
         self._current: list[tuple[str, str]] = []
@@ -122,14 +125,23 @@ class ObjectContacts:
         """The smallest distance of ``obj`` at ``pose`` to the scene's objects [m]: exact
         for those whose bounding spheres meet it, else the gap between the spheres (a
         lower bound: enough to tell that they do not touch)."""
-        centre, radius = pose[:3, 3], obj.radius
+        gaps = self._gaps(obj, pose)
         best = Distance(math.inf, "")
-        for fixed in self._fixed:
-            gap = float(np.linalg.norm(fixed.centre - centre)) - radius - fixed.radius
-            d = gap if gap > 0.0 else distance(self.shape(obj), pose, fixed.geometry, fixed.pose)
+        where, shape = transform(pose), self.shape(obj)
+        for k, gap in enumerate(gaps):
+            fixed = self._fixed[k]
+            d = float(gap) if gap > 0.0 else distance(shape, where, fixed.geometry, fixed.where)
             if d < best.distance:
                 best = Distance(d, f"{obj.id}/{fixed.name}")
         return best
+
+    def _gaps(self, obj: SimObject, pose: np.ndarray) -> np.ndarray:
+        """Per scene object, the gap between its bounding sphere and ``obj``'s at ``pose``
+        [m]: a lower bound of their distance (-inf for a plane)."""
+        gaps: np.ndarray = (
+            np.linalg.norm(self._centres - pose[:3, 3], axis=1) - self._radii - obj.radius
+        )
+        return gaps
 
     def blocked(self, t_ns: int, pair: str) -> None:
         """The arm stopped because the held object would have gone into ``pair``'s scene
@@ -160,21 +172,27 @@ class ObjectContacts:
         poses: list[np.ndarray],
         touching: list[tuple[str, str, str, float]],
     ) -> None:
-        shape = self.shape(obj)
+        shape, where = self.shape(obj), transform(pose)
         nearest = math.inf, ""
         person = math.inf
-        for fixed in self._fixed:
-            d = distance(shape, pose, fixed.geometry, fixed.pose)
+        gaps = self._gaps(obj, pose)
+        # Nearest gaps first: an exact distance only where it may be the nearest, the
+        # person's nearest, or a contact (a gap is a lower bound of the distance).
+        for k in np.argsort(gaps):
+            gap, fixed = float(gaps[k]), self._fixed[k]
+            if gap > 0.0 and gap >= nearest[0] and (not self._person[k] or gap >= person):
+                continue
+            d = distance(shape, where, fixed.geometry, fixed.where)
             if d < nearest[0]:
                 nearest = d, f"{obj.id}/{fixed.name}"
-            if fixed.cls == ContactClass.PERSON:
+            if self._person[k]:
                 person = min(person, d)
             if d < -CONTACT_DEPTH:
                 touching.append((obj.id, fixed.name, fixed.cls, -d))
         for other, other_pose in zip(objects, poses, strict=True):
             if other is obj:
                 continue
-            d = distance(shape, pose, self.shape(other), other_pose)
+            d = distance(shape, where, self.shape(other), other_pose)
             if d < nearest[0]:
                 nearest = d, f"{obj.id}/{other.id}"
             if d < -CONTACT_DEPTH:
