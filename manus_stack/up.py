@@ -4,7 +4,8 @@ Order: a Zenoh router on loopback (``manus router``, a Python session in router 
 ``manus record`` (waited for: its token is up once it listens, so the recording holds
 every service's whole life, from the simulator's power-up and the bridge's first cycle
 to their shutdown, and ``manus replay --check`` can replay it through a core), the
-simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
+simulator on a new slcan pseudo-terminal (``manus sim``, with its objects and its camera;
+skipped with a real arm),
 ``manus bridge`` on that device (or the real CAN interface), ``manus guardian`` beside it
 (the simulator's second node, or the same CAN interface; its reporter declares
 ``alive/guardian``), ``manus planner``, ``manus controller`` and ``manus sequencer``, then
@@ -87,6 +88,8 @@ class StackOptions:
         flight_ring_s: seconds the flight recorder keeps (0, or ``record`` off: none).
         view: start ``manus view`` (the Foxglove WebSocket server).
         view_port: its port.
+        objects: the simulator's objects (``manus sim --objects``: ``default``, ``none``
+            or a file), which its camera reports on ``perception/objects``.
     """
 
     run_dir: Path
@@ -100,6 +103,7 @@ class StackOptions:
     flight_ring_s: float = 30.0
     view: bool = False
     view_port: int = 8765
+    objects: str = "default"
 
     @property
     def flight_dir(self) -> Path:
@@ -231,7 +235,11 @@ class LocalStack:
             guardian_args = bridge_args  # socketcan and the like: several sockets, one bus
         else:
             nodes = ["--nodes", "2"] if guardian else []
-            sim_args = ["--device-file", str(opts.device_file), *nodes, *opts.sim_args]
+            sim_args = [
+                *("--device-file", str(opts.device_file), "--objects", opts.objects),
+                *nodes,
+                *opts.sim_args,
+            ]
             sim = self._spawn("sim", sim_args)
             files = [opts.device_file, Path(f"{opts.device_file}.1")][: 2 if guardian else 1]
             while not all(f.exists() for f in files):

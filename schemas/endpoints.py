@@ -47,6 +47,7 @@ from schemas import (
     health,
     jog,
     liveliness,
+    objects,
     planning,
     playback,
     sequencing,
@@ -463,6 +464,24 @@ PLAYBACK_CONTROL = _query(
     _SUP,
 )
 
+# -- objects: perception and the world model (docs/objects.md) -------------------------------
+PERCEPTION = _pub(
+    "perception/objects",
+    Service.SIMULATOR,
+    objects.Perception,
+    "one camera frame's objects (added or moved) and the ones known gone; the simulated "
+    "camera's, until a perception node of its own takes this key (and its ownership)",
+)
+OBJECTS = _pub(
+    "planner/objects",
+    Service.PLANNER,
+    objects.WorldUpdate,
+    "the world model's objects as versioned diffs, and the whole set every second",
+    _SUP,
+)
+OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS)
+"""The objects' endpoints (a block of their own in :data:`TABLE`)."""
+
 
 class Table:
     """The endpoints, by suffix, in declaration order (:data:`TABLE`)."""
@@ -575,6 +594,7 @@ TABLE = Table(
         LIVELINESS,
         FLIGHT_TRIGGER,
         PLAYBACK_CONTROL,
+        *OBJECT_ENDPOINTS,
     )
 )
 """Every endpoint of the stack."""

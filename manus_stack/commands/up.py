@@ -5,7 +5,8 @@
     manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
     manus up --view                            # and the arm live in Foxglove (port 8765)
 
-Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
+Starts a loopback Zenoh router, the simulator (or nothing, with a real arm; its camera
+reports its objects, ``--objects``), the bridge,
 the CAN guardian (not with ``--no-guardian``), planner, controller, sequencer and
 recorder (``manus_stack.up``), waits until each one's liveliness token is up, prints
 where things are, and runs until Ctrl-C (or ``--duration``), then stops every process it
@@ -40,6 +41,12 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         help="python-can interface of a real arm (default: the simulator)",
     )
     parser.add_argument("--can-channel", default="", help="its channel (e.g. can0)")
+    parser.add_argument(
+        "--objects",
+        default="default",
+        help="the simulator's objects, which its camera reports: 'default' (a cup, a bottle "
+        "and a phone on the table), 'none' or an objects file (docs/objects.md)",
+    )
     parser.add_argument(
         "--no-record",
         dest="record",
@@ -87,6 +94,7 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         flight_ring_s=max(0.0, args.ring),
         view=args.view,
         view_port=args.view_port,
+        objects=args.objects,
     )
 
 
