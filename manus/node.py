@@ -25,16 +25,13 @@ with its request (the recorder stores it as the MCAP publish time).
 
 from __future__ import annotations
 
-import gc
 import logging
 import os
-import signal
 import socket
 import threading
 import time
 from collections import Counter
 from collections.abc import Callable
-from types import FrameType
 from typing import Any, TypeVar
 
 import zenoh
@@ -389,30 +386,3 @@ class Node:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def freeze_startup_heap() -> None:
-    """Collect once, then put every object alive now out of the cyclic collector's reach.
-
-    Call it when a long-running service has finished starting. Imports (NumPy, Pinocchio,
-    Zenoh, the schemas) leave tens of thousands of long-lived objects, and each full
-    collection walks them all: measured here, a full collection in a planner client took
-    5-15 ms, often enough to set the 99th percentile of a plan round trip and to eat
-    most of the bridge's 20 ms reply window. Frozen objects (``gc.freeze``) are skipped by
-    every later collection; they are still freed by reference counting, and garbage made
-    after this call is collected as before.
-    """
-    gc.collect()
-    gc.freeze()
-
-
-def wait_for_signal(stop: threading.Event | None = None) -> threading.Event:
-    """Install SIGINT/SIGTERM handlers that set and return ``stop`` (main thread only)."""
-    event = stop or threading.Event()
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        event.set()
-
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    return event

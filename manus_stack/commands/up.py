@@ -22,7 +22,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-from manus.node import wait_for_signal
+from manus.process import wait_for_signal
 from manus_stack.up import LocalStack, StackOptions
 
 

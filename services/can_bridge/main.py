@@ -29,7 +29,7 @@ import can
 
 from manus.canbus import open_bus
 from manus.errors import ConfigError
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep

@@ -22,7 +22,8 @@ import contextlib
 import sys
 import threading
 
-from manus.node import Node, QueryError, wait_for_signal
+from manus.node import Node, QueryError
+from manus.process import wait_for_signal
 from manus.session import settings_from_env
 from schemas.sequencing import StepKind, Task, TaskAction, TaskEvent, TaskEventKind, TaskStep
 from services.sequencer.client import LINK_WAIT_S, TaskClient
