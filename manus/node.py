@@ -36,6 +36,7 @@ from typing import Any, TypeVar
 
 import zenoh
 
+from manus import presence
 from manus.errors import ManusError, SchemaError
 from manus.session import ZenohSettings, open_session
 from schemas.base import Message
@@ -129,6 +130,12 @@ class Node:
             self._where = live.declare_token(
                 self.keys.where(self.name, socket.gethostname(), self.pid)
             )
+
+    def declare_disabled(self, why: str) -> None:
+        """Declare ``disabled/<name>/<why>`` (a word): this service is off on purpose, instead
+        of :meth:`announce` (``manus status`` shows it; :mod:`manus.presence`)."""
+        token = self.session.liveliness().declare_token(self.keys.disabled(self.name, why))
+        self._entities.append(token)
 
     def health(self) -> NodeHealth:
         """The bad input counted so far (``schemas.health``)."""
@@ -304,22 +311,11 @@ class Node:
 
     def alive_services(self, timeout: float = 1.0) -> set[str]:
         """Names of the services whose liveliness tokens are up now."""
-        names = set()
-        for reply in self.session.liveliness().get(self.keys.alive_all, timeout=timeout):
-            if reply.ok is not None:
-                names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix(f"{ALIVE}/"))
-        return names
+        return presence.alive_services(self.session, self.keys, timeout)
 
     def service_hosts(self, timeout: float = 1.0) -> dict[str, list[tuple[str, int]]]:
         """Service name -> [(host name, pid), ...] of every node alive now (``where``)."""
-        found: dict[str, list[tuple[str, int]]] = {}
-        for reply in self.session.liveliness().get(self.keys.where_all, timeout=timeout):
-            if reply.ok is None:
-                continue
-            parts = self.keys.suffix(str(reply.ok.key_expr)).split("/")
-            if len(parts) == 4 and parts[3].isdigit():
-                found.setdefault(parts[1], []).append((parts[2], int(parts[3])))
-        return found
+        return presence.service_hosts(self.session, self.keys, timeout)
 
     def watch_liveliness(self, callback: Callable[[str, bool], None]) -> None:
         """Call ``callback(service, alive)`` when a service's token appears or vanishes."""
