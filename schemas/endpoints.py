@@ -367,7 +367,9 @@ SUBMIT = _query(
     _SEQ,
     sequencing.Task,
     sequencing.SubmitReply,
-    "validate a whole task and start it; reply: id or every error",
+    "validate a whole task and start it; reply: id or every error. Held while the bridge "
+    "is still starting (at most the sequencer's bridge_wait_s, 30 s by default); refused "
+    "at once when it is stopped (stopped, estopped, arm_error: phase and detail)",
     _SUP,
     clients=(SUPERVISOR,),
 )
