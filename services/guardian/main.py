@@ -6,8 +6,8 @@
         --bridge-channel /dev/ttyACM0                         # its own adapter on the arm's bus
 
 An independent process with its own CAN connection: it imports :mod:`manus.protocol`,
-python-can and the standard library only (no Zenoh, nothing of the bridge or the
-controller). With ``slcan`` and no ``--can-channel`` the channel is read from
+:mod:`manus.canbus` and :mod:`manus.can_sharing` (Zenoh-free), python-can and the
+standard library only (no Zenoh, nothing of the bridge or the controller). With ``slcan`` and no ``--can-channel`` the channel is read from
 ``--device-file`` (``manus sim --nodes 2`` writes node 1's pty to
 ``<its --device-file>.1``; default ``$MANUS_SIM_DEVICE_FILE.1`` or
 ``/tmp/manus-sim.device.1``).
