@@ -97,7 +97,7 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=60.0,
         metavar="S",
-        help="how long to wait for every service and the bridge's phase running [s]",
+        help="how long to wait for every service and the bridge's phase running [s] (default 60)",
     )
 
 
