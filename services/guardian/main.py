@@ -7,10 +7,10 @@
 
 An independent process with its own CAN connection: it imports :mod:`manus.protocol`,
 :mod:`manus.canbus` and :mod:`manus.can_sharing` (Zenoh-free), python-can and the
-standard library only (no Zenoh, nothing of the bridge or the controller). With ``slcan`` and no ``--can-channel`` the channel is read from
-``--device-file`` (``manus sim --nodes 2`` writes node 1's pty to
-``<its --device-file>.1``; default ``$MANUS_SIM_DEVICE_FILE.1`` or
-``/tmp/manus-sim.device.1``).
+standard library only (no Zenoh, nothing of the bridge or the controller). With
+``slcan`` and no ``--can-channel`` the channel is read from ``--device-file``
+(``manus sim --nodes 2`` writes node 1's pty to ``<its --device-file>.1``; default
+``$MANUS_SIM_DEVICE_FILE.1`` or ``/tmp/manus-sim.device.1``).
 
 It never shares a single-reader channel with the bridge (:mod:`manus.can_sharing`: two
 readers of one serial line split its bytes): given the bridge's channel
