@@ -2,15 +2,17 @@
 
 On a CAN bus every node sees every frame. Some python-can interfaces give every process
 that opens a channel its own copy of every frame (:data:`SHARED_INTERFACES`): socketcan
-(a socket each), virtual and udp_multicast, socketcand (a connection each), and the
-kvaser, pcan and vector drivers (a handle each, with its own queue). The others are taken
-as **single-reader**: slcan and serial adapters are a byte stream on one serial line (a
-tty, a USB CDC-ACM device), and two processes reading one line split its bytes between
-them, so each sees garbled frames and misses syncs (seen: a bridge that never left
-``waiting_power_up``, a guardian that took every sync for unanswered and sent 0x370 at
-each); python-can also writes configuration when it opens an slcan channel (close,
+(a socket each), virtual and udp_multicast, socketcand (a connection each), and kvaser
+(CANlib lets several handles open one channel, each with its own queue). The others are
+taken as **single-reader**. slcan and serial adapters are a byte stream on one serial
+line (a tty, a USB CDC-ACM device), and two processes reading one line split its bytes
+between them, so each sees garbled frames and misses syncs (seen: a bridge that never
+left ``waiting_power_up``, a guardian that took every sync for unanswered and sent 0x370
+at each); python-can also writes configuration when it opens an slcan channel (close,
 bitrate, open), which disturbs whoever already reads it. USB adapters opened through
-libusb (gs_usb, cantact, canalystii ...) admit one process at all.
+libusb (gs_usb, cantact, canalystii ...) admit one process at all. Whether pcan, vector
+and the other vendor drivers share a channel depends on the driver and its set-up, so
+the guardian gets its own there too.
 
 So the bridge and the CAN guardian never share a single-reader channel:
 
@@ -32,9 +34,7 @@ from pathlib import Path
 
 from manus.errors import ConfigError
 
-SHARED_INTERFACES = frozenset(
-    {"socketcan", "virtual", "udp_multicast", "socketcand", "kvaser", "pcan", "vector"}
-)
+SHARED_INTERFACES = frozenset({"socketcan", "virtual", "udp_multicast", "socketcand", "kvaser"})
 """python-can interfaces on which several processes may open one channel and each
 receives every frame. Every other interface is taken as single-reader."""
 

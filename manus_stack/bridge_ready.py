@@ -6,7 +6,9 @@ waits for the arm's power-up, enters joint mode and makes its start-up moves
 :func:`wait_running` follows ``state/bridge`` (published at every sync) until phase
 ``running``. It stops early at a phase the bridge does not leave by itself (stopped,
 estopped, arm_error, shutdown: ``schemas.state.ON_ITS_WAY_PHASES`` holds the others),
-and at the deadline; :func:`not_running` says why, with the phase and its detail.
+and at the deadline; :func:`not_running` says why, with the phase and its detail. The
+bridge publishes its state at every sync it hears (and at every change), so no state at
+all means no sync: the arm is off or not on that channel, or the bridge hangs.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ POLL_S = 0.1
 """How often the wait looks at the newest state and calls its ``check`` [s]."""
 
 
-def wait_running(node: Node, deadline: float, check: Callable[[], None]) -> BridgeState | None:
+def wait_running(
+    node: Node, deadline: float, check: Callable[[], None], since_ns: int = 0
+) -> BridgeState | None:
     """Follow ``state/bridge`` until phase ``running``, a phase the bridge does not leave
     by itself, or the monotonic ``deadline`` [s].
 
@@ -31,6 +35,9 @@ def wait_running(node: Node, deadline: float, check: Callable[[], None]) -> Brid
         node: an open node (its prefix selects the arm).
         deadline: when to give up (``time.monotonic()`` seconds).
         check: called every :data:`POLL_S` (it raises to end the wait: a process died).
+        since_ns: states stamped before this wall-clock time [ns] are ignored: after a
+            bridge's restart, its predecessor's last states (``shutdown``) may still be
+            on their way through the router.
 
     Returns:
         The newest bridge state (None: none received).
@@ -39,6 +46,8 @@ def wait_running(node: Node, deadline: float, check: Callable[[], None]) -> Brid
     got = threading.Event()
 
     def keep(state: BridgeState, rx_ns: int) -> None:
+        if state.stamp_ns < since_ns:
+            return
         newest[:] = [state]
         if state.phase == BridgePhase.RUNNING or state.phase not in ON_ITS_WAY_PHASES:
             got.set()
@@ -53,8 +62,11 @@ def wait_running(node: Node, deadline: float, check: Callable[[], None]) -> Brid
 
 def not_running(state: BridgeState | None, waited_s: float) -> str:
     """Why the bridge is not running ('' when it is), after ``waited_s`` [s]."""
-    if state is None:
-        return f"no bridge state received within {waited_s:.0f} s (is the bridge stuck?)"
+    if state is None:  # it publishes its state at every sync it hears
+        return (
+            f"the bridge reported no state within {waited_s:.0f} s: it hears no sync from "
+            "the arm (is the arm on, the CAN channel and bitrate right?), or it hangs"
+        )
     if state.phase == BridgePhase.RUNNING:
         return ""
     detail = f" ({state.detail})" if state.detail else ""

@@ -330,10 +330,10 @@ class LocalStack:
                 itself (stopped, estopped, arm_error, shutdown), or ``timeout`` passed;
                 it names the phase and its detail.
         """
-        start = time.monotonic()
+        start, since_ns = time.monotonic(), time.time_ns()  # not a restarted one's last
         settings = client_settings(self.options.endpoint, prefix=self.options.prefix)
         with Node("up", settings, liveliness=False) as node:
-            state = wait_running(node, start + timeout, self._check_all)
+            state = wait_running(node, start + timeout, self._check_all, since_ns)
         why = not_running(state, time.monotonic() - start)
         if why:
             raise StackError(f"{why} (logs in {self.options.run_dir / 'logs'})")

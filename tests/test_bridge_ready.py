@@ -4,6 +4,7 @@ not leave by itself, and at its deadline otherwise, saying the phase and its det
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 
@@ -13,6 +14,7 @@ from manus.node import Node
 from manus.session import ZenohSettings
 from manus_stack.bridge_ready import not_running, wait_running
 from schemas import endpoints as ep
+from schemas.state import BridgeState
 from tests.test_sequencer_core import bridge_state
 
 
@@ -61,7 +63,41 @@ def test_up_says_why_the_bridge_does_not_run(zenoh_settings: ZenohSettings) -> N
 
 
 def test_no_bridge_state_at_all() -> None:
-    assert not_running(None, 60.0).startswith("no bridge state received within 60 s")
+    assert not_running(None, 60.0).startswith(
+        "the bridge reported no state within 60 s: it hears no sync from the arm"
+    )
+
+
+def test_a_restarted_bridges_predecessor_does_not_end_the_wait(
+    zenoh_settings: ZenohSettings,
+) -> None:
+    """The last state of a bridge stopped before the wait (``shutdown``), late through the
+    router, is not the new bridge's."""
+    with (
+        Node("can_bridge", zenoh_settings) as bridge,
+        Node("up", zenoh_settings, liveliness=False) as up,
+    ):
+        pub = bridge.publisher(bridge.keys(ep.BRIDGE_STATE))
+        stale = dataclasses.replace(bridge_state("shutdown", 9), stamp_ns=time.time_ns())
+        since = time.time_ns()
+        done = threading.Event()
+        result: list[BridgeState | None] = []
+
+        def wait() -> None:
+            result.append(wait_running(up, time.monotonic() + 20.0, lambda: None, since))
+            done.set()
+
+        waiter = threading.Thread(target=wait, daemon=True)
+        waiter.start()
+        for _ in range(20):  # late, for a while: the waiter subscribes meanwhile
+            pub.put(stale)
+            assert not done.wait(0.05), result
+        fresh = dataclasses.replace(bridge_state("running", 1), stamp_ns=time.time_ns())
+        while not done.wait(0.06):
+            pub.put(fresh)
+        waiter.join(2.0)
+    (state,) = result
+    assert state is not None and state.phase == "running"
 
 
 def test_a_process_that_exits_ends_the_wait(zenoh_settings: ZenohSettings) -> None:

@@ -126,7 +126,7 @@ def test_the_stack_runs_over_slcan_with_the_guardian_on_its_own_adapter(tmp_path
     figures = f"{STARTS - len(failed)}/{STARTS} starts reached running; seconds: " + ", ".join(
         f"{t:.1f}" for t in took
     )
-    print(figures)
+    print(figures, *failed, sep="\n")  # shown even when a rerun passes
     assert not failed, f"{figures}\n" + "\n".join(failed)
     assert status["services"]["guardian"]["alive"] and status["bridge"]["phase"] == "running"
     for stats in [*bridge_stats, last["bridge"]]:  # one reader per line: no byte lost
