@@ -95,6 +95,7 @@ class JogSource(CommandSource):
         """Publish a JogState at the next joint state (a change to show)."""
         self.sender = ""
         """Who sent the newest command (``JogCommand.source``)."""
+        self._caps = {n: self.cfg.caps(n) for n in range(1, self.cfg.levels + 1)}
         self._seq = 0
 
     @property
@@ -172,7 +173,8 @@ class JogSource(CommandSource):
         if not show:
             return []
         self.announce = False
-        limits, reason = self.limits(), self.reason
+        limits = self.limits()
+        reason = jog_reason(self.stopped, self.cause, limits)
         self.guard = None  # the guard's verdict holds for this cycle only
         msg = jog_state(
             sent.js,
@@ -182,8 +184,8 @@ class JogSource(CommandSource):
             cause=self.cause,
             limits=limits,
             reason=reason,
-            level=self.level,
-            cfg=self.cfg,
+            level=(self.level, self.cfg.levels),
+            caps=self._caps[self.level],
             counts=(self.command_seq, self.refused, self.deadman_stops),
             arm=self.config.arm,
         )

@@ -49,6 +49,7 @@ STOP_BAND_DEG = 0.5
 """Within this of a zone's stop the step is not taken at all [deg]: the approach, slower
 and slower, ends in finite time."""
 
+_JOINTS = tuple(f"joint {j}" for j in range(1, 7))
 _NAMES = {
     "wrist": "the wrist singularity (q5 near 0 or 180 deg)",
     "elbow": "the elbow stretched (q3 near 90 deg)",
@@ -65,9 +66,9 @@ def measures(q: Sequence[float], arm: ArmConfig) -> list[tuple[LimitKind, str, f
             math.degrees(abs(math.remainder(q[2] - math.pi / 2, 2 * math.pi))),
         ),
     ]
-    for j in range(6):
+    for j, name in enumerate(_JOINTS):
         room = min(q[j] - arm.lower[j], arm.upper[j] - q[j])
-        out.append((LimitKind.JOINT_LIMIT, f"joint {j + 1}", math.degrees(room)))
+        out.append((LimitKind.JOINT_LIMIT, name, math.degrees(room)))
     return out
 
 

@@ -10,18 +10,15 @@ the state does (:func:`jog_reason`).
 
 from __future__ import annotations
 
-import math
-
 from manus.clearance import Clearance
 from manus.config import ArmConfig, is_folded
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
 from schemas.control import EndCause
-from schemas.jog import JogLimit, JogRunState, JogState, LimitKind
+from schemas.jog import JogCaps, JogLimit, JogRunState, JogState, LimitKind
 from schemas.state import JointState
 from services.controller.command_source import End
 from services.controller.guard import Verdict
-from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogTarget
 from services.controller.jog_limits import Slowdown
 
@@ -62,8 +59,8 @@ def jog_state(
     cause: EndCause | None,
     limits: list[Slowdown],
     reason: str,
-    level: int,
-    cfg: JogConfig,
+    level: tuple[int, int],
+    caps: JogCaps,
     counts: tuple[int, int, int],
     arm: ArmConfig,
 ) -> JogState:
@@ -77,8 +74,8 @@ def jog_state(
         cause: why the jog last stopped (None: never).
         limits: what holds the running jog back this cycle.
         reason: the same in words (:func:`jog_reason`).
-        level: the speed level in use.
-        cfg: the jog's settings.
+        level: the speed level in use and the number of levels.
+        caps: the caps at that level.
         counts: the newest command's seq, the refusals, the deadman stops.
         arm: the arm model.
     """
@@ -91,7 +88,10 @@ def jog_state(
         if stopped is not None
         else JogRunState.IDLE
     )
-    scale = math.prod(lim.scale for lim in limits if lim.object != "gripper")
+    scale = 1.0
+    for lim in limits:
+        if lim.object != "gripper":  # the gripper's cap holds back the gripper alone
+            scale *= lim.scale
     return JogState(
         stamp_ns=js.stamp_ns,
         seq=seq,
@@ -101,9 +101,9 @@ def jog_state(
         kind=target.kind if target is not None else "",
         frame=target.frame if target is not None else "",
         drink=target.drink if target is not None else False,
-        level=level,
-        levels=cfg.levels,
-        caps=cfg.caps(level),
+        level=level[0],
+        levels=level[1],
+        caps=caps,
         scale=min(1.0, max(0.0, scale)),
         limits=[_message(lim) for lim in limits],
         reason=reason,
