@@ -195,13 +195,13 @@ FOLDED_WITHIN_DEG = 5.0
 
 
 _FOLDED_RAD = tuple(math.radians(v) for v in FOLDED_Q_DEG)
+_FOLDED_WITHIN_RAD = math.radians(FOLDED_WITHIN_DEG)
 
 
 def is_folded(q: Sequence[float]) -> bool:
     """The DH joint angles ``q`` [rad], 6 values, are the folded pose (within
     :data:`FOLDED_WITHIN_DEG` per joint)."""
-    limit = math.radians(FOLDED_WITHIN_DEG)
-    return all(abs(a - b) <= limit for a, b in zip(q, _FOLDED_RAD, strict=True))
+    return all(abs(a - b) <= _FOLDED_WITHIN_RAD for a, b in zip(q, _FOLDED_RAD, strict=True))
 
 
 DEFAULT_ARM = ArmConfig()

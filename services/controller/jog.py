@@ -174,7 +174,7 @@ class JogSource(CommandSource):
             return []
         self.announce = False
         limits = self.limits()
-        reason = jog_reason(self.stopped, self.cause, limits)
+        reason = jog_reason(self.stopped, self.cause, limits) if limits or self.cause else ""
         self.guard = None  # the guard's verdict holds for this cycle only
         msg = jog_state(
             sent.js,
