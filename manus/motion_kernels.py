@@ -1,0 +1,101 @@
+"""Compiled kernels of the fast motion check (:meth:`manus.validity.ValidityChecker.
+motion_valid`): how far the arm's bodies can move, and conservative advancement along a
+straight joint-space motion.
+
+A point of a body moves at most ``sum_j |dq_j| r_j``, with ``r_j`` its largest distance
+from joint ``j``'s axis on the way; only the joints beyond ``j`` change that distance, so
+``r_j <= reach_j + sum_{k>j} |dq_k| r_k`` (the same bound as the controller's guard and
+:mod:`manus.sweep`), with ``reach_j`` taken where the margins were computed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from manus.validity_kernels import jit, margins
+
+
+@jit
+def reach(arm: Any, scratch: Any, out: np.ndarray) -> None:
+    """Per joint and body, the farthest any point of the body is from the joint's axis
+    at the configuration last posed, into ``out`` (6, B) [m] (0: the joint does not move
+    the body). Pieces and cover points both count (the keep-in zones use the latter)."""
+    _, p_joint, p_body, _, _, _, _, _, p_rb, _, _, _, _ = arm[:13]
+    c_joint, c_body, _, c_radius = arm[13:17]
+    frames, centers, _, _, covers, _ = scratch
+    out[:, :] = 0.0
+    for j in range(1, frames.shape[0]):
+        ox, oy, oz = frames[j, 0, 3], frames[j, 1, 3], frames[j, 2, 3]
+        zx, zy, zz = frames[j, 0, 2], frames[j, 1, 2], frames[j, 2, 2]
+        for points, joint, body, radius in (
+            (centers, p_joint, p_body, p_rb),
+            (covers, c_joint, c_body, c_radius),
+        ):
+            for i in range(points.shape[0]):
+                b = body[i]
+                if b < 0 or joint[i] < j:
+                    continue
+                dx, dy, dz = points[i, 0] - ox, points[i, 1] - oy, points[i, 2] - oz
+                along = dx * zx + dy * zy + dz * zz
+                r = math.sqrt(max(0.0, dx * dx + dy * dy + dz * dz - along * along)) + radius[i]
+                out[j - 1, b] = max(out[j - 1, b], r)
+
+
+@jit
+def travel(box: np.ndarray, levers: np.ndarray, b: int) -> float:
+    """How far any point of body ``b`` can move while each joint moves at most ``box``
+    (6,) [rad] from where ``levers`` (6, B) were taken: ``sum_j box_j r_j`` with ``r_j``
+    grown by the joints beyond ``j`` (they can carry the point further from the axis)."""
+    grown = 0.0
+    for j in range(box.shape[0] - 1, -1, -1):
+        grown += box[j] * (levers[j, b] + grown)
+    return grown
+
+
+@jit
+def motion(
+    q0: np.ndarray,
+    q1: np.ndarray,
+    floor: float,
+    max_steps: int,
+    arm: Any,
+    scene: Any,
+    scratch: Any,
+    free: np.ndarray,
+    levers: np.ndarray,
+) -> float:
+    """Conservative advancement along the straight line ``q0`` -> ``q1`` [rad]: at each
+    configuration the bodies' margins, then the longest step over which no point of a
+    body can travel as far as its margin. Returns 1.0 when the whole motion is proven,
+    else the fraction where a margin came below ``floor`` [m] (or ``max_steps`` ran
+    out): the first place it cannot prove."""
+    n = q0.shape[0]
+    delta = np.abs(q1 - q0)
+    box = np.empty(n)
+    q = q0.copy()
+    t = 0.0
+    for _ in range(max_steps):
+        for j in range(n):
+            q[j] = q0[j] + t * (q1[j] - q0[j])
+        tight, _, _ = margins(q, arm, scene, scratch, free)
+        if tight < floor:
+            return t
+        reach(arm, scratch, levers)
+        step = 1.0 - t
+        for b in range(free.shape[0]):
+            if free[b] == math.inf:
+                continue
+            for j in range(n):
+                box[j] = delta[j] * step
+            moved = travel(box, levers, b)
+            if moved > free[b]:
+                # travel is a polynomial in the step with no constant term and no
+                # negative coefficient: scaling the step by k < 1 scales it by <= k.
+                step *= free[b] / moved
+        if t + step >= 1.0:
+            return 1.0
+        t += step
+    return t
