@@ -11,14 +11,16 @@ A piece's distance to an obstacle is bounded from below by a separating directio
 any unit ``u``, ``dist(A, O) >= min_{a in A} u.a - max_{b in O} u.b`` (``sep(u)``). The
 first ``u`` points from the obstacle's closest point to the piece's centre; each further
 one from the obstacle's closest point to the piece's support point in the direction of
-the obstacle (an alternating projection that converges to the true distance). A bound
-of zero or less proves nothing (the pair counts as violated), so a margin is never above
-the true one: the check is conservative whatever the number of iterations.
+the obstacle (an alternating projection that comes closer to the true distance at each
+step). A bound of zero or less proves nothing (the pair counts as violated), so a margin
+is never above the true one: the check is conservative whatever the number of
+iterations.
 
-Everything here is plain arrays in, numbers out, no allocation per configuration on the
-common path. Compiled on first use and cached on disk (``cache=True``);
-:func:`warm_up` compiles (or loads) every kernel, so a service does it at start-up, not
-in a control cycle.
+Everything here is plain arrays in, numbers out, no allocation per configuration, and
+indices rather than array views (a view costs more than the arithmetic here). Compiled
+on first use and cached on disk (``cache=True``, in ``__pycache__`` beside this file or
+``$NUMBA_CACHE_DIR``): :class:`manus.validity.ValidityChecker` calls every kernel once
+when it is built, so a service pays it at start-up, never in a control cycle.
 """
 
 from __future__ import annotations

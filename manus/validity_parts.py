@@ -21,8 +21,9 @@ from manus.scene import Primitive
 from manus.shapes import cover
 from manus.urdf import Shape
 
-PIECE_M = 0.15
-"""Longest side of a piece [m]: the bound of a piece is tightest when it is short."""
+PIECE_M = 0.08
+"""Longest side of a piece [m]: the shorter, the tighter the bounds and the more pieces
+(0.08: 17 pieces; 9 at 0.15 left 4x as many configurations over-conservative)."""
 
 
 class Piece(NamedTuple):
