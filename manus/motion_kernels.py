@@ -25,7 +25,7 @@ def reach(arm: Any, scratch: Any, out: np.ndarray) -> None:
     the body). Pieces and cover points both count (the keep-in zones use the latter)."""
     _, p_joint, p_body, _, _, _, _, _, p_rb, _, _, _, _ = arm[:13]
     c_joint, c_body, _, c_radius = arm[13:17]
-    frames, centers, _, _, covers, _ = scratch
+    frames, centers, _, _, covers = scratch[:5]
     out[:, :] = 0.0
     for j in range(1, frames.shape[0]):
         ox, oy, oz = frames[j, 0, 3], frames[j, 1, 3], frames[j, 2, 3]
@@ -80,7 +80,7 @@ def motion(
     for _ in range(max_steps):
         for j in range(n):
             q[j] = q0[j] + t * (q1[j] - q0[j])
-        tight, _, _ = margins(q, arm, scene, scratch, free)
+        tight, _, _ = margins(q, arm, scene, scratch, free, math.inf)
         if tight < floor:
             return t
         reach(arm, scratch, levers)

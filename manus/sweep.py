@@ -41,6 +41,7 @@ import numpy as np
 
 from manus.clearance import Check, Clearance
 from manus.collision import CollisionModel
+from manus.fast_sweep import fast_sweep
 from manus.travel import BodyPoints
 
 STEP_M = 0.002
@@ -111,6 +112,9 @@ def sweep(
         tolerance: how far below the smallest margin found the unchecked stretches may
             be [m].
     """
+    proof = fast_sweep(model, times, qd_peaks, evaluate, step=step, tolerance=tolerance)
+    if proof is not None:
+        return Sweep(proof.worst, None, proof.checked, proof.checked)
     motion = _Motion(model, np.asarray(times, dtype=float), qd_peaks, evaluate)
     lo, hi = motion.boxes()
     aside = model.restrict(lo, hi, NEAR_M)

@@ -23,6 +23,7 @@ start, never in a control cycle (``manus bench validity`` reports the cost).
 
 from __future__ import annotations
 
+import math
 import weakref
 from typing import Any, NamedTuple
 
@@ -261,6 +262,7 @@ class ValidityChecker:
             np.zeros((B, 3)),
             np.zeros((m, 3)),
             np.zeros(3),
+            np.full(B, -1, dtype=np.int64),  # per body, the obstacle nearest last time
         )
         self._free = np.empty(B)
         self._levers = np.empty((self._placements.shape[0] - 1, B))
@@ -307,17 +309,21 @@ class ValidityChecker:
         """Lower bounds of each body's margin and the tightest check at ``q`` [rad]."""
         self._follow_opening()
         free = np.empty(len(self.bodies))
-        tight, body, other = k.margins(_f64(q), self._arm, self._scene, self._scratch, free)
+        tight, body, other = k.margins(
+            _f64(q), self._arm, self._scene, self._scratch, free, math.inf
+        )
         return Margins(free, float(tight), self.check_of(int(body), int(other)))
 
-    def margins_batch(self, Q: np.ndarray) -> BatchMargins:
-        """:meth:`margins` of each row of ``Q`` [rad] (n, 6)."""
+    def margins_batch(self, Q: np.ndarray, cap: float = math.inf) -> BatchMargins:
+        """:meth:`margins` of each row of ``Q`` [rad] (n, 6), each at most ``cap`` [m]
+        (a finite cap skips the pairs that cannot come under it: cheaper; a margin at
+        the cap names no check)."""
         self._follow_opening()
         Q = _f64(np.atleast_2d(Q))
         free = np.empty((len(Q), len(self.bodies)))
         tight = np.empty(len(Q))
         which = np.empty((len(Q), 2), dtype=np.int64)
-        k.margins_batch(Q, self._arm, self._scene, self._scratch, free, tight, which)
+        k.margins_batch(Q, self._arm, self._scene, self._scratch, free, tight, which, cap)
         return BatchMargins(free, tight, which)
 
     def reach(self, q: np.ndarray) -> np.ndarray:
@@ -327,6 +333,26 @@ class ValidityChecker:
         k.pose(_f64(q), self._arm, self._scratch)
         out = np.empty((self._placements.shape[0] - 1, len(self.bodies)))
         motion_kernels.reach(self._arm, self._scratch, out)
+        return out
+
+    def levers(self) -> np.ndarray:
+        """Per joint and body, the farthest any point of the body can ever be from the
+        joint's origin [m], shape (6, B) (0: the joint does not move it): whatever the
+        configuration, a body moves no faster than ``|qd| @ levers``."""
+        pm = self.model.model
+        lengths = [
+            float(np.linalg.norm(pm.jointPlacements[j].translation)) for j in range(pm.njoints)
+        ]
+        arm = self._arm
+        own = np.zeros(len(self.bodies))
+        for points, body, radius in ((arm[3], arm[2], arm[8]), (arm[15], arm[14], arm[16])):
+            for b, extent in zip(body, np.linalg.norm(points, axis=1) + radius, strict=True):
+                if b >= 0:
+                    own[b] = max(own[b], extent)
+        out = np.zeros((pm.njoints - 1, len(self.bodies)))
+        for b, joint in enumerate(self._joint_of):
+            for j in range(1, joint + 1):
+                out[j - 1, b] = sum(lengths[j + 1 : joint + 1]) + own[b]
         return out
 
     def motion_valid(

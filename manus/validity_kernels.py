@@ -249,7 +249,7 @@ def pose(q: np.ndarray, arm: Any, scratch: Any) -> None:
     """Place every piece, body centre and cover point at ``q`` (into ``scratch``)."""
     placements, p_joint, _, p_center, p_axes, _, _, _, _, _, b_joint, b_center, _ = arm[:13]
     c_joint, _, c_local, _ = arm[13:17]
-    frames, centers, axes, bodies, covers, _ = scratch
+    frames, centers, axes, bodies, covers = scratch[:5]
     forward(q, placements, frames)
     place(frames, p_joint, p_center, centers)
     turn(frames, p_joint, p_axes, axes)
@@ -264,7 +264,7 @@ def valid(q: np.ndarray, arm: Any, scene: Any, scratch: Any) -> bool:
     _, _, _, _, _, p_e, p_rc, p_rs, p_rb, b_start, _, _, b_radius = arm[:13]
     c_radius = arm[16]
     o_kind, o_R, o_t, o_s, o_req, applies, z_kind, z_R, z_t, z_s, z_req, z_holds, o_box = scene
-    _, centers, axes, bodies, covers, _ = scratch
+    _, centers, axes, bodies, covers = scratch[:5]
     for z in range(z_kind.shape[0]):
         for i in range(covers.shape[0]):
             if z_holds[z, i]:
@@ -313,21 +313,27 @@ def _keep_in(arm: Any, scene: Any, covers: np.ndarray, free: np.ndarray) -> Any:
 
 
 @jit
-def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray) -> Any:
-    """Each body's margin at ``q`` into ``free`` (B,) [m] (a lower bound; inf: nothing to
-    keep clear of); returns the tightest margin of all, its body (-1: a static one) and
-    what it is kept from (an obstacle, or ``O + z`` for keep-in zone ``z``)."""
+def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray, cap: float) -> Any:
+    """Each body's margin at ``q`` into ``free`` (B,) [m], a lower bound, at most ``cap``
+    (pairs that cannot come under it are skipped: a cap makes it cheaper); returns the
+    tightest margin of all, its body (-1: a static one) and what it is kept from (an
+    obstacle, ``O + z`` for keep-in zone ``z``, -1 when it is the cap)."""
     pose(q, arm, scratch)
     _, _, _, _, _, p_e, p_rc, p_rs, p_rb, b_start, _, _, b_radius = arm[:13]
     o_kind, o_R, o_t, o_s, o_req, applies = scene[:6]
     o_box = scene[12]
-    _, centers, axes, bodies, covers, _ = scratch
+    _, centers, axes, bodies, covers = scratch[:5]
     n_obstacles = o_kind.shape[0]
     tight, tight_body, tight_other = _keep_in(arm, scene, covers, free)
+    hint = scratch[6]
     for b in range(b_radius.shape[0]):
-        best, other = free[b], -1
-        for o in range(n_obstacles):
-            if not applies[b, o]:
+        best, other = min(free[b], cap), -1
+        # The obstacle nearest this body last time first: a small bound early lets
+        # the boxes and bounding spheres skip most other pairs.
+        first = hint[b]
+        for n in range(-1, n_obstacles):
+            o = first if n < 0 else n
+            if o < 0 or not applies[b, o] or (n >= 0 and o == first):
                 continue
             need = o_req[o]
             if _apart(o_box, o, bodies, b, b_radius[b] + need + best):
@@ -346,6 +352,8 @@ def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray)
                 if got < best:
                     best, other = got, o
         if other >= 0:
+            hint[b] = other
+        if best < free[b]:
             free[b] = best
             if best < tight:
                 tight, tight_body, tight_other = best, b, other
@@ -368,11 +376,12 @@ def margins_batch(
     free: np.ndarray,
     tight: np.ndarray,
     which: np.ndarray,
+    cap: float,
 ) -> None:
     """:func:`margins` at each row of ``Q`` (n, 6): ``free`` (n, B), ``tight`` (n,),
     ``which`` (n, 2) (body, other)."""
     for k in range(Q.shape[0]):
-        m, b, o = margins(Q[k], arm, scene, scratch, free[k])
+        m, b, o = margins(Q[k], arm, scene, scratch, free[k], cap)
         tight[k] = m
         which[k, 0] = b
         which[k, 1] = o
