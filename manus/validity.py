@@ -43,6 +43,9 @@ the motion counts as invalid there (each step of the proof is at least this long
 MAX_STEPS = 2000
 """Most steps of one motion check (a motion that needs more counts as invalid)."""
 
+_WARM = False
+"""Whether this process has compiled (or loaded) the kernels."""
+
 SLACK_M = 1e-5
 """Taken off every bound [m]: Coal's distances carry a tolerance of their own."""
 
@@ -269,13 +272,30 @@ class ValidityChecker:
         self._warm_up()
 
     def _warm_up(self) -> None:
-        """Compile (or load) every kernel now: the first call costs up to seconds."""
+        """Compile (or load) every kernel now, once per process: the first call costs
+        up to seconds."""
+        global _WARM
+        if _WARM:
+            return
+        _WARM = True
         q = np.zeros(self._placements.shape[0] - 1)
         self.is_valid(q)
         self.margins(q)
         self.is_valid_batch(q[None])
         self.margins_batch(q[None])
         self.motion_valid(q, q)
+        self.reach(q)
+        motion_kernels.motion(  # past the margins to the reach: compiled too
+            q,
+            q + 1e-3,
+            -math.inf,
+            1,
+            self._arm,
+            self._scene,
+            self._scratch,
+            self._free,
+            self._levers,
+        )
 
     def _follow_opening(self) -> None:
         if self.model.opening != self._opening:

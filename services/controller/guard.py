@@ -22,6 +22,7 @@ Pure: no clock, no I/O; the same inputs give the same commands.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -33,6 +34,7 @@ from manus.config import ArmConfig
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
 from manus.scene import SceneError, parse_scene, scene_from_setting
+from manus.validity import checker_for
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
@@ -87,7 +89,11 @@ class Guard:
         self.cycle_s = cycle_s
         self.runout_s = runout_s
         self.slow_zone_m = slow_zone_m
+        self.fast = checker_for(model)
         self._anchor: _Anchor | None = None
+        self.report_below = math.inf
+        """A pass computes Coal's clearance only when it may be below this [m] (the
+        smallest its caller has seen: :class:`RunGuard`, per goal)."""
         self.computed = 0
         """Configurations whose distances were computed (most cycles need none)."""
 
@@ -124,6 +130,8 @@ class Guard:
     ) -> Verdict:
         """Compute the distances: pass, slow down or stop (not proven clear already)."""
         q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
+        if self._fast_anchor_at(q_s) >= self.slow_zone_m and self._proven_clear(nxt, end):
+            return Verdict(counts, 1.0, "", self._report(q_s))  # the fast bounds prove it
         v_cmd = np.array(cmd_dh) * COUNT_RAD_S
         now = self._anchor_at(q_s)
         if now.margin >= self.slow_zone_m and self._proven_clear(nxt, end):
@@ -164,6 +172,26 @@ class Guard:
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
+        return self.model.probe(q, reach=False).best
+
+    def _fast_anchor_at(self, q: np.ndarray) -> float:
+        """Anchor at ``q`` with the fast check's margins (lower bounds: the proofs from
+        it hold a fortiori); returns its tightest margin [m]."""
+        free, tight, _ = self.fast.margins(q)
+        reach = self.fast.reach(q)
+        self.computed += 1
+        bound = np.isfinite(free)
+        levers = reach[::-1, bound].T.tolist()  # per body, joints 6..1
+        self._anchor = _Anchor(
+            q.tolist(), list(zip(free[bound].tolist(), levers, strict=True)), tight
+        )
+        return tight
+
+    def _report(self, q: np.ndarray) -> Clearance | None:
+        """Coal's tightest check at ``q`` when it may be below :attr:`report_below` (the
+        fast bound says whether it can be), else None."""
+        if self._anchor is None or self._anchor.margin >= self.report_below:
+            return None
         return self.model.probe(q, reach=False).best
 
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
@@ -226,12 +254,17 @@ class RunGuard:
     def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
         """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
         applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
+        low = self.lowest.get(goal_id)
+        # Only a clearance below the goal's smallest so far is worth Coal's time.
+        self.guard.report_below = (
+            -math.inf if not goal_id else math.inf if low is None else low.distance - low.required
+        )
         verdict = self.guard.filter(js.position, applied, counts, js.gripper)
         found = verdict.clearance
-        if goal_id and found is not None:
-            low = self.lowest.get(goal_id)
-            if low is None or found.distance - found.check.required < low.distance - low.required:
-                self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
+        if (goal_id and found is not None) and (
+            low is None or found.distance - found.check.required < low.distance - low.required
+        ):
+            self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
 
     def result(self, goal_id: str) -> ClearanceReport | None:
