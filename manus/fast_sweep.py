@@ -31,9 +31,10 @@ import numpy as np
 
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
+from manus.motion_kernels import stretch_bounds
 from manus.validity import checker_for
 
-START_M = 0.1
+START_M = 0.2
 """Most travel of any point between two of the first configurations checked [m]."""
 
 MAX_EXACT = 12
@@ -82,11 +83,12 @@ def fast_sweep(
     """
     fast = checker_for(model)
     arm_bodies = len(model._moving)
-    speed = np.abs(np.asarray(qd_peaks, dtype=float)) @ fast.levers()  # (S, B) [m/s]
+    peaks = np.abs(np.asarray(qd_peaks, dtype=float))
+    speed = peaks @ fast.levers()  # (S, B): the fastest any point can move anywhere [m/s]
     T = _start(np.asarray(times, dtype=float), speed.max(axis=1))
     Q = evaluate(T)
     found = fast.margins_batch(Q, CAP_M)
-    free, tight = found.free, found.tight
+    free, tight, reach = found.free, found.tight, fast.reach_batch(Q)
     exact: dict[float, Clearance] = {}
     checked = len(T)
     worst: Clearance | None = None
@@ -109,7 +111,7 @@ def fast_sweep(
         to_probe = [int(k) for k in np.flatnonzero(tight < floor) if float(T[k]) not in exact]
         if to_probe:
             continue
-        cut = _stretches_to_cut(T, free, tight, times, speed, step, floor)
+        cut = _stretches_to_cut(T, free, tight, reach, times, peaks, step, floor)
         if not cut:
             return Proof(worst, checked, len(exact))
         new_T = np.concatenate([np.linspace(T[i], T[i + 1], n + 1)[1:-1] for i, n in cut])
@@ -121,6 +123,7 @@ def fast_sweep(
         Q = np.concatenate((Q, new_Q))[order]
         free = np.concatenate((free, more.free))[order]
         tight = np.concatenate((tight, more.tight))[order]
+        reach = np.concatenate((reach, fast.reach_batch(new_Q)))[order]
         to_probe = [int(k) for k in np.flatnonzero(tight < floor) if float(T[k]) not in exact]
     return None
 
@@ -138,23 +141,24 @@ def _stretches_to_cut(
     T: np.ndarray,
     free: np.ndarray,
     tight: np.ndarray,
+    reach: np.ndarray,
     times: np.ndarray,
-    speed: np.ndarray,
+    peaks: np.ndarray,
     step: float,
     floor: float,
 ) -> list[tuple[int, int]]:
     """The stretches ``T[i]`` .. ``T[i+1]`` whose bound is below ``floor`` [m], each with
     the number of pieces to cut it into: enough that each piece's travel is about twice
-    the ends' room above the floor."""
+    the ends' room above the floor (bounds: :func:`manus.motion_kernels.stretch_bounds`,
+    from each end's margins and reaches and the segment's peak joint speeds)."""
     dt = np.diff(T)
-    seg = np.clip(np.searchsorted(times, T[:-1], side="right") - 1, 0, len(speed) - 1)
-    travel = speed[seg] * dt[:, None]  # (n-1, B): the farthest each body can move
-    a, b = free[:-1], free[1:]
-    bound = np.minimum(np.minimum(a, b), (a + b - travel) / 2.0).min(axis=1)
-    reach = travel.max(axis=1)
-    open_ = np.flatnonzero((bound < floor) & (reach > step))
+    seg = np.clip(np.searchsorted(times, T[:-1], side="right") - 1, 0, len(peaks) - 1)
+    moves = peaks[seg] * dt[:, None]  # (n-1, 6): the most each joint turns [rad]
+    bound, travel = np.empty(len(dt)), np.empty(len(dt))
+    stretch_bounds(moves, free, reach, bound, travel)
+    open_ = np.flatnonzero((bound < floor) & (travel > step))
     if not len(open_):
         return []
     room = np.maximum(np.minimum(tight[open_], tight[open_ + 1]) - floor, step / 2.0)
-    pieces = np.clip(np.ceil(reach[open_] / (2.0 * room)), 2, 8).astype(np.int64)
+    pieces = np.clip(np.ceil(travel[open_] / (2.0 * room)), 2, 8).astype(np.int64)
     return list(zip(open_.tolist(), pieces.tolist(), strict=True))

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from manus.validity_kernels import jit, margins
+from manus.validity_kernels import jit, margins, pose
 
 
 @jit
@@ -42,6 +42,14 @@ def reach(arm: Any, scratch: Any, out: np.ndarray) -> None:
                 along = dx * zx + dy * zy + dz * zz
                 r = math.sqrt(max(0.0, dx * dx + dy * dy + dz * dz - along * along)) + radius[i]
                 out[j - 1, b] = max(out[j - 1, b], r)
+
+
+@jit
+def reach_batch(Q: np.ndarray, arm: Any, scratch: Any, out: np.ndarray) -> None:
+    """:func:`reach` at each row of ``Q`` (n, 6) into ``out`` (n, 6, B)."""
+    for k in range(Q.shape[0]):
+        pose(Q[k], arm, scratch)
+        reach(arm, scratch, out[k])
 
 
 @jit
@@ -99,3 +107,40 @@ def motion(
             return 1.0
         t += step
     return t
+
+
+@jit
+def stretch_bounds(
+    moves: np.ndarray, free: np.ndarray, reach: np.ndarray, bound: np.ndarray, far: np.ndarray
+) -> None:
+    """Per stretch between configurations ``k`` and ``k+1`` of a motion (each joint
+    turning at most ``moves[k]`` (6,) [rad] within it), a lower bound of every body's
+    margin inside it into ``bound[k]`` [m] and the farthest any point can move into
+    ``far[k]`` [m]; ``free`` (n, B) the margins at the configurations, ``reach`` (n, 6,
+    B) the reaches there.
+
+    From each end a body moves at most ``f(s)``, the nested bound of the joint moves
+    ``s * moves`` (:func:`travel`): a polynomial with no constant term and no negative
+    coefficient, so ``f(s) <= s f(1)``; the margin in between is at least the lowest
+    point of ``max(m_a - x F_a, m_b - (1 - x) F_b)`` over ``x`` in 0..1.
+    """
+    n_joints = moves.shape[1]
+    for k in range(moves.shape[0]):
+        low, most = math.inf, 0.0
+        for b in range(free.shape[1]):
+            fa = fb = 0.0
+            for j in range(n_joints - 1, -1, -1):
+                fa += moves[k, j] * (reach[k, j, b] + fa)
+                fb += moves[k, j] * (reach[k + 1, j, b] + fb)
+            most = max(most, fa, fb)
+            ma, mb = free[k, b], free[k + 1, b]
+            if math.inf in (ma, mb):
+                continue  # nothing for this body to keep clear of
+            total = fa + fb
+            if total > 0.0:
+                x = min(max((ma - mb + fb) / total, 0.0), 1.0)
+                low = min(low, ma - x * fa)
+            else:
+                low = min(low, ma, mb)
+        bound[k] = low
+        far[k] = most

@@ -33,8 +33,15 @@ from manus import motion_kernels
 from manus import validity_kernels as k
 from manus.clearance import Check
 from manus.collision import STATIC_BODIES, CollisionModel
-from manus.scene import Primitive
-from manus.validity_parts import Piece, body_pieces, cover_points, primitive_arrays, primitive_box
+from manus.validity_parts import (
+    Piece,
+    body_pieces,
+    cover_points,
+    lever_table,
+    primitive_arrays,
+    primitive_box,
+)
+from manus.validity_scene import fixed_obstacles, static_shapes
 
 MOTION_FLOOR_M = 0.0005
 """Along a motion, a configuration whose margin bound is below this [m] ends the proof:
@@ -110,7 +117,7 @@ class ValidityChecker:
         self._shape_of: list[tuple[str, tuple[float, ...], np.ndarray]] = [
             self._shape(i) for i in moving
         ]
-        self._others, self._applies = self._obstacles()
+        self._prims, self._others, self._applies = fixed_obstacles(model, self.bodies)
         self._opening = model.opening
         self._build()
 
@@ -149,36 +156,6 @@ class ValidityChecker:
             size = tuple(2.0 * float(v) for v in obj.geometry.halfSide)  # the opening now
         return shape.kind, size, np.asarray(obj.placement.homogeneous)
 
-    def _obstacles(self) -> tuple[list[tuple[str, str, float]], np.ndarray]:
-        """Every fixed thing a body may be checked against: (name, class, clearance), in
-        the order of the kernels' arrays, and which (body, thing) pairs the model checks."""
-        model, scene = self.model, self.model.scene
-        prims: list[Primitive] = []
-        others: list[tuple[str, str, float]] = []
-        for name in STATIC_BODIES:
-            i = model.body_index[name]
-            obj = model.geom.geometryObjects[i]
-            shape = model.shapes[i]
-            pose = _static_pose(model, obj.parentJoint, np.asarray(obj.placement.homogeneous))
-            required = scene.clearance["self"] if scene is not None else 0.01
-            prims.append(Primitive(shape.kind, shape.size, pose))
-            others.append((name, "self", required))
-        if scene is not None:
-            to_base = np.linalg.inv(scene.mount)
-            for obj in scene.objects:
-                prims.append(_in_base(obj.body, to_base))
-                others.append((obj.name, obj.cls, scene.clearance[obj.cls]))
-            for zone in scene.zones:
-                if zone.kind == "keep_out":
-                    prims.append(_in_base(zone.body, to_base))
-                    others.append((zone.name, "zone", zone.clearance))
-        self._prims = prims
-        checked = {(c.body, c.other) for c in model.checks}
-        applies = np.array(
-            [[(b, o[0]) in checked for o in others] for b in self.bodies], dtype=np.bool_
-        ).reshape(len(self.bodies), len(others))
-        return others, applies
-
     def _build(self) -> None:
         """The kernels' arrays from the bodies, the obstacles and the keep-in zones."""
         pieces: list[Piece] = []
@@ -194,17 +171,7 @@ class ValidityChecker:
             centre = np.mean([p.center for p in mine], axis=0)
             b_center.append(centre)
             b_radius.append(max(float(np.linalg.norm(p.center - centre)) + p.rb for p in mine))
-        statics = [
-            (
-                self.model.shapes[self.model.body_index[n]].kind,
-                self.model.shapes[self.model.body_index[n]].size,
-                np.asarray(
-                    self.model.geom.geometryObjects[self.model.body_index[n]].placement.homogeneous
-                ),
-                int(self.model.geom.geometryObjects[self.model.body_index[n]].parentJoint),
-            )
-            for n in STATIC_BODIES
-        ]
+        statics = static_shapes(self.model)
         cover_local, cover_r, cover_joint, cover_body = cover_points(
             statics, self._shape_of, self._joint_of
         )
@@ -269,6 +236,7 @@ class ValidityChecker:
         )
         self._free = np.empty(B)
         self._levers = np.empty((self._placements.shape[0] - 1, B))
+        self._lever_table = lever_table(self.model, self._arm, self._joint_of)
         self._warm_up()
 
     def _warm_up(self) -> None:
@@ -285,6 +253,10 @@ class ValidityChecker:
         self.margins_batch(q[None])
         self.motion_valid(q, q)
         self.reach(q)
+        self.reach_batch(q[None])
+        motion_kernels.stretch_bounds(
+            np.zeros((1, 6)), np.zeros((2, 1)), np.zeros((2, 6, 1)), np.empty(1), np.empty(1)
+        )
         motion_kernels.motion(  # past the margins to the reach: compiled too
             q,
             q + 1e-3,
@@ -355,25 +327,19 @@ class ValidityChecker:
         motion_kernels.reach(self._arm, self._scratch, out)
         return out
 
+    def reach_batch(self, Q: np.ndarray) -> np.ndarray:
+        """:meth:`reach` at each row of ``Q`` [rad] (n, 6), shape (n, 6, B) [m]."""
+        self._follow_opening()
+        Q = _f64(np.atleast_2d(Q))
+        out = np.empty((len(Q), self._placements.shape[0] - 1, len(self.bodies)))
+        motion_kernels.reach_batch(Q, self._arm, self._scratch, out)
+        return out
+
     def levers(self) -> np.ndarray:
         """Per joint and body, the farthest any point of the body can ever be from the
         joint's origin [m], shape (6, B) (0: the joint does not move it): whatever the
         configuration, a body moves no faster than ``|qd| @ levers``."""
-        pm = self.model.model
-        lengths = [
-            float(np.linalg.norm(pm.jointPlacements[j].translation)) for j in range(pm.njoints)
-        ]
-        arm = self._arm
-        own = np.zeros(len(self.bodies))
-        for points, body, radius in ((arm[3], arm[2], arm[8]), (arm[15], arm[14], arm[16])):
-            for b, extent in zip(body, np.linalg.norm(points, axis=1) + radius, strict=True):
-                if b >= 0:
-                    own[b] = max(own[b], extent)
-        out = np.zeros((pm.njoints - 1, len(self.bodies)))
-        for b, joint in enumerate(self._joint_of):
-            for j in range(1, joint + 1):
-                out[j - 1, b] = sum(lengths[j + 1 : joint + 1]) + own[b]
-        return out
+        return self._lever_table
 
     def motion_valid(
         self, q0: np.ndarray, q1: np.ndarray, floor: float = MOTION_FLOOR_M
@@ -421,25 +387,3 @@ def checker_for(model: CollisionModel) -> ValidityChecker:
 
 def _f64(a: Any) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
-
-
-def _in_base(body: Primitive, to_base: np.ndarray) -> Primitive:
-    """``body`` placed in the base frame (a plane's normal turned with it)."""
-    size = body.size
-    if body.shape == "plane":
-        size = tuple(float(v) for v in to_base[:3, :3] @ np.asarray(size, dtype=float))
-    return Primitive(body.shape, size, np.asarray(to_base @ body.pose))
-
-
-def _static_pose(model: CollisionModel, joint: int, placement: np.ndarray) -> np.ndarray:
-    """A static body's pose in the base frame (one on joint 1 turns about its own axis)."""
-    M = (
-        np.asarray(model.model.jointPlacements[joint].homogeneous) @ placement
-        if joint
-        else placement
-    )
-    if joint > 1 or (
-        joint == 1 and not (np.allclose(M[:2, 3], 0.0) and np.allclose(M[:3, 2], [0, 0, 1]))
-    ):
-        raise ValueError("a static body must be on the base or turn about joint 1's axis")
-    return M

@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from manus import validity_kernels as k
+from manus.collision import CollisionModel
 from manus.scene import Primitive
 from manus.shapes import cover
 from manus.urdf import Shape
@@ -169,3 +170,23 @@ def primitive_box(p: Primitive) -> np.ndarray:
     else:
         return np.array([np.full(3, -math.inf), np.full(3, math.inf)])
     return np.array([t - half, t + half])
+
+
+def lever_table(
+    model: CollisionModel, arm: tuple[np.ndarray, ...], joints: list[int]
+) -> np.ndarray:
+    """Per joint and body, the farthest any point of the body can ever be from the
+    joint's origin [m], shape (6, B): the joint placements' lengths out to the body's
+    joint plus its farthest piece or cover point (``arm``: the kernels' arm arrays)."""
+    pm = model.model
+    lengths = [float(np.linalg.norm(pm.jointPlacements[j].translation)) for j in range(pm.njoints)]
+    own = np.zeros(len(joints))
+    for points, body, radius in ((arm[3], arm[2], arm[8]), (arm[15], arm[14], arm[16])):
+        for b, extent in zip(body, np.linalg.norm(points, axis=1) + radius, strict=True):
+            if b >= 0:
+                own[b] = max(own[b], extent)
+    out = np.zeros((pm.njoints - 1, len(joints)))
+    for b, joint in enumerate(joints):
+        for j in range(1, joint + 1):
+            out[j - 1, b] = sum(lengths[j + 1 : joint + 1]) + own[b]
+    return out
