@@ -144,3 +144,32 @@ def stretch_bounds(
                 low = min(low, ma, mb)
         bound[k] = low
         far[k] = most
+
+
+@jit
+def anchor(
+    q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray, levers: np.ndarray
+) -> float:
+    """Each body's margin at ``q`` into ``free`` (B,) and the reaches there into
+    ``levers`` (6, B), in one call; returns the tightest margin [m]."""
+    tight, _, _ = margins(q, arm, scene, scratch, free, math.inf)
+    reach(arm, scratch, levers)
+    return float(tight)
+
+
+@jit
+def proven(origin: np.ndarray, free: np.ndarray, levers: np.ndarray, Q: np.ndarray) -> bool:
+    """Whether every configuration in the joint-space box from ``origin`` (6,) to the rows
+    of ``Q`` (k, 6) keeps each body closer to where it was at ``origin`` than its margin
+    there (``free`` (B,), inf: nothing to keep clear of; ``levers`` (6, B) the reaches
+    there): :func:`travel` of the box."""
+    box = np.zeros(origin.shape[0])
+    for k in range(Q.shape[0]):
+        for j in range(origin.shape[0]):
+            box[j] = max(box[j], abs(Q[k, j] - origin[j]))
+    for b in range(free.shape[0]):
+        if free[b] == math.inf:
+            continue
+        if free[b] <= 0.0 or travel(box, levers, b) >= free[b]:
+            return False
+    return True

@@ -254,6 +254,8 @@ class ValidityChecker:
         self.motion_valid(q, q)
         self.reach(q)
         self.reach_batch(q[None])
+        self.anchor_into(q, self._free, self._levers)
+        motion_kernels.proven(q, self._free, self._levers, q[None])
         motion_kernels.stretch_bounds(
             np.zeros((1, 6)), np.zeros((2, 1)), np.zeros((2, 6, 1)), np.empty(1), np.empty(1)
         )
@@ -326,6 +328,12 @@ class ValidityChecker:
         out = np.empty((self._placements.shape[0] - 1, len(self.bodies)))
         motion_kernels.reach(self._arm, self._scratch, out)
         return out
+
+    def anchor_into(self, q: np.ndarray, free: np.ndarray, reach: np.ndarray) -> float:
+        """:meth:`margins` (into ``free`` (B,)) and :meth:`reach` (into ``reach`` (6, B))
+        at ``q`` [rad] (float64) in one call; returns the tightest margin [m]."""
+        self._follow_opening()
+        return float(motion_kernels.anchor(q, self._arm, self._scene, self._scratch, free, reach))
 
     def reach_batch(self, Q: np.ndarray) -> np.ndarray:
         """:meth:`reach` at each row of ``Q`` [rad] (n, 6), shape (n, 6, B) [m]."""
