@@ -60,7 +60,7 @@ class Advancement:
         self._free[:] = -math.inf
         self.margin = -math.inf
 
-    def proven(self, *qs: Sequence[float]) -> bool:
+    def proven(self, *qs: Sequence[float] | np.ndarray) -> bool:
         """Whether the box from the anchor to ``qs`` [rad] (each 6 values) keeps every
         body within its margin (see the module docstring)."""
         Q = np.array(qs, dtype=np.float64)
