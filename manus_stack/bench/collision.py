@@ -125,7 +125,7 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
         out = []
         for k in range(1, len(ts)):
             if force:
-                guard._anchor = None
+                guard.advance.forget()
             started = time.perf_counter()
             guard.filter(list(Q[k]), [float(c) for c in counts[k - 1]], counts[k], 0.0)
             out.append(time.perf_counter() - started)
