@@ -121,7 +121,9 @@ class CollisionModel:
         self._no_margin = np.full(len(self._moving), math.inf)
         self._set_aside = self._no_margin
         self._inactive: list[tuple[Any, int]] = []
-        self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
+        # Built on the first restrict (the sweep's): a third of building a model, which
+        # the controller's guard never needs.
+        self._partner_boxes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._no_reach = np.zeros((6, len(self._moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
@@ -315,6 +317,8 @@ class CollisionModel:
             per moving body, the least margin of its set-aside pairs [m] (inf: none).
         """
         aside = np.full(len(self._moving), math.inf)
+        if not self._partner_boxes:
+            self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
         for (b, _, gd, _), (fixed, box_lo, box_hi) in zip(
             self._live, self._partner_boxes, strict=True
         ):
