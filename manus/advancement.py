@@ -65,3 +65,29 @@ class Advancement:
         body within its margin (see the module docstring)."""
         Q = np.array(qs, dtype=np.float64)
         return bool(motion_kernels.proven(self._origin, self._free, self._reach, Q))
+
+    def proven_ahead(
+        self,
+        q: Sequence[float],
+        first: Sequence[float] | np.ndarray,
+        then: Sequence[float] | np.ndarray,
+        to_q: np.ndarray,
+        first_s: float,
+        then_s: float,
+    ) -> bool:
+        """:meth:`proven` for ``q`` [rad], ``q1 = q + to_q @ first * first_s`` and
+        ``q1 + to_q @ then * then_s`` (rates held for ``first_s`` and ``then_s`` [s];
+        ``to_q`` (6, 6) maps them to joint rates [rad/s per unit]), in one call."""
+        return bool(
+            motion_kernels.proven_ahead(
+                self._origin,
+                self._free,
+                self._reach,
+                np.asarray(q, dtype=np.float64),
+                np.asarray(first, dtype=np.float64),
+                np.asarray(then, dtype=np.float64),
+                to_q,
+                first_s,
+                then_s,
+            )
+        )

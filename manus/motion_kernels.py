@@ -173,3 +173,37 @@ def proven(origin: np.ndarray, free: np.ndarray, levers: np.ndarray, Q: np.ndarr
         if free[b] <= 0.0 or travel(box, levers, b) >= free[b]:
             return False
     return True
+
+
+@jit
+def proven_ahead(
+    origin: np.ndarray,
+    free: np.ndarray,
+    levers: np.ndarray,
+    q: np.ndarray,
+    first: np.ndarray,
+    then: np.ndarray,
+    to_q: np.ndarray,
+    first_s: float,
+    then_s: float,
+) -> bool:
+    """:func:`proven` for ``q``, ``q1 = q + to_q @ first * first_s`` and ``q1 + to_q @
+    then * then_s`` (rates ``first``, ``then`` (6,) held for ``first_s``, ``then_s`` [s];
+    ``to_q`` (6, 6) maps them to joint rates): the guard's prediction, in one call."""
+    n = origin.shape[0]
+    box = np.zeros(n)
+    for j in range(n):
+        a = 0.0
+        c = 0.0
+        for k in range(n):
+            a += to_q[j, k] * first[k]
+            c += to_q[j, k] * then[k]
+        q1 = q[j] + a * first_s
+        q2 = q1 + c * then_s
+        box[j] = max(abs(q[j] - origin[j]), abs(q1 - origin[j]), abs(q2 - origin[j]))
+    for b in range(free.shape[0]):
+        if free[b] == math.inf:
+            continue
+        if free[b] <= 0.0 or travel(box, levers, b) >= free[b]:
+            return False
+    return True

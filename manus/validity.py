@@ -256,6 +256,7 @@ class ValidityChecker:
         self.reach_batch(q[None])
         self.anchor_into(q, self._free, self._levers)
         motion_kernels.proven(q, self._free, self._levers, q[None])
+        motion_kernels.proven_ahead(q, self._free, self._levers, q, q, q, np.eye(6), 0.06, 0.12)
         motion_kernels.stretch_bounds(
             np.zeros((1, 6)), np.zeros((2, 1)), np.zeros((2, 6, 1)), np.empty(1), np.empty(1)
         )

@@ -46,6 +46,9 @@ from schemas.state import JointState
 _NOTHING = (0,) * 6
 """``JointState.applied`` when the command in flight is not a joint move."""
 
+_TO_DH = np.array([encoder_increments_to_dh_list(list(e)) for e in np.eye(6)]).T
+"""The joint map as a matrix: DH increments from motor increments (it is linear)."""
+
 
 class Verdict(NamedTuple):
     """What the guard did to one command.
@@ -86,6 +89,8 @@ class Guard:
         self.runout_s = runout_s
         self.slow_zone_m = slow_zone_m
         self.advance = Advancement(checker_for(model))
+        self._first_s = COUNT_RAD_S * cycle_s
+        self._then_s = COUNT_RAD_S * (cycle_s + runout_s)
         self.report_below = math.inf
         """A pass computes Coal's clearance only when it may be below this [m] (the
         smallest its caller has seen: :class:`RunGuard`, per goal)."""
@@ -105,14 +110,14 @@ class Guard:
         if abs(model.opening - opening) > 0.005:  # a wider gripper: the proof is void
             model.set_opening(opening)
             self.advance.forget()
-        # Plain floats on the common path (proven clear): a cycle costs microseconds.
         ahead = self.cycle_s + self.runout_s
+        # The common path, proven clear from the anchor: one compiled call.
+        if self.advance.proven_ahead(q, applied, counts, _TO_DH, self._first_s, self._then_s):
+            return Verdict(counts, 1.0, "", None)
         now_dh = encoder_increments_to_dh_list(applied)
         cmd_dh = encoder_increments_to_dh_list(motor)
         nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
         end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
-        if self.advance.proven(q, nxt, end):
-            return Verdict(counts, 1.0, "", None)
         return self._decide(counts, list(q), nxt, end, cmd_dh)
 
     def _decide(
