@@ -33,6 +33,7 @@ from manus import motion_kernels
 from manus import validity_kernels as k
 from manus.clearance import Check
 from manus.collision import STATIC_BODIES, CollisionModel
+from manus.config import ArmConfig
 from manus.validity_parts import (
     Piece,
     body_pieces,
@@ -384,6 +385,13 @@ class ValidityChecker:
 
 
 _CHECKERS: weakref.WeakKeyDictionary[CollisionModel, ValidityChecker] = weakref.WeakKeyDictionary()
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel of the fast check now, in this
+    process: what a service's start or a test session pays once (seconds with an empty
+    cache, under one with a filled one), never a control cycle."""
+    ValidityChecker(CollisionModel(None, ArmConfig()))
 
 
 def checker_for(model: CollisionModel) -> ValidityChecker:
