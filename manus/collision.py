@@ -47,7 +47,7 @@ import pinocchio as pin
 from manus.clearance import Check, Clearance, Probe
 from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
-from manus.shapes import coal_shape, cover, inner_distances, partner_boxes
+from manus.shapes import coal_shape, cover, fresh_guesses, inner_distances, partner_boxes
 from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
@@ -114,7 +114,7 @@ class CollisionModel:
         self.checks = [c for c, keep in zip(self.checks, reachable, strict=True) if keep]
         for first, second in pairs:
             gm.addCollisionPair(pin.CollisionPair(first, second))
-        self.geom_data = pin.GeometryData(gm)
+        self.geom_data = fresh_guesses(pin.GeometryData(gm))
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
@@ -423,7 +423,7 @@ class CollisionModel:
                     index = gm.addGeometryObject(self.geom.geometryObjects[second])
                     gm.addCollisionPair(pin.CollisionPair(0, index))
                     rows.append(k)
-            out.append((gm, pin.GeometryData(gm), rows))
+            out.append((gm, fresh_guesses(pin.GeometryData(gm)), rows))
         return out
 
     def _prepare_points(self) -> None:
