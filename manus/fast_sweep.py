@@ -114,7 +114,10 @@ def fast_sweep(
         cut = _stretches_to_cut(T, free, tight, reach, times, peaks, step, floor)
         if not cut:
             return Proof(worst, checked, len(exact))
-        new_T = np.concatenate([np.linspace(T[i], T[i + 1], n + 1)[1:-1] for i, n in cut])
+        at, pieces = np.array(cut).T
+        inner = np.ones(int(pieces.sum()), dtype=bool)
+        inner[np.cumsum(pieces) - 1] = False  # the stretches' own ends are there already
+        new_T = _pieces(T[at], T[at + 1] - T[at], pieces)[inner]
         new_Q = evaluate(new_T)
         more = fast.margins_batch(new_Q, CAP_M)
         checked += len(new_T)
@@ -133,8 +136,16 @@ def _start(times: np.ndarray, speed: np.ndarray) -> np.ndarray:
     (``speed``: per segment, the fastest any point moves [m/s])."""
     h = np.diff(times)
     n = np.maximum(1, np.ceil(speed * h / START_M)).astype(np.int64)
-    inner = [times[s] + h[s] * np.arange(1, n[s]) / n[s] for s in range(len(h))]
-    return np.sort(np.concatenate((times, *inner)))
+    return np.concatenate((times[:1], _pieces(times[:-1], h, n)))
+
+
+def _pieces(start: np.ndarray, length: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Each interval ``start[i]`` .. ``start[i] + length[i]`` cut into ``n[i]`` even
+    pieces: the ends of the pieces, the interval's own end exactly (in order)."""
+    k = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1  # 1..n per interval
+    out = np.repeat(start, n) + np.repeat(length, n) * (k / np.repeat(n, n))
+    out[np.cumsum(n) - 1] = start + length
+    return np.asarray(out)
 
 
 def _stretches_to_cut(
