@@ -40,14 +40,16 @@ up and the bridge is the one that fell silent.
 
 **Pause** stops the arm and keeps the task: a running trajectory or gripper goal is
 cancelled (the controller decelerates within the arm's limits) and, on **resume**, the
-rest of the step is planned again from where the arm stopped (the via points not yet
-reached, at their planned pace; :func:`services.sequencer.poses.remainder_path`), or the
-gripper goal is sent again. A wait keeps its remaining time. A fold cannot be interrupted
-safely half-way: a pause asked during a fold (or while a plan or goal request is in
-flight) takes effect as soon as that finishes. **Cancel** ends the task and stops the
-arm: a running goal is cancelled (bounded deceleration), a fold is stopped by the bridge
-(``stop``, then ``clear`` so the arm is ready for the next task). A controller that does
-not confirm a cancel or pause within ``cancel_timeout_s`` gets the bridge's ``stop``.
+rest of the step is planned again from where the arm stopped, by the planner that made
+the plan (the same motion, with the paused trajectory and how far it got:
+:class:`~schemas.planning.PlanResume`; for a path, the via points not yet reached, at
+their planned pace), or the gripper goal is sent again. A wait keeps its remaining time.
+A fold cannot be interrupted safely half-way: a pause asked during a fold (or while a
+plan or goal request is in flight) takes effect as soon as that finishes. **Cancel** ends
+the task and stops the arm: a running goal is cancelled (bounded deceleration), a fold is
+stopped by the bridge (``stop``, then ``clear`` so the arm is ready for the next task). A
+controller that does not confirm a cancel or pause within ``cancel_timeout_s`` gets the
+bridge's ``stop``.
 
 **The user takes over** (live control, ``schemas/jog.py``): when the controller ends the
 running goal because a jog command arrived (result ``preempted``, reason starting

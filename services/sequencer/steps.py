@@ -48,12 +48,12 @@ from schemas.control import (
     TrajectoryGoal,
 )
 from schemas.jog import JOGGING, USER_TOOK_OVER
-from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
+from schemas.planning import Path, PlanReply, PlanRequest, PlanResume, Trajectory, ViaPointPath
 from schemas.sequencing import StepKind, Task, TaskStep
 from schemas.state import BridgePhase, BridgeState
 from services.sequencer.actions import Action, Query
 from services.sequencer.config import SequencerConfig
-from services.sequencer.poses import POSES, pose_path, remainder_path
+from services.sequencer.poses import POSES, pose_path
 
 MAX_OPENING_M = 0.090
 """Largest gripper opening [m]."""
@@ -141,11 +141,9 @@ class Step:
         return []
 
     @classmethod
-    def plan(
-        cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig, path: Path | None = None
-    ) -> PlanRequest:
-        """The request that plans ``spec`` (or ``path`` instead of its own) from ``start``
-        for the arm ``arm`` (only for kinds with :attr:`planned`)."""
+    def plan(cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig) -> PlanRequest:
+        """The request that plans ``spec`` from ``start`` for the arm ``arm`` (only for
+        kinds with :attr:`planned`)."""
         raise TypeError(f"a {spec.kind} step is not planned")
 
     @classmethod
@@ -309,16 +307,19 @@ class GoalStep(Step):
 
 class MoveStep(GoalStep):
     """``move`` (a path) and ``pose`` (a named pose): planned from the newest joint state,
-    sent to the controller; after a pause the via points not yet reached are planned
-    again from where the arm stopped, at their planned pace."""
+    sent to the controller; after a pause the same motion is planned again from where the
+    arm stopped, by the planner that made the plan, told the plan and how far it got
+    (:class:`~schemas.planning.PlanResume`: for a path, the via points not yet reached, at
+    their planned pace)."""
 
     planned = True
 
     def __init__(self, spec: TaskStep, ctx: StepContext) -> None:
         super().__init__(spec, ctx)
+        self.request: PlanRequest | None = None  # the step's first plan request
         self.traj: Trajectory | None = None
         self.t = 0.0  # trajectory time of the newest feedback of the running goal [s]
-        self.resume_at: tuple[Trajectory, float] | None = None
+        self.resume_at: PlanResume | None = None  # the plan that paused, how far it got
         self.base = 0.0  # step progress reached before a resume
 
     @classmethod
@@ -341,40 +342,40 @@ class MoveStep(GoalStep):
         return []
 
     @classmethod
-    def plan(
-        cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig, path: Path | None = None
-    ) -> PlanRequest:
+    def plan(cls, spec: TaskStep, start: list[float] | None, arm: ArmConfig) -> PlanRequest:
         """A pose step always asks for speed scaling: its duration is a shortest time."""
-        chosen = path if path is not None else step_path(spec, start, arm)
-        assert chosen is not None, "a move step without a path or a bad pose is never planned"
-        return PlanRequest(
-            path=chosen,
-            start=start,
+        path = step_path(spec, start, arm)
+        assert path is not None, "a move step without a path or a bad pose is never planned"
+        motion = ViaPointPath(
+            path=path,
             interpolation=spec.interpolation,
             speed_scaling=spec.speed_scaling or spec.kind == StepKind.POSE,
-            preview_dt=0.0,
         )
+        return PlanRequest(motion, start=start, preview_dt=0.0)
 
-    def begin(self, path: Path | None = None) -> list[Action]:
-        """Plan the step (after a pause: the rest ``path``) from the newest joint state."""
+    def begin(self) -> list[Action]:
+        """Plan the step from the newest joint state."""
         start = self.ctx.start_configuration()
         if start is None:
             return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
-        request = self.plan(self.spec, start, self.ctx.config.arm, path)
-        if path is not None:  # the rest of a paused path starts from rest: let it stretch
-            request = dataclasses.replace(request, speed_scaling=True)
+        self.request = self.plan(self.spec, start, self.ctx.config.arm)
         self.phase = Phase.PLANNING
-        return [self.ctx.query(ep.PLAN, request, PlanReply, wait=True)]
+        return [self.ctx.query(ep.PLAN, self.request, PlanReply, wait=True)]
 
     def resume(self) -> list[Action]:
-        if self.resume_at is None:
+        """Plan what is left of the paused plan (cleared once planned) from the newest
+        joint state: the same motion, with the plan and how far it got."""
+        paused = self.resume_at
+        if paused is None or self.request is None:
             return self.begin()
-        traj, t = self.resume_at  # cleared once the rest is planned
-        source = self.spec.where or self.spec.kind
-        rest = remainder_path(traj, t, source=source, cfg=self.ctx.config.arm)
-        if rest is None:
-            return self.ctx.step_done()
-        return self.begin(rest)
+        if paused.reached >= paused.trajectory.times[-1] - 1e-9:
+            return self.ctx.step_done()  # it had got to the end: nothing is left
+        start = self.ctx.start_configuration()
+        if start is None:
+            return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
+        request = dataclasses.replace(self.request, start=start, resume=paused)
+        self.phase = Phase.PLANNING
+        return [self.ctx.query(ep.PLAN, request, PlanReply, wait=True)]
 
     def on_reply(self, reply: Message | None, error: str) -> list[Action]:
         if self.phase != Phase.PLANNING:
@@ -412,7 +413,7 @@ class MoveStep(GoalStep):
 
     def _remember_pause(self) -> None:
         if self.traj is not None:
-            self.resume_at = (self.traj, self.t)
+            self.resume_at = PlanResume(trajectory=self.traj, reached=max(0.0, self.t))
             self.base = self.ctx.step_progress
 
 
