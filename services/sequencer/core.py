@@ -96,7 +96,8 @@ from services.sequencer.actions import (
 )
 from services.sequencer.bridge_wait import BridgeWait, bridge_on_its_way
 from services.sequencer.config import SequencerConfig
-from services.sequencer.steps import BY_REQUEST, NS, STEP_TYPES, Phase, Step
+from services.sequencer.step import BY_REQUEST, NS, Phase, Step
+from services.sequencer.steps import STEP_TYPES
 from services.sequencer.validate import Validator, fold_checker, scene_fold_checker, step_label
 
 __all__ = [  # the actions are defined in services.sequencer.actions
@@ -204,7 +205,7 @@ class SequencerCore:
 
     @property
     def phase(self) -> Phase:
-        """What the current step is doing (:class:`~services.sequencer.steps.Phase`)."""
+        """What the current step is doing (:class:`~services.sequencer.step.Phase`)."""
         if self.state == TaskState.PAUSED:
             return Phase.PAUSED
         if self.state != TaskState.RUNNING or self._current is None:
@@ -647,7 +648,7 @@ class SequencerCore:
             return self.cancelled(BY_REQUEST)
         return self._current.cancel()
 
-    # -- the running step's calls (services.sequencer.steps.StepContext) ----------------------
+    # -- the running step's calls (services.sequencer.step.StepContext) -----------------------
 
     def new_goal_id(self) -> str:
         """A controller goal id for the current step: ``<task>.<step, 1-based>.<n>``."""
