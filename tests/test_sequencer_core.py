@@ -29,7 +29,8 @@ from schemas.planning import PlanRequest, PlanResume, ViaPointPath
 from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
 from schemas.state import BridgeState, JointState
 from services.planner.core import PlannerCore
-from services.sequencer.core import Action, Publish, Query, SequencerCore
+from services.sequencer.actions import Action, Publish, Query
+from services.sequencer.core import SequencerCore
 from services.sequencer.poses import pose_path
 from services.sequencer.taskfile import TaskFileError, parse_task_text, task_from_args
 from services.sequencer.validate import Validator
