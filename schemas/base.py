@@ -28,7 +28,7 @@ from typing import Any, ClassVar, Protocol, Self, TypeVar, get_args, get_origin
 import msgpack
 
 from manus.errors import SchemaError
-from schemas.scalars import DECODERS, finite_floats_in_range, float_table
+from schemas.scalars import DECODERS, finite_floats_in_range, float_table, ints_in_range, strings
 
 M = TypeVar("M", bound="Message")
 
@@ -193,6 +193,8 @@ def _plain(value: Any) -> Any:
     if isinstance(value, list | tuple):
         if all(type(v) is float or type(v) is int for v in value):
             return list(value)  # numeric rows, the bulk of trajectories: no recursion
+        if all(type(v) is str for v in value):
+            return list(value)
         return [_plain(v) for v in value]
     return value
 
@@ -239,33 +241,60 @@ def _hints(cls: type) -> dict[str, Any]:
     return hints
 
 
+_FIELDS: dict[type, tuple[tuple[str, Any, bool, Any], ...]] = {}
+
+
+def _decoded_fields(cls: type) -> tuple[tuple[str, Any, bool, Any], ...]:
+    """(name, type, required, metadata) of each field of ``cls``, cached (decoding time)."""
+    found = _FIELDS.get(cls)
+    if found is None:
+        hints = _hints(cls)
+        found = _FIELDS[cls] = tuple(
+            (
+                f.name,
+                hints[f.name],
+                f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING,
+                f.metadata,
+            )
+            for f in dataclasses.fields(cls)
+        )
+    return found
+
+
+_SHAPES: dict[Any, tuple[Any, tuple[Any, ...]]] = {}
+
+
+def _shape(tp: Any) -> tuple[Any, tuple[Any, ...]]:
+    """``(get_origin(tp), get_args(tp))``, cached: the typing calls dominated decoding."""
+    found = _SHAPES.get(tp)
+    if found is None:
+        found = _SHAPES[tp] = (get_origin(tp), get_args(tp))
+    return found
+
+
 def _build(cls: type[M], data: Any, path: str) -> M:
     if not isinstance(data, dict):
         raise SchemaError(f"{path}: expected a map, got {type(data).__name__}")
-    hints = _hints(cls)
     kwargs: dict[str, Any] = {}
-    known = set()
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-        known.add(f.name)
-        fpath = f"{path}.{f.name}"
-        if f.name not in data:
-            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-                raise SchemaError(f"{fpath}: missing required field")
+    fields = _decoded_fields(cls)
+    for name, tp, required, meta in fields:
+        if name not in data:
+            if required:
+                raise SchemaError(f"{path}.{name}: missing required field")
             continue
-        kwargs[f.name] = _convert(hints[f.name], data[f.name], fpath, f.metadata)
-    extra = set(data) - known
-    if extra:
+        kwargs[name] = _convert(tp, data[name], f"{path}.{name}", meta)
+    if len(kwargs) != len(data):
+        extra = set(data) - {name for name, *_ in fields}
         raise SchemaError(f"{path}: unknown field(s) {sorted(map(str, extra))}")
     return cls(**kwargs)
 
 
 def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
-    origin = get_origin(tp)
+    origin, args = _shape(tp)
     if origin in (types.UnionType, typing.Union):
-        args = [a for a in get_args(tp) if a is not type(None)]
         if value is None:
             return None
-        return _convert(args[0], value, path, meta)
+        return _convert(next(a for a in args if a is not type(None)), value, path, meta)
     if origin is list:
         return _convert_list(tp, value, path, meta)
     if isinstance(tp, type) and issubclass(tp, Message):
@@ -278,22 +307,22 @@ def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
 
 
 def _convert_list(tp: Any, value: Any, path: str, meta: Any) -> list[Any]:
-    (inner,) = get_args(tp)
+    (inner,) = _shape(tp)[1]
     if not isinstance(value, list | tuple):
         raise SchemaError(f"{path}: expected a list, got {type(value).__name__}")
     length = meta.get("length") if meta else None
-    if length is not None and get_origin(inner) is not list and len(value) != length:
+    inner_origin, inner_args = _shape(inner)
+    if length is not None and inner_origin is not list and len(value) != length:
         raise SchemaError(f"{path}: expected {length} values, got {len(value)}")
-    # Fast paths for numeric rows and tables (trajectories, previews); anything they
-    # do not accept goes through the item-by-item checks below, which name the item.
+    # Fast paths for numeric rows and tables (trajectories, previews), integers and
+    # strings; anything they do not accept goes through the item-by-item checks below,
+    # which name the item.
     if inner is float and finite_floats_in_range(value, meta):
         return list(value)
-    if (
-        get_origin(inner) is list
-        and get_args(inner) == (float,)
-        and float_table(value, meta, length)
-    ):
+    if inner_origin is list and inner_args == (float,) and float_table(value, meta, length):
         return [list(row) for row in value]
+    if (inner is int and ints_in_range(value, meta)) or (inner is str and strings(value, meta)):
+        return list(value)
     return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]
 
 

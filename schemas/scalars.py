@@ -92,3 +92,19 @@ def _range(path: str, value: float, meta: Any) -> None:
         raise SchemaError(f"{path}: {value!r} is below the minimum {lo!r}")
     if hi is not None and value > hi:
         raise SchemaError(f"{path}: {value!r} is above the maximum {hi!r}")
+
+
+def ints_in_range(values: list[Any] | tuple[Any, ...], meta: Any) -> bool:
+    """True when every item is an ``int`` (not a ``bool``) within the field's range."""
+    if not all(type(v) is int for v in values):
+        return False
+    lo, hi = (meta.get("minimum"), meta.get("maximum")) if meta else (None, None)
+    return not values or ((lo is None or min(values) >= lo) and (hi is None or max(values) <= hi))
+
+
+def strings(values: list[Any] | tuple[Any, ...], meta: Any) -> bool:
+    """True when every item is a ``str`` among the field's ``choices`` (if it has any)."""
+    choices = meta.get("choices") if meta else None
+    if choices:
+        return all(type(v) is str and v in choices for v in values)
+    return all(type(v) is str for v in values)
