@@ -177,6 +177,7 @@ class Trajectory(Message):
         "for each knot, the 0-based index in the request's path of the via point it is (-1: "
         "none: a waypoint, or a resumed plan's start); empty: knot i is via point i",
         default_factory=list,
+        minimum=-1,
     )
     preview_xyz: list[list[float]] = field(
         "gripper positions sampled every `preview_dt` along the trajectory, for display",

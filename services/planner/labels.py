@@ -33,12 +33,12 @@ class KnotLabels:
     lines: tuple[int, ...]
 
     @classmethod
-    def of_path(cls, path: Path, source: str | None = None) -> KnotLabels:
+    def of_path(cls, path: Path) -> KnotLabels:
         """Knot i is via point i of ``path`` (via point 0, replaced by the start, is the
-        start); ``source`` replaces the path's own in messages."""
+        start)."""
         n = len(path.via_points)
         return cls(
-            source=path.source if source is None else source,
+            source=path.source,
             kinds=(KnotKind.START, *(KnotKind.VIA_POINT,) * (n - 1)),
             via_indices=tuple(range(n)),
             lines=tuple(vp.line for vp in path.via_points),
