@@ -2,7 +2,9 @@
 
 - ``trajectory_check``: the thesis circle's whole trajectory (planned without a scene)
   swept through the default wheelchair scene (:func:`services.planner.collisions.
-  check_collisions`), in-process; and the whole plan with and without the check.
+  check_collisions`, the fast check first), in-process, and in turns with it the exact
+  sweep alone (:func:`manus.sweep.exact_sweep`, Coal at every configuration it checks:
+  the check before the fast one); and the whole plan with and without the check.
 - ``zenoh_round_trip``: ``manus planner`` (checking against the default scene) asked
   over a loopback router, as :mod:`manus_stack.bench.plan` does.
 - ``distance_queries``: body-object distances per second through
@@ -30,14 +32,15 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.joint_map import dh_increments_to_encoder
 from manus.quantize import COUNT_RAD_S, step_rates
 from manus.scene import default_scene
-from manus.sweep import sweep
+from manus.sweep import exact_sweep, sweep
 from manus.viapoints import load_path
 from manus_stack.bench.plan import _over_zenoh, _stats_ms, _timed
-from schemas.planning import PlanRequest
+from schemas.planning import PlanRequest, ViaPointPath
 from services.controller.guard import Guard
 from services.planner.collisions import check_collisions
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
+from services.planner.labels import KnotLabels
 from services.planner.spline import PiecewisePolynomial
 
 CIRCLE = FilePath(__file__).resolve().parents[2] / "paths" / "thesis_circle.txt"
@@ -57,10 +60,26 @@ def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
     curve = _circle_curve(request)
     ex = curve.extremes(1)
     swept = sweep(model, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
-    checked = _stats_ms(_timed(lambda: check_collisions(model, curve, request.path), runs))
+    peaks = np.maximum(-ex.low, ex.high)
+    exact = exact_sweep(model, curve.times, peaks, curve.evaluate)
+    assert isinstance(request.motion, ViaPointPath)
+    labels = KnotLabels.of_path(request.motion.path)
+    # The check as the planner runs it (fast first) and the exact sweep alone, in turns.
+    fast_s: list[float] = []
+    exact_s: list[float] = []
+    for _ in range(runs):
+        fast_s += _timed(lambda: check_collisions(model, curve, labels), 1)
+        exact_s += _timed(lambda: exact_sweep(model, curve.times, peaks, curve.evaluate), 1)
+    checked = _stats_ms(fast_s)
     with_check, without = PlannerCore(), PlannerCore(PlannerConfig(scene="none"))
     return {
         "check_only": checked,
+        "exact_sweep_only": {
+            **_stats_ms(exact_s),
+            "configurations_checked": exact.checked,
+            "smallest_clearance": exact.worst.describe(),
+        },
+        "speedup_p50": round(float(np.percentile(exact_s, 50) / np.percentile(fast_s, 50)), 1),
         "configurations_checked": swept.checked,
         "grid_samples": swept.samples,
         "smallest_clearance": swept.worst.describe(),
@@ -125,7 +144,7 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
         out = []
         for k in range(1, len(ts)):
             if force:
-                guard._anchor = None
+                guard.advance.forget()
             started = time.perf_counter()
             guard.filter(list(Q[k]), step_rates(counts[k - 1].tolist()), counts[k], 0.0)
             out.append(time.perf_counter() - started)
@@ -145,13 +164,14 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Figures of the trajectory check, distance queries and the guard (see the module)."""
+    path = load_path(CIRCLE)
     request = PlanRequest(
-        path=load_path(CIRCLE), start=list(np.radians(UNFOLDED_Q_DEG)), preview_dt=0.0
+        ViaPointPath(path=path), start=list(np.radians(UNFOLDED_Q_DEG)), preview_dt=0.0
     )
     runs = 50 if quick else 500
     return {
-        "path": f"{CIRCLE.name} ({len(request.path.via_points)} via points, cubic, "
-        f"{math.ceil(request.path.via_points[-1].time)} s)",
+        "path": f"{CIRCLE.name} ({len(path.via_points)} via points, cubic, "
+        f"{math.ceil(path.via_points[-1].time)} s)",
         "scene": str(default_scene().source),
         "trajectory_check": _trajectory(request, runs),
         "zenoh_round_trip_no_preview": _over_zenoh(
