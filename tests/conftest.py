@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+import zenoh
 from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
@@ -70,6 +71,24 @@ def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "co
     while not check():
         assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
         time.sleep(0.01)
+
+
+def matched_publisher(
+    session: zenoh.Session, key: str, timeout: float = 10.0, *, block: bool = False
+) -> zenoh.Publisher:
+    """A publisher on ``key`` once a subscriber matches it (bounded by ``timeout`` [s]);
+    ``block``: it waits for room in a full queue instead of dropping (a burst under load).
+
+    Zenoh routes a sample by what the router knows when it arrives: a subscription
+    declared a moment ago on another session travels on another link and may reach the
+    router after a sample sent at once, which is then dropped, never redelivered. A test
+    that publishes to a service it just started publishes once the router has told this
+    session about the subscription (the publisher's matching status)."""
+    congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+    pub = session.declare_publisher(key, congestion_control=congestion)
+    eventually(lambda: bool(getattr(pub.matching_status, "matching", False)), timeout,
+               f"a subscriber of {key}")  # fmt: skip
+    return pub
 
 
 @pytest.fixture
