@@ -13,6 +13,8 @@ import random
 from dataclasses import dataclass, field
 from typing import Any
 
+import zenoh
+
 from manus.errors import SchemaError
 from manus_stack.fuzz import KINDS, payloads
 from schemas import endpoints as ep
@@ -72,7 +74,11 @@ def fuzz_live(node: Any, seed: int, per_endpoint: int, query_timeout: float = 1.
                     if reply.err is not None:
                         done.refused[suffix] = done.refused.get(suffix, 0) + 1
         else:
-            pub = node.session.declare_publisher(keys(suffix))
+            # blocking, as every publisher of the stack: a burst under load waits for room
+            # in the router's queue rather than being dropped before anyone counts it
+            pub = node.session.declare_publisher(
+                keys(suffix), congestion_control=zenoh.CongestionControl.BLOCK
+            )
             for data in batch:
                 pub.put(data)
             pub.undeclare()
