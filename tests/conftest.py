@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
+from typing import Any
 
 import pytest
 import zenoh
@@ -12,6 +12,15 @@ from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
 from manus_stack.up import free_port
+from tests import scheduling
+from tests.run_report import (
+    pytest_runtest_makereport,
+    pytest_sessionfinish,
+    pytest_terminal_summary,
+)
+from tests.scheduling import LiveApartScheduling
+
+__all__ = ["pytest_runtest_makereport", "pytest_sessionfinish", "pytest_terminal_summary"]
 
 # Fixed seeds everywhere: the same examples on every run and in CI.
 settings.register_profile(
@@ -24,44 +33,24 @@ settings.register_profile(
 settings.load_profile("manus")
 
 
+pytest_xdist_auto_num_workers = pytest.hookimpl(optionalhook=True)(scheduling.workers)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> LiveApartScheduling:
+    """The live tests apart from the pure ones (:mod:`tests.scheduling`)."""
+    return LiveApartScheduling(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests marked ``slow`` run real processes in real time on a 2-core machine, where a
-    scheduling stall now and then delays the 60 ms cycle past a deadline (seen about once
-    in three full runs, never in isolation). They get one rerun; a real fault fails both
-    runs, and pytest-rerunfailures reports every rerun in the summary ("R")."""
+    """Tests marked ``slow`` run real processes in real time: one at a time, in the
+    ``live`` group (:mod:`tests.scheduling`), and with one rerun, so that a failure
+    tells whether it repeats; a run with a rerun still fails (:mod:`tests.run_report`)."""
     for item in items:
         if item.get_closest_marker("slow") is not None:
+            item.add_marker(pytest.mark.xdist_group(scheduling.LIVE_GROUP))
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
-
-
-LOG_TAIL_LINES = 40
-"""Lines of each child log shown when a slow test fails."""
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
-    """When a ``slow`` test fails, print the tail of every log its processes wrote under
-    its ``tmp_path`` (``logs/<service>.log`` of ``manus up``/``manus demo``, netns logs).
-
-    Printed at once, not attached to the report: a failure that passes on its rerun is
-    otherwise reported only as "R", and CI keeps nothing but what the run printed.
-    """
-    outcome = yield
-    report = outcome.get_result()  # type: ignore[attr-defined]
-    if report.when != "call" or not report.failed or item.get_closest_marker("slow") is None:
-        return
-    tmp = getattr(item, "funcargs", {}).get("tmp_path")
-    reporter = item.config.pluginmanager.get_plugin("terminalreporter")
-    if tmp is None or reporter is None:
-        return
-    logs = sorted(Path(tmp).rglob("*.log"))
-    reporter.write_line("")
-    reporter.write_sep("-", f"{item.nodeid} failed: {len(logs)} child log(s) under {tmp}")
-    for log in logs:
-        lines = log.read_text(errors="replace").splitlines()[-LOG_TAIL_LINES:]
-        reporter.write_sep(".", f"{log.relative_to(tmp)} (last {len(lines)} lines)")
-        for line in lines:
-            reporter.write_line(line)
 
 
 def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:

@@ -33,6 +33,7 @@ def _fields(**kw: object) -> dict[str, object]:
         msgpack.packb(_fields(linear=[math.inf, 0.0, 0.0])),
         b"\xc1 not msgpack at all",
     ],
+    ids=["unknown-frame", "unknown-kind", "nan", "inf", "not-msgpack"],
 )
 def test_bad_jog_payloads_are_counted_and_stop_the_jog(
     zenoh_settings: ZenohSettings, payload: bytes

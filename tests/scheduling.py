@@ -1,0 +1,184 @@
+"""How the suite runs in parallel (pytest-xdist): the live tests one at a time on one
+worker, the pure tests on every worker.
+
+The live tests (marked ``slow``) run real processes against 60 ms real-time cycles: two
+live stacks at once on a 2-core machine compete for the same cores, so they never run
+at the same time. The first worker runs them one after the other, from the start of the
+session (their chain is the longest part of the run); the other workers take the pure
+tests meanwhile, so at most one pure test runs beside a live one, and once the pure
+tests are done the rest of the live chain runs alone. When the live chain is done, its
+worker takes pure tests too.
+
+A run that names test files or ids runs in one process (parallel only costs start-up
+there); ``-n N`` asks for workers anyway. The whole suite, ``python -m pytest`` from the
+repository, gets :func:`workers` of them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import pytest
+
+LIVE_GROUP = "live"
+"""The xdist group of the ``slow`` tests (``--dist loadgroup`` appends ``@live`` to
+their ids)."""
+
+MAX_WORKERS = 8
+
+
+def workers(config: pytest.Config) -> int:
+    """Workers for ``-n auto``: one per CPU (at least 2: the live chain and the pure
+    tests; at most :data:`MAX_WORKERS`) for the whole suite, none (one process) when the
+    command line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
+    forced = os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS")
+    if forced:
+        return int(forced)
+    if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
+        return 0
+    return min(MAX_WORKERS, max(2, os.cpu_count() or 1))
+
+
+def is_live(nodeid: str) -> bool:
+    """Whether a (loadgroup) test id is one of the live tests."""
+    return nodeid.rpartition("@")[2] == LIVE_GROUP and "@" in nodeid
+
+
+class LiveApartScheduling:
+    """xdist scheduling with the live tests apart (see the module docstring).
+
+    Implements ``xdist.scheduler.protocol.Scheduling``. A worker runs a test once it
+    holds the next one (or is told to shut down), so each worker keeps one test queued.
+
+    Args:
+        config: the session's configuration.
+        log: xdist's log producer.
+    """
+
+    def __init__(self, config: pytest.Config, log: Any) -> None:
+        from xdist.workermanage import parse_tx_spec_config
+
+        self.numnodes = len(parse_tx_spec_config(config))
+        self.log = log.livesched
+        self.node2collection: dict[Any, list[str]] = {}
+        self.node2pending: dict[Any, list[int]] = {}
+        self.collection: list[str] | None = None
+        self.live: list[int] = []
+        """Live tests not sent yet (collection indices, in order)."""
+        self.pure: list[int] = []
+        """Pure tests not sent yet."""
+        self.live_node: Any = None
+        """The worker of the live chain (None: not chosen, or it died)."""
+
+    # -- what xdist asks ---------------------------------------------------------------------
+
+    @property
+    def nodes(self) -> list[Any]:
+        """The workers taking part."""
+        return list(self.node2pending)
+
+    @property
+    def collection_is_completed(self) -> bool:
+        """Every initial worker has sent its collection."""
+        return len(self.node2collection) >= self.numnodes
+
+    @property
+    def tests_finished(self) -> bool:
+        """Every test sent and run (a worker's last one runs at its shutdown)."""
+        if not self.collection_is_completed or self.live or self.pure:
+            return False
+        return all(len(p) < 2 for p in self.node2pending.values())
+
+    @property
+    def has_pending(self) -> bool:
+        """Tests not sent, or sent and not run."""
+        return bool(self.live or self.pure or any(self.node2pending.values()))
+
+    def add_node(self, node: Any) -> None:
+        """A worker is up."""
+        self.node2pending[node] = []
+
+    def add_node_collection(self, node: Any, collection: Sequence[str]) -> None:
+        """A worker's collection (they must all be the same)."""
+        if self.collection is not None and list(collection) != self.collection:
+            self.log(f"worker {node.gateway.id} collected other tests: not used")
+            return
+        self.node2collection[node] = list(collection)
+
+    def schedule(self) -> None:
+        """The first distribution (or, after a worker was replaced, a new round)."""
+        if self.collection is None:
+            collections = list(self.node2collection.values())
+            if any(c != collections[0] for c in collections):
+                self.log("the workers collected different tests: nothing runs")
+                return
+            self.collection = collections[0]
+            for index, nodeid in enumerate(self.collection):
+                (self.live if is_live(nodeid) else self.pure).append(index)
+        for node in self.nodes:
+            self.check_schedule(node)
+
+    def mark_test_complete(self, node: Any, item_index: int, duration: float = 0) -> None:
+        """A worker finished a test."""
+        self.node2pending[node].remove(item_index)
+        self.check_schedule(node)
+
+    def mark_test_pending(self, item: str) -> None:
+        """Run ``item`` again (pytest-rerunfailures, after its worker crashed)."""
+        assert self.collection is not None
+        index = self.collection.index(item)
+        (self.live if is_live(item) else self.pure).insert(0, index)
+        for node in self.nodes:
+            self.check_schedule(node)
+
+    def remove_pending_tests_from_node(self, node: Any, indices: Sequence[int]) -> None:
+        """Only for work stealing, which this scheduling does not do."""
+        raise NotImplementedError
+
+    def remove_node(self, node: Any) -> str | None:
+        """A worker left: at its shutdown, or crashed (its queue goes back; the test it
+        was running is returned)."""
+        pending = self.node2pending.pop(node)
+        if node is self.live_node:
+            self.live_node = None
+        if not pending:
+            return None
+        assert self.collection is not None
+        crashed = self.collection[pending.pop(0)]
+        for index in reversed(pending):
+            (self.live if is_live(self.collection[index]) else self.pure).insert(0, index)
+        for other in self.nodes:
+            self.check_schedule(other)
+        return crashed
+
+    # -- the policy --------------------------------------------------------------------------
+
+    def check_schedule(self, node: Any) -> None:
+        """Give ``node`` work: the live chain if it is (or becomes) its worker, else pure
+        tests, a few at a time; shut it down when nothing is left for it."""
+        if node.shutting_down or self.collection is None:
+            return
+        if self.live and self.live_node is None:
+            self.live_node = node
+        pending = self.node2pending[node]
+        if node is self.live_node and self.live:
+            self._send(node, self.live, len(self.live))  # one worker, in order
+            return
+        if node is self.live_node and len(pending) >= 2:
+            return  # still in the live chain
+        if self.pure:
+            if len(pending) < 2:
+                share = max(2, len(self.pure) // (4 * len(self.node2pending)))
+                self._send(node, self.pure, share - len(pending))
+            return
+        if not self.live:
+            node.shutdown()  # runs what it holds, then leaves
+
+    def _send(self, node: Any, queue: list[int], count: int) -> None:
+        chunk = queue[: max(count, 0)]
+        if chunk:
+            del queue[: len(chunk)]
+            self.node2pending[node].extend(chunk)
+            node.send_runtest_some(chunk)
