@@ -34,6 +34,8 @@ settings.load_profile("manus")
 
 
 pytest_xdist_auto_num_workers = pytest.hookimpl(optionalhook=True)(scheduling.workers)
+pytest_configure = scheduling.pytest_configure
+pytest_unconfigure = scheduling.pytest_unconfigure
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -42,15 +44,14 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> LiveApartSch
     return LiveApartScheduling(config, log)
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests marked ``slow`` run real processes in real time: one at a time, in the
-    ``live`` group (:mod:`tests.scheduling`), and with one rerun, so that a failure
-    tells whether it repeats; a run with a rerun still fails (:mod:`tests.run_report`)."""
-    for item in items:
-        if item.get_closest_marker("slow") is not None:
-            item.add_marker(pytest.mark.xdist_group(scheduling.LIVE_GROUP))
-            item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked ``slow`` run real processes in real time: one at a time
+    (:mod:`tests.scheduling`), and with one rerun, so that a failure tells whether it
+    repeats; a run with a rerun still fails (:mod:`tests.run_report`)."""
+    live = [item for item in items if item.get_closest_marker("slow") is not None]
+    for item in live:
+        item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+    scheduling.tell_live(config, [item.nodeid for item in live])
 
 
 def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:

@@ -17,16 +17,47 @@ repository, gets :func:`workers` of them.
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import pytest
 
-LIVE_GROUP = "live"
-"""The xdist group of the ``slow`` tests (``--dist loadgroup`` appends ``@live`` to
-their ids)."""
+LIVE_IDS = "MANUS_TEST_LIVE_IDS"
+"""Environment variable: the file where the workers write the ids of the live tests for
+the scheduler (xdist sends the controlling process ids only, not markers)."""
 
 MAX_WORKERS = 8
+_OWN_FILE = pytest.StashKey[str]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In the controlling process: a file for the live tests' ids, which the workers it
+    starts find in their environment."""
+    if not hasattr(config, "workerinput") and LIVE_IDS not in os.environ:
+        handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
+        os.close(handle)
+        os.environ[LIVE_IDS] = path
+        config.stash[_OWN_FILE] = path
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """Remove the file this process made."""
+    path = config.stash.get(_OWN_FILE, None)
+    if path is not None:
+        Path(path).unlink(missing_ok=True)
+        os.environ.pop(LIVE_IDS, None)
+
+
+def tell_live(config: pytest.Config, nodeids: list[str]) -> None:
+    """In a worker, after collection: write the ids of the live tests (every worker
+    collects the same tests and writes the same file, before it reports its collection)."""
+    path = os.environ.get(LIVE_IDS)
+    if hasattr(config, "workerinput") and path:
+        part = Path(f"{path}.{os.getpid()}")
+        part.write_text("".join(f"{n}\n" for n in nodeids))
+        part.replace(path)
 
 
 def workers(config: pytest.Config) -> int:
@@ -41,9 +72,10 @@ def workers(config: pytest.Config) -> int:
     return min(MAX_WORKERS, max(2, os.cpu_count() or 1))
 
 
-def is_live(nodeid: str) -> bool:
-    """Whether a (loadgroup) test id is one of the live tests."""
-    return nodeid.rpartition("@")[2] == LIVE_GROUP and "@" in nodeid
+def live_ids() -> set[str]:
+    """The ids the workers wrote (:func:`tell_live`)."""
+    path = os.environ.get(LIVE_IDS)
+    return set(Path(path).read_text().splitlines()) if path else set()
 
 
 class LiveApartScheduling:
@@ -71,6 +103,8 @@ class LiveApartScheduling:
         """Pure tests not sent yet."""
         self.live_node: Any = None
         """The worker of the live chain (None: not chosen, or it died)."""
+        self.live_ids: set[str] = set()
+        """Ids of the live tests."""
 
     # -- what xdist asks ---------------------------------------------------------------------
 
@@ -115,8 +149,9 @@ class LiveApartScheduling:
                 self.log("the workers collected different tests: nothing runs")
                 return
             self.collection = collections[0]
+            self.live_ids = live_ids()
             for index, nodeid in enumerate(self.collection):
-                (self.live if is_live(nodeid) else self.pure).append(index)
+                (self.live if nodeid in self.live_ids else self.pure).append(index)
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -129,7 +164,7 @@ class LiveApartScheduling:
         """Run ``item`` again (pytest-rerunfailures, after its worker crashed)."""
         assert self.collection is not None
         index = self.collection.index(item)
-        (self.live if is_live(item) else self.pure).insert(0, index)
+        (self.live if item in self.live_ids else self.pure).insert(0, index)
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -148,7 +183,8 @@ class LiveApartScheduling:
         assert self.collection is not None
         crashed = self.collection[pending.pop(0)]
         for index in reversed(pending):
-            (self.live if is_live(self.collection[index]) else self.pure).insert(0, index)
+            queue = self.live if self.collection[index] in self.live_ids else self.pure
+            queue.insert(0, index)
         for other in self.nodes:
             self.check_schedule(other)
         return crashed
