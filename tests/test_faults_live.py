@@ -205,18 +205,24 @@ def test_fuzz_on_every_key_and_queryable_is_counted_and_nothing_dies(stack: Faul
     assert done.unanswered.get(ep.PLAYBACK_CONTROL) == per
     queryables.discard(ep.PLAYBACK_CONTROL)
     health: dict[str, dict[str, Any]] = {}
+    missing: list[str] = []
 
     def all_counted() -> bool:
         """Each service counts on its own threads, and answers health within 1 s: the
         counts are read until they hold everything sent (under load, a second after the
         last payload was once too early)."""
-        nonlocal health
+        nonlocal health, missing
         health = node_health(node)
         keys = {k for h in health.values() for k in h["by_key"]}
-        short = any(n < done.sent[k] for h in health.values() for k, n in h["by_key"].items())
-        return (subscribed | queryables) <= keys and not short
+        missing = sorted((subscribed | queryables) - keys)
+        missing += [f"{s}: {k} {n} of {done.sent[k]}" for s, h in health.items()
+                    for k, n in h["by_key"].items() if n < done.sent[k]]  # fmt: skip
+        return not missing
 
-    stack.wait("every bad payload counted", all_counted, 15.0)
+    try:
+        stack.wait("every bad payload counted", all_counted, 15.0)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}; short: {missing}; services {sorted(health)}") from None
     assert stack.stack.exited() == []
     counted: dict[str, int] = {}
     for service, h in health.items():
