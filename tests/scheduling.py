@@ -6,8 +6,9 @@ live stacks at once on a 2-core machine compete for the same cores, so they neve
 at the same time. The first worker runs them one after the other, from the start of the
 session (their chain is the longest part of the run); the other workers take the pure
 tests meanwhile, so at most one pure test runs beside a live one, and once the pure
-tests are done the rest of the live chain runs alone. When the live chain is done, its
-worker takes pure tests too.
+tests are done the rest of the live chain runs alone. The workers of pure tests run at
+a lower priority (:data:`PURE_NICE`), so the live processes take a core at once when
+they wake. When the live chain is done, its worker takes pure tests too.
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway. The whole suite, ``python -m pytest`` from the
@@ -29,13 +30,23 @@ LIVE_IDS = "MANUS_TEST_LIVE_IDS"
 the scheduler (xdist sends the controlling process ids only, not markers)."""
 
 MAX_WORKERS = 8
+LIVE_WORKER = "gw0"
+"""The worker of the live chain (another one only if it died)."""
+PURE_NICE = 5
+"""Niceness of the other workers: a live test's processes (niceness 0) get three times
+their share of a contended core and take it at once when they wake, yet a pure test
+keeps a quarter of a core when a CPU hog (niceness 0) loads every core, so its own
+bounded waits still hold."""
 _OWN_FILE = pytest.StashKey[str]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """In the controlling process: a file for the live tests' ids, which the workers it
-    starts find in their environment."""
-    if not hasattr(config, "workerinput") and LIVE_IDS not in os.environ:
+    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
+    worker = getattr(config, "workerinput", None)
+    if worker is not None and worker.get("workerid") != LIVE_WORKER:
+        os.nice(PURE_NICE)
+    if worker is None and LIVE_IDS not in os.environ:
         handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
         os.close(handle)
         os.environ[LIVE_IDS] = path
@@ -197,7 +208,10 @@ class LiveApartScheduling:
         if node.shutting_down or self.collection is None:
             return
         if self.live and self.live_node is None:
-            self.live_node = node
+            ids = {n.gateway.id: n for n in self.nodes if not n.shutting_down}
+            self.live_node = ids.get(LIVE_WORKER, node)
+            if self.live_node is not node:
+                self.check_schedule(self.live_node)
         pending = self.node2pending[node]
         if node is self.live_node and self.live:
             self._send(node, self.live, len(self.live))  # one worker, in order
