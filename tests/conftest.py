@@ -51,7 +51,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     live = [item for item in items if item.get_closest_marker("slow") is not None]
     for item in live:
         item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
-    scheduling.tell_live(config, [item.nodeid for item in live])
+    scheduling.tell_live(config, live)
 
 
 def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:

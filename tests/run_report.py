@@ -18,6 +18,8 @@ import pytest
 
 LOG_TAIL_LINES = 40
 """Lines of each child log shown when a slow test fails."""
+CRASH_LINES = 30
+"""Lines of a rerun's first error shown."""
 CHILD_LOGS = "child logs"
 """The report section holding them."""
 
@@ -68,8 +70,11 @@ def pytest_terminal_summary(
     )
     for report in reruns:
         crash = getattr(report.longrepr, "reprcrash", None)
-        why = crash.message.splitlines()[0] if crash is not None else str(report.longrepr)[:300]
-        terminalreporter.write_line(f"RERUN {report.nodeid}: {why}")
+        why = crash.message if crash is not None else str(report.longrepr)
+        lines = why.splitlines() or [""]
+        terminalreporter.write_line(f"RERUN {report.nodeid}: {lines[0]}")
+        for line in lines[1:CRASH_LINES]:
+            terminalreporter.write_line(f"    {line}")
         for name, text in report.sections:
             if name == CHILD_LOGS:
                 terminalreporter.write_line(text)

@@ -61,14 +61,22 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         os.environ.pop(LIVE_IDS, None)
 
 
-def tell_live(config: pytest.Config, nodeids: list[str]) -> None:
-    """In a worker, after collection: write the ids of the live tests (every worker
-    collects the same tests and writes the same file, before it reports its collection)."""
+def tell_live(config: pytest.Config, live: list[pytest.Item]) -> None:
+    """In a worker, after collection: write the ids of the live tests in the order they
+    are to run: those marked ``slow(last=True)`` last, after the pure tests are done where
+    the live chain is long enough (every worker collects the same tests and writes the
+    same file, before it reports its collection)."""
     path = os.environ.get(LIVE_IDS)
     if hasattr(config, "workerinput") and path:
+        ordered = sorted(live, key=_last)
         part = Path(f"{path}.{os.getpid()}")
-        part.write_text("".join(f"{n}\n" for n in nodeids))
+        part.write_text("".join(f"{item.nodeid}\n" for item in ordered))
         part.replace(path)
+
+
+def _last(item: pytest.Item) -> bool:
+    mark = item.get_closest_marker("slow")
+    return mark is not None and bool(mark.kwargs.get("last"))
 
 
 def workers(config: pytest.Config) -> int:
@@ -83,10 +91,10 @@ def workers(config: pytest.Config) -> int:
     return min(MAX_WORKERS, max(2, os.cpu_count() or 1))
 
 
-def live_ids() -> set[str]:
-    """The ids the workers wrote (:func:`tell_live`)."""
+def live_ids() -> list[str]:
+    """The ids the workers wrote, in the order to run (:func:`tell_live`)."""
     path = os.environ.get(LIVE_IDS)
-    return set(Path(path).read_text().splitlines()) if path else set()
+    return Path(path).read_text().splitlines() if path else []
 
 
 class LiveApartScheduling:
@@ -160,9 +168,13 @@ class LiveApartScheduling:
                 self.log("the workers collected different tests: nothing runs")
                 return
             self.collection = collections[0]
-            self.live_ids = live_ids()
-            for index, nodeid in enumerate(self.collection):
-                (self.live if nodeid in self.live_ids else self.pure).append(index)
+            order = live_ids()
+            self.live_ids = set(order)
+            where = {nodeid: index for index, nodeid in enumerate(self.collection)}
+            self.live = [where[nodeid] for nodeid in order if nodeid in where]
+            self.pure = [
+                i for i, nodeid in enumerate(self.collection) if nodeid not in self.live_ids
+            ]
         for node in self.nodes:
             self.check_schedule(node)
 
