@@ -197,7 +197,9 @@ def test_fuzz_on_every_key_and_queryable_is_counted_and_nothing_dies(stack: Faul
     assert stack.node is not None
     node = stack.node
     per = 8
-    done = fuzz_live(node, seed=0, per_endpoint=per)
+    # a refusal is not a deadline: under load the planner once took more than the default
+    # second to refuse one plan query (a query nobody serves returns at once, whatever this)
+    done = fuzz_live(node, seed=0, per_endpoint=per, query_timeout=5.0)
     subscribed = {"state/joints", "state/status", "state/bridge", "cmd/joint_velocity", "estop"}
     subscribed |= {"heartbeat", "controller/feedback", "controller/result"}
     queryables = set(done.refused) | set(done.unanswered)
