@@ -11,7 +11,8 @@ pitch = +-pi/2 (gimbal lock) yaw and roll are not separable and the conversion r
 roll = 0 with the whole turn in yaw.
 
 Functions take and return radians. The tuple order used in code is always
-(yaw, pitch, roll), like the CLI output; only via-point files use (yaw, roll, pitch).
+(yaw, pitch, roll), as on the command line (what it prints and what it takes);
+only via-point files use (yaw, roll, pitch).
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 
 from manus.errors import ManusError
@@ -59,8 +60,34 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+BROKEN_PIPE_EXIT = 128 + 13
+"""Exit status when the reader of standard output went away (as if SIGPIPE had ended
+the process, which Python ignores)."""
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``manus`` console script."""
+    """Entry point of the ``manus`` console script.
+
+    A reader of standard output that goes away early (``manus kin ik ... | head``) ends the
+    command quietly with :data:`BROKEN_PIPE_EXIT`, whichever command was printing.
+    """
+    try:
+        try:
+            status = _run(argv)
+        finally:  # also after argparse's SystemExit (--help, usage errors)
+            sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
+    except BrokenPipeError:
+        # Nothing more can reach the reader: point standard output at /dev/null so that
+        # the interpreter's own flush at exit does not fail again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return BROKEN_PIPE_EXIT
+    return status
+
+
+def _run(argv: list[str] | None) -> int:
+    """Parse ``argv`` and run the selected command; its exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     selected = next((a for a in argv if a in COMMANDS), None)
     parser = build_parser(selected)

@@ -14,9 +14,9 @@ Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), 
 through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
 its queryables' mirrored requests in; its publications and mirrored replies out.
 
-- ``planner``: joint states, plan requests and scene updates in, plan and scene replies
-  out (``compute_ms`` is wall time and is not compared); floats within
-  :data:`~manus_stack.comparison.NUMPY_ROUNDING`.
+- ``planner``: joint states, perception frames, plan requests and scene updates in, plan
+  and scene replies and the world model's updates out (``compute_ms`` is wall time and is
+  not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
   stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
   the live shell does), the scene, the liveliness tokens that vanished (as the controller

@@ -2,9 +2,10 @@
 collision bodies at any joint angles, and the tightest clearance (``manus scene show``).
 
 Drawn in the chair frame with matplotlib's Agg backend: boxes, spheres, cylinders and
-capsules as wire surfaces, a plane as a square patch around its point, keep-out zones
-red, the keep-in workspace as green edges, the arm blue (the body of the tightest
-clearance red) with a line between the two nearest points.
+capsules as wire surfaces, a plane as a wire square around its point; objects coloured by
+class, keep-out zones red, the keep-in workspace green, the arm blue and the body of the
+tightest clearance magenta; a legend says which is which. The heading names the file,
+its file format and the scene version (:func:`scene_heading`).
 """
 
 from __future__ import annotations
@@ -12,16 +13,41 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
-from manus.scene import Primitive, Scene
+from manus.scene import FILE_FORMAT, Primitive, Scene
 from manus.urdf import Shape
 
 COLOURS = {"person": "tab:orange", "chair": "dimgray", "environment": "saddlebrown"}
+"""Object colour by class."""
+
+KEEP_OUT, KEEP_IN, ARM, TIGHTEST = "red", "green", "tab:blue", "magenta"
+"""Colours of keep-out zones, the keep-in workspace, the arm and its tightest body."""
+
+
+class ScenePicture(NamedTuple):
+    """What :func:`draw_scene` drew.
+
+    Attributes:
+        clearance: the tightest clearance in words (the title's second line).
+        heading: the scene's name, file format and scene version (its first line).
+        legend: the legend's labels, in order.
+    """
+
+    clearance: str
+    heading: str
+    legend: list[str]
+
+
+def scene_heading(scene: Scene) -> str:
+    """``wheelchair.yaml (file format 1), scene version 0``: the file format is what the
+    file's ``version:`` key says; the scene version counts a running stack's updates (0:
+    as read from the file)."""
+    return f"{Path(scene.source).name} (file format {FILE_FORMAT}), scene version {scene.version}"
 
 
 def _surfaces(shape: str, size: tuple[float, ...]) -> Iterator[np.ndarray]:
@@ -99,26 +125,40 @@ def _arm_primitive(shape: Shape, model: CollisionModel, index: int, mount: np.nd
 
 def draw_scene(
     scene: Scene, q: np.ndarray, png: str | Path, *, arm: ArmConfig, opening: float = 0.0
-) -> str:
-    """Draw ``scene`` with the arm at DH angles ``q`` [rad]; returns the tightest
-    clearance in words (also the plot's title)."""
+) -> ScenePicture:
+    """Draw ``scene`` with the arm at DH angles ``q`` [rad] and gripper ``opening`` [m]
+    to ``png``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     model = CollisionModel(scene, arm, opening=opening)
     found = model.clearance(np.asarray(q, dtype=float))
     fig = plt.figure(figsize=(9, 8))
     ax = fig.add_subplot(projection="3d")
+    legend: list[tuple[str, str, float]] = []  # label, colour, line width
+    for cls, colour in COLOURS.items():
+        if any(obj.cls == cls for obj in scene.objects):
+            legend.append((f"{cls} (needs {scene.clearance[cls] * 1e3:.0f} mm)", colour, 1.0))
     for obj in scene.objects:
         _draw(ax, obj.body, color=COLOURS[obj.cls], linewidth=0.4)
-    for zone in scene.zones:
-        colour = "green" if zone.kind == "keep_in" else "red"
-        _draw(ax, zone.body, color=colour, linewidth=0.6 if zone.kind == "keep_in" else 0.4)
+    for kind, colour, label in (("keep_out", KEEP_OUT, "keep-out zone"),
+                                ("keep_in", KEEP_IN, "keep-in workspace")):  # fmt: skip
+        zones = [z for z in scene.zones if z.kind == kind]
+        for zone in zones:
+            _draw(ax, zone.body, color=colour, linewidth=0.6 if kind == "keep_in" else 0.4)
+        if zones:
+            legend.append((label, colour, 1.0))
     for i, shape in enumerate(model.shapes):
-        colour = "red" if shape.name == found.check.body else "tab:blue"
+        colour = TIGHTEST if shape.name == found.check.body else ARM
         _draw(ax, _arm_primitive(shape, model, i, scene.mount), color=colour, linewidth=0.8)
+    legend.append((f"arm (self: needs {scene.clearance['self'] * 1e3:.0f} mm)", ARM, 2.0))
+    if found.check.body:
+        legend.append((f"{found.check.body}: tightest clearance", TIGHTEST, 2.0))
+    handles = [Line2D([], [], color=c, linewidth=w, label=label) for label, c, w in legend]
+    ax.legend(handles=handles, loc="upper left", fontsize=8)
     ax.set_xlabel("x forward [m]")
     ax.set_ylabel("y left [m]")
     ax.set_zlabel("z up [m]")
@@ -129,8 +169,9 @@ def draw_scene(
     ax.view_init(elev=20, azim=-60)
     words = ", ".join(f"{math.degrees(v):.0f}" for v in q)
     title = f"q = ({words}) deg: {found.describe()}"
-    ax.set_title(f"{Path(scene.source).name} version {scene.version}\n{title}", fontsize=9)
+    heading = scene_heading(scene)
+    ax.set_title(f"{heading}\n{title}", fontsize=9)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
-    return title
+    return ScenePicture(title, heading, [label for label, _, _ in legend])

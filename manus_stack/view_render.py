@@ -26,7 +26,8 @@ import numpy as np
 
 from manus.config import ArmConfig, load_arm_config
 from services.recorder.reading import Recording
-from services.viewer.core import ViewerConfig, ViewerCore
+from services.viewer.config import ViewerConfig
+from services.viewer.core import ViewerCore
 from services.viewer.model import GRIPPER_FRAME, LINK_NAMES, ROOT_FRAME, link_transforms
 from services.viewer.surroundings import Solid, solids
 

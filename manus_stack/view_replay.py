@@ -32,7 +32,8 @@ from schemas.endpoints import SCENE_STATE
 from schemas.playback import PlaybackControl
 from services.recorder.playback import Playback
 from services.recorder.reading import Recorded, Recording
-from services.viewer.core import ViewerConfig, ViewerCore
+from services.viewer.config import ViewerConfig
+from services.viewer.core import ViewerCore
 from services.viewer.server import DEFAULT_HOST, DEFAULT_PORT, FoxgloveSink
 
 TIME_EVERY_NS = 50_000_000

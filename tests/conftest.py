@@ -11,6 +11,7 @@ import zenoh
 from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
+from manus.validity import warm_up
 from manus_stack.up import free_port
 from tests import scheduling
 from tests.run_report import (
@@ -36,6 +37,14 @@ settings.load_profile("manus")
 pytest_xdist_auto_num_workers = pytest.hookimpl(optionalhook=True)(scheduling.workers)
 pytest_configure = scheduling.pytest_configure
 pytest_unconfigure = scheduling.pytest_unconfigure
+
+
+@pytest.hookimpl(tryfirst=True)  # in the controlling process, before it starts workers
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the fast validity check's kernels before any test: a fresh checkout has
+    an empty numba cache, and a service a test starts must not spend its start-up
+    deadline compiling them (this fills the cache they load)."""
+    warm_up()
 
 
 @pytest.hookimpl(optionalhook=True)

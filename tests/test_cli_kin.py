@@ -31,8 +31,8 @@ def test_fk_prints_pose_json() -> None:
 
 
 def test_ik_prints_all_branches_and_the_nearest() -> None:
-    # Via-point column order: X Y Z YAW ROLL PITCH.
-    run = manus("kin", "ik", "207.846097", "105", "200", "0", "0", "-60")
+    # The command line's pose order: X Y Z YAW PITCH ROLL.
+    run = manus("kin", "ik", "207.846097", "105", "200", "0", "-60", "0")
     assert run.returncode == 0, run.stderr
     out = json.loads(run.stdout)
     assert len(out["solutions_deg"]) == 8
@@ -51,8 +51,8 @@ def test_ik_near_selects_another_branch() -> None:
         "105",
         "200",
         "0",
-        "0",
         "-60",
+        "0",
         "--near",
         "-146",
         "150",
@@ -63,6 +63,24 @@ def test_ik_near_selects_another_branch() -> None:
     )
     out = json.loads(run.stdout)
     assert out["nearest_deg"][0] == pytest.approx(-146.27, abs=0.01)
+
+
+def test_fk_output_pastes_into_ik() -> None:
+    # A pose with yaw, pitch and roll all different: fk's numbers, in the order it
+    # prints them, are ik's arguments and give back the same joints.
+    q = [10.0, 40.0, -20.0, 25.0, -50.0, 35.0]
+    fk_run = manus("kin", "fk", *map(str, q))
+    out = json.loads(fk_run.stdout)
+    assert out["pose"] == out["xyz_mm"] + out["ypr_deg"]
+    args = [repr(v) for v in out["xyz_mm"] + out["ypr_deg"]]
+    ik_run = manus("kin", "ik", *args, "--near", *map(str, q))
+    assert ik_run.returncode == 0, ik_run.stderr
+    assert json.loads(ik_run.stdout)["nearest_deg"] == pytest.approx(q, abs=1e-3)
+
+
+def test_ik_refuses_a_pose_that_is_not_a_number() -> None:
+    run = manus("kin", "ik", "500", "0", "0", "nan", "0", "0")
+    assert run.returncode == 2 and "argument YAW: must be a finite number" in run.stderr
 
 
 def test_unreachable_pose_is_one_line_and_non_zero() -> None:

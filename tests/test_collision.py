@@ -84,7 +84,7 @@ def test_a_path_that_clips_the_table_is_refused() -> None:
 def test_plan_names_the_scene_and_its_version() -> None:
     reply = plan(moves((-289, 157, 15), (-289, 158, 15)))
     assert reply.error is not None
-    assert f"(scene {default_scene().source} version 0)" in reply.error.message
+    assert f"(scene version 0: {default_scene().source})" in reply.error.message
 
 
 def test_self_pairs_are_declared_once_and_exist() -> None:

@@ -78,6 +78,14 @@ def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
     )
     assert overview is not None and Path(overview.group(1)).exists()
     assert float(overview.group(2)) == pytest.approx(mean, abs=0.01)
+    # and judges the run's clearances on the simulator's truth, naming the pair and its rule
+    assert re.search(
+        r"^clearances \(simulator's truth\): tightest \w+ \d+\.\d mm from \w+ "
+        r"\((person|chair|environment|self|zone): needs \d+ mm\) at t = \d+\.\d s: "
+        r"every clearance kept$",
+        out,
+        re.MULTILINE,
+    ), out
 
     # The recorder started first: the live controller and planner are reproduced, byte
     # for byte, by fresh cores fed the recorded inputs (manus replay --check).

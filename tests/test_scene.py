@@ -163,7 +163,9 @@ def test_other_problems_name_the_file() -> None:
         parse_scene("")
     with pytest.raises(SceneError, match=r"^nowhere\.yaml: cannot read the scene file"):
         load_scene("nowhere.yaml")
-    with pytest.raises(SceneError, match=r"^<scene>:1: version: this stack reads version 1"):
+    with pytest.raises(
+        SceneError, match=r"^<scene>:1: version: the file format: this stack reads format 1, got 2"
+    ):
         parse_scene(GOOD.replace("version: 1", "version: 2"))
     with pytest.raises(SceneError, match=r"^<scene>:18: zones\[1\]\.kind: a second keep_in"):
         parse_scene(

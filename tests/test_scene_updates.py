@@ -41,7 +41,7 @@ def test_an_added_object_refuses_the_next_plan_and_versions_count_up() -> None:
     refused = core.plan(SQUARE)
     assert refused.error is not None and refused.error.reason == "collision"
     assert "from cup (environment: needs 15 mm)" in refused.error.message
-    assert "(scene cup.yaml version 1)" in refused.error.message
+    assert "(scene version 1: cup.yaml)" in refused.error.message
     # The cup taken away again: version 2, the square plans.
     assert core.update_scene(SceneUpdate(text=DEFAULT, source="default", base_version=1)) == (
         SceneReply(accepted=True, version=2, error="")
@@ -58,7 +58,7 @@ def test_a_bad_update_is_refused_whole_and_changes_nothing() -> None:
     assert reply.error.startswith("cup.yaml:")
     assert "objects[14].radius_mm: must be > 0, got -40" in reply.error
     stale = core.update_scene(SceneUpdate(text=CUP, source="cup.yaml", base_version=3))
-    assert not stale.accepted and "version 0 is in use" in stale.error
+    assert not stale.accepted and "scene version 0 is in use" in stale.error
     plan = core.plan(SQUARE)
     assert plan.trajectory is not None and plan.trajectory.scene_version == 0
 
@@ -83,7 +83,7 @@ def test_scene_updates_over_the_bus(zenoh_settings: ZenohSettings) -> None:
         reply = client.query(client.keys(ep.SCENE), SceneUpdate(text=CUP, source="cup"), SceneReply)
         assert reply.accepted and reply.version == 1
         plan = client.query(client.keys(ep.PLAN), SQUARE, PlanReply)
-        assert plan.error is not None and "version 1" in plan.error.message
+        assert plan.error is not None and "scene version 1" in plan.error.message
         assert shell.core.collision is not None
 
         def published() -> bool:  # the subscription may take a moment to reach the router

@@ -546,10 +546,10 @@ def test_same_inputs_same_outputs() -> None:
     assert run() == run()
 
 
-def test_the_readme_task_file_parses_and_validates() -> None:
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    text = readme.split("```toml\n", 1)[1].split("```", 1)[0]
-    task = parse_task_text(text, source="README.md", base=ROOT)
+def test_the_documented_task_file_parses_and_validates() -> None:
+    page = (ROOT / "docs" / "sequencer.md").read_text(encoding="utf-8")
+    text = page.split("```toml\n", 1)[1].split("```", 1)[0]
+    task = parse_task_text(text, source="docs/sequencer.md", base=ROOT)
     assert [s.kind for s in task.steps] == [
         "fold_out", "move", "move", "gripper", "wait", "pose", "fold_in",
     ]  # fmt: skip

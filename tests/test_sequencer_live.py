@@ -177,7 +177,8 @@ def test_supervisor_process_runs_a_task_on_the_real_stack(
 def test_supervisor_unfolds_a_folded_arm_first(
     zenoh_settings: ZenohSettings, router_endpoint: str, tmp_path: Path
 ) -> None:
-    """As after `manus up`: the arm starts folded and the README's command still works."""
+    """As after `manus up`: the arm starts folded and the documented command
+    (docs/sequencer.md, Supervisor API) still works."""
     folded = SimConfig(start_pose="folded", gripper_ready_ms=60, angles_measured_ms=120)
     stack = LiveStack(zenoh_settings, folded)
     try:

@@ -210,10 +210,10 @@ def test_a_wait_ends_even_when_a_joint_state_comes_after_its_end_before_the_tick
     assert events(out) == ["step_finished", "succeeded"]
 
 
-def test_the_readme_task_runs_in_lockstep_to_the_end() -> None:
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    text = readme.split("```toml\n", 1)[1].split("```", 1)[0]
-    task = parse_task_text(text, source="README.md", base=ROOT)
+def test_the_documented_task_runs_in_lockstep_to_the_end() -> None:
+    page = (ROOT / "docs" / "sequencer.md").read_text(encoding="utf-8")
+    text = page.split("```toml\n", 1)[1].split("```", 1)[0]
+    task = parse_task_text(text, source="docs/sequencer.md", base=ROOT)
     assert StepKind.WAIT in [s.kind for s in task.steps]
     rig = TaskLockStep()
     rig.start_arm()

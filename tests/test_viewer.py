@@ -34,7 +34,8 @@ from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
 from schemas.state import JointState
 from services.recorder.reading import Recording, decode
-from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerConfig, ViewerCore
+from services.viewer.config import ViewerConfig
+from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerCore
 from services.viewer.layout import LAYOUT_FILE, layout_json
 from services.viewer.model import (
     GRIPPER_FRAME,

@@ -10,7 +10,8 @@ import argparse
 from manus.config import load_arm_config
 from services.recorder import export_cli
 from services.recorder.reading import Recording
-from services.viewer.core import ViewerConfig, ViewerCore
+from services.viewer.config import ViewerConfig
+from services.viewer.core import ViewerCore
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

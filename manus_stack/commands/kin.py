@@ -1,15 +1,16 @@
 """``manus kin``: forward and inverse kinematics, the Jacobian and the URDF, from the shell.
 
-Thesis units at this edge: millimetres and degrees. Orientation is printed as
-``ypr_deg`` = [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll)); ``ik`` takes it in
-via-point column order: YAW ROLL PITCH.
+Thesis units at this edge: millimetres and degrees. A pose is printed as ``xyz_mm``,
+``ypr_deg`` = [yaw, pitch, roll] (R = Rz(yaw) Ry(pitch) Rx(roll)) and ``pose`` (the
+six together), and ``ik`` takes it in that order: X Y Z YAW PITCH ROLL
+(:mod:`manus_stack.pose_args`, the command line's one order), so fk's output pastes
+into ik.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -17,8 +18,8 @@ import numpy as np
 
 from manus.config import UNFOLDED_Q_DEG, load_arm_config
 from manus.kinematics import fk, ik_all, ik_nearest, jacobian
-from manus.orientation import matrix_to_ypr, pose_matrix
 from manus.urdf import build_urdf
+from manus_stack.pose_args import add_pose_argument, pose_fields, pose_from_values, pose_values
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,11 +28,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="kin_command", metavar="fk|ik|jacobian|urdf", required=True)
     p = sub.add_parser("fk", help="gripper pose of joint angles Q1..Q6 [deg]")
     p.add_argument("q", nargs=6, type=float, metavar="Q", help="DH joint angles [deg]")
-    p = sub.add_parser("ik", help="every IK branch of a pose, and the one nearest --near")
-    for name in ("x", "y", "z"):
-        p.add_argument(name, type=float, help=f"{name.upper()} [mm]")
-    for name in ("yaw", "roll", "pitch"):
-        p.add_argument(name, type=float, help=f"{name} [deg]")
+    p = sub.add_parser(
+        "ik",
+        help="every IK branch of a pose X Y Z YAW PITCH ROLL, and the one nearest --near",
+    )
+    add_pose_argument(p)
     p.add_argument(
         "--near",
         nargs=6,
@@ -58,14 +59,14 @@ def run(args: argparse.Namespace) -> int:
         M = T.copy()
         M[:3, 3] *= 1000.0
         out: dict[str, object] = {
-            "xyz_mm": _rounded(T[:3, 3] * 1000.0),
-            "ypr_deg": _rounded(np.degrees(matrix_to_ypr(T[:3, :3]))),
+            **pose_fields(T),
             "matrix": _rounded(M, 9),
             "matrix_units": "rotation: unitless; translation: mm",
         }
     elif args.kin_command == "ik":
-        ypr = (math.radians(args.yaw), math.radians(args.pitch), math.radians(args.roll))
-        T = pose_matrix(np.array([args.x, args.y, args.z]) / 1000.0, ypr)
+        values = pose_values(args)
+        assert values is not None  # a positional pose is always given
+        T = pose_from_values(values)
         sols = ik_all(T, cfg)
         nearest = ik_nearest(T, np.radians(args.near), cfg)
         out = {

@@ -1,9 +1,10 @@
 """``manus scene show|check``: draw the arm in a scene, or validate a scene file.
 
 ``show`` writes a PNG of the scene (objects by class, zones, the arm's collision bodies
-at ``--joints``, degrees, default the unfolded pose) and prints the tightest clearance;
-``check`` reads a scene file and prints what it holds as JSON (exit 1, one line naming
-file, line and field, when it is malformed or touches the arm's base).
+at ``--joints``, degrees, default the unfolded pose, a legend) and prints the tightest
+clearance; ``check`` reads a scene file and prints what it holds as JSON (its file format
+and scene version among it; exit 1, one line naming file, line and field, when it is
+malformed or touches the arm's base).
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from manus_stack.scene_view import draw_scene
 
     q = [math.radians(v) for v in args.joints]
-    title = draw_scene(scene, np.asarray(q), args.output, arm=arm, opening=args.opening * 1e-3)
-    print(title)
+    picture = draw_scene(scene, np.asarray(q), args.output, arm=arm, opening=args.opening * 1e-3)
+    print(picture.clearance)
     print(f"plot: {args.output}")
     return 0

@@ -1,4 +1,4 @@
-"""The controller: tracking loop, gripper loop and goals (README, Controller).
+"""The controller: tracking loop, gripper loop and goals (docs/controller.md).
 
 Modules: :mod:`.core` (``ControllerCore``, the deterministic core), :mod:`.tracking`
 (one trajectory goal), :mod:`.laws` (default and thesis control laws),

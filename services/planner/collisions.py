@@ -42,7 +42,7 @@ def check_collisions(
             f"between {via_label(path.source, seg, a.line)} and {via_label('', seg + 1, b.line)}"
         )
         scene = model.scene
-        version = f" (scene {scene.source} version {scene.version})" if scene is not None else ""
+        version = f" (scene version {scene.version}: {scene.source})" if scene is not None else ""
         raise refuse(
             "collision",
             f"{where}: at t = {bad.time:.3f} s the {bad.describe()}{version}",

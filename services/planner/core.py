@@ -33,7 +33,9 @@ import numpy as np
 from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
+from manus.validity import checker_for
 from manus.viapoints import ViaPointError, validate_path
+from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
@@ -72,12 +74,16 @@ class PlannerCore:
         self.checking = threading.Lock()
         """Held while the collision model is used or replaced: its Pinocchio data is
         scratch space shared by every check (a live shell plans on several threads)."""
+        self.world = WorldModel(self.config.world)
+        """The objects perception reports (``perception/objects`` -> ``planner/objects``)."""
         self.set_scene(scene_from_setting(self.config.scene))
         self.scene_state = start_scene_state(self.config.scene)
 
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
         model = None if scene is None else CollisionModel(scene, self.config.arm)
+        if model is not None:
+            checker_for(model)  # the sweep's fast check: built (and compiled) at start
         with self.checking:
             self.collision = model
 
@@ -90,13 +96,14 @@ class PlannerCore:
             return SceneReply(
                 accepted=False,
                 version=version,
-                error=f"the update replaces version {update.base_version}, but version "
-                f"{version} is in use: read it again",
+                error=f"the update replaces scene version {update.base_version}, but scene "
+                f"version {version} is in use: read it again",
             )
         try:
             scene = parse_scene(update.text, update.source or "<scene update>")
             scene = dataclasses.replace(scene, version=version + 1)
             model = CollisionModel(scene, self.config.arm)
+            checker_for(model)
         except SceneError as exc:
             return SceneReply(accepted=False, version=version, error=str(exc))
         with self.checking:

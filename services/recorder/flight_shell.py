@@ -21,7 +21,7 @@ Its own session runs without Zenoh's shared-memory transport
 (``transport/shared_memory/enabled: false``): with it on (Zenoh 1.x's default), the first
 message of 3 KiB or more from a process on the same host (a plan reply, a goal request)
 maps that process's 16 MiB shared-memory pool into this one, and the resident size then
-counts it (16 MiB that are not the ring's, measured: README, "Flight recorder"). The
+counts it (16 MiB that are not the ring's, measured: docs/flight.md, Where the memory goes). The
 recorder copies every payload anyway, so shared memory gains it nothing.
 """
 

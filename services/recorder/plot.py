@@ -14,8 +14,10 @@ Four panels:
 - commanded increments per motor [counts of 0.1 deg per 20 ms], as the arm executed
   them (``JointState.applied``);
 - the via-point error table of every ``controller/result`` [mm] (mean, max);
-- when the simulator's truth carries it, the smallest true clearance between the arm
-  and the scene over time [mm] (a fifth panel), with the contacts.
+- when the simulator's truth carries clearances, the run's clearances over time [mm]
+  (a fifth panel, :mod:`services.recorder.plot_clearance`): the true distance to the
+  nearest thing, and the tightest check by the scene's rules with the clearance it
+  needs, its pair named, the arm's folds shaded.
 
 :func:`load_plot_data` extracts the series (testable without drawing); :func:`plot_recording`
 draws them with matplotlib's Agg backend and is what ``manus demo`` calls.
@@ -30,6 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from manus.clearance import Clearance
 from manus.config import ArmConfig
 from manus.kinematics import fk_batch
 from schemas import endpoints as ep
@@ -38,6 +41,7 @@ from schemas.control import ControllerFeedback, GoalResult, TrajectoryGoal
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
 from services.recorder.errors import RecordingError
+from services.recorder.plot_clearance import ClearanceCollector, ClearanceSeries, clearance_panel
 from services.recorder.reading import Recording
 
 if TYPE_CHECKING:
@@ -48,6 +52,8 @@ _SUFFIXES = (
     ep.FEEDBACK,
     ep.RESULT,
     ep.SIM_TRUTH,
+    ep.SCENE_STATE,
+    ep.BRIDGE_STATE,
     ep.GOAL.trace("request"),
     ep.PLAN.trace("reply"),
 )
@@ -67,6 +73,7 @@ class PlotData:
         t_fb: feedback times (f,) [s]; ``reference``/``actual``: (f, 6) [rad].
         t_js: joint-state times (j,) [s]; ``q_js``: (j, 6) [rad]; ``applied``: (j, 6) counts.
         results: every goal result.
+        clearances: the run's clearances on the simulator's truth (empty without it).
     """
 
     planned: list[np.ndarray] = field(default_factory=list)
@@ -82,9 +89,7 @@ class PlotData:
     q_js: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     applied: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     results: list[GoalResult] = field(default_factory=list)
-    t_clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    contacts: int = 0
+    clearances: ClearanceSeries = field(default_factory=ClearanceSeries)
 
 
 def _preview(traj: Trajectory) -> np.ndarray:
@@ -97,6 +102,7 @@ def _preview(traj: Trajectory) -> np.ndarray:
 class _Series:
     """The recording's messages sorted into the plotted series, in log order."""
 
+    clearances: ClearanceCollector
     goals: list[Trajectory] = field(default_factory=list)
     plans: list[Trajectory] = field(default_factory=list)
     fb_t: list[float] = field(default_factory=list)
@@ -108,12 +114,10 @@ class _Series:
     js_applied: list[list[int]] = field(default_factory=list)
     truth: list[list[float]] = field(default_factory=list)
     results: list[GoalResult] = field(default_factory=list)
-    clear_t: list[float] = field(default_factory=list)
-    clear: list[float] = field(default_factory=list)
-    contacts: int = 0
 
     def add(self, t: float, msg: Message) -> None:
         """One message logged at ``t`` [s since the recording's start]."""
+        self.clearances.add(t, msg)
         if isinstance(msg, JointState):
             if msg.valid:
                 self.js_t.append(t)
@@ -129,19 +133,17 @@ class _Series:
             self.results.append(msg)
         elif isinstance(msg, SimTruth):
             self.truth.append(msg.xyz)
-            if msg.clearance is not None:
-                self.clear_t.append(t)
-                self.clear.append(msg.clearance)
-                self.contacts = msg.contacts
         elif isinstance(msg, TrajectoryGoal):
             self.goals.append(msg.trajectory)
         elif isinstance(msg, PlanReply) and msg.ok and msg.trajectory is not None:
             self.plans.append(msg.trajectory)
 
 
-def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
+def load_plot_data(path: str | Path, arm: ArmConfig, scene: str = "") -> PlotData:
     """Extract the plotted series from a recording (``arm``: the recorded arm's geometry,
-    for the paths of recordings without controller feedback).
+    for the paths of recordings without controller feedback and the clearances; ``scene``:
+    the scene setting before the recording's first ``planner/scene_state``, ``""`` =
+    ``$MANUS_SCENE`` or the shipped one).
 
     Raises:
         RecordingError: the file cannot be read, or it holds neither joint states nor
@@ -149,7 +151,7 @@ def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
     """
     rec = Recording(path)
     t0 = rec.info.start_ns
-    series = _Series()
+    series = _Series(ClearanceCollector(arm, scene))
     for r, msg in rec.decoded(_SUFFIXES):
         series.add((r.log_ns - t0) / 1e9, msg)
     if not series.js_t and not series.fb_t:
@@ -165,9 +167,7 @@ def load_plot_data(path: str | Path, arm: ArmConfig) -> PlotData:
         q_js=np.asarray(series.js_q, dtype=float).reshape(-1, 6),
         applied=np.asarray(series.js_applied, dtype=float).reshape(-1, 6),
         truth=np.asarray(series.truth, dtype=float).reshape(-1, 3),
-        t_clearance=np.asarray(series.clear_t),
-        clearance=np.asarray(series.clear, dtype=float),
-        contacts=series.contacts,
+        clearances=series.clearances.series(),
     )
     _paths(data, series, arm)
     return data
@@ -204,6 +204,10 @@ class PlotSummary:
             knots' (``GoalResult.path_via_errors``) [mm].
         mean_mm: their mean [mm] (nan when none).
         max_mm: their largest [mm] (nan when none).
+        clearance: the run's tightest clearance check on the simulator's truth (None: no
+            truth with clearances).
+        clearance_verdict: it in words, and whether every clearance was kept.
+        clearance_broken: truth samples whose tightest check was below its clearance.
     """
 
     output: str
@@ -211,6 +215,9 @@ class PlotSummary:
     via_errors_mm: list[float]
     mean_mm: float
     max_mm: float
+    clearance: Clearance | None = None
+    clearance_verdict: str = ""
+    clearance_broken: int = 0
 
 
 def plot_recording(
@@ -219,9 +226,11 @@ def plot_recording(
     *,
     arm: ArmConfig,
     title: str | None = None,
+    scene: str = "",
 ) -> PlotSummary:
     """Draw the four panels of ``path`` to a PNG (default: next to it, ``.png``); ``arm``
-    is the recorded arm's geometry.
+    is the recorded arm's geometry, ``scene`` the scene before the recording's first
+    scene state (:func:`load_plot_data`).
 
     Raises:
         RecordingError: see :func:`load_plot_data`.
@@ -231,9 +240,9 @@ def plot_recording(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    data = load_plot_data(path, arm)
+    data = load_plot_data(path, arm, scene)
     out = Path(output) if output is not None else Path(path).with_suffix(".png")
-    rows = 3 if len(data.clearance) else 2
+    rows = 3 if len(data.clearances.t) else 2
     fig, axes = plt.subplots(rows, 2, figsize=(14, 5 * rows))
     try:
         _path_panel(axes[0][0], data)
@@ -241,8 +250,10 @@ def plot_recording(
         _increment_panel(axes[1][0], data)
         errors = _table_panel(axes[1][1], data)
         if rows == 3:
-            _clearance_panel(axes[2][0], data)
-            axes[2][1].axis("off")
+            gs = axes[2][0].get_gridspec()
+            axes[2][0].remove()
+            axes[2][1].remove()
+            clearance_panel(fig.add_subplot(gs[2, :]), data.clearances)
         fig.suptitle(title or Path(path).name)
         fig.tight_layout()
         fig.savefig(out, dpi=80)
@@ -251,7 +262,8 @@ def plot_recording(
     goals = sum(1 for r in data.results if r.kind == "trajectory")
     mean = float(np.mean(errors)) if errors else math.nan
     peak = float(np.max(errors)) if errors else math.nan
-    return PlotSummary(str(out), goals, errors, mean, peak)
+    c = data.clearances
+    return PlotSummary(str(out), goals, errors, mean, peak, c.tightest, c.verdict(), c.broken)
 
 
 def _path_panel(a: Axes, data: PlotData) -> None:
@@ -315,20 +327,6 @@ def _increment_panel(a: Axes, data: PlotData) -> None:
     a.set_ylim(-10.5, 10.5)
     a.grid(True, alpha=0.3)
     a.legend(loc="best", fontsize=8, ncol=3)
-
-
-def _clearance_panel(a: Axes, data: PlotData) -> None:
-    a.plot(data.t_clearance, data.clearance * 1e3, color="tab:green", lw=1.0, label="true")
-    a.axhline(0.0, color="tab:red", lw=0.8, label="contact")
-    a.set_xlabel("time [s]")
-    a.set_ylabel("clearance [mm]")
-    lowest = float(data.clearance.min()) * 1e3
-    a.set_title(
-        f"smallest true clearance to the scene (simulator): {lowest:.1f} mm, "
-        f"{data.contacts} contact ticks"
-    )
-    a.grid(True, alpha=0.3)
-    a.legend(loc="best", fontsize=8)
 
 
 def _table_panel(a: Axes, data: PlotData) -> list[float]:

@@ -27,6 +27,7 @@ from manus.config import (
     read_json_object,
 )
 from manus.errors import ConfigError
+from services.simulator.camera_config import CameraConfig
 from services.simulator.faults import FaultConfig
 
 TICK_MS = 20.0
@@ -90,6 +91,12 @@ class SimConfig:
             ``$MANUS_SCENE`` or the shipped wheelchair scene, ``default``, ``none`` or a
             scene file), the same as the planner's by default. A body
             that meets an object stops there (warning 3); the truth reports distances.
+        objects: the objects the simulator holds at power-up (docs/objects.md): ``""`` =
+            ``$MANUS_OBJECTS`` or none, ``default`` (a cup, a bottle and a phone on the
+            shipped scene's table), ``none`` or an objects file.
+        grasp_tolerance_mm: a grasp holds when the object's centre is within this of the
+            grasp point across the jaw axis, else it slips [mm].
+        camera: the simulated camera (:class:`~services.simulator.camera_config.CameraConfig`).
     """
 
     seed: int = 0
@@ -114,6 +121,9 @@ class SimConfig:
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
     scene: str = ""
+    objects: str = ""
+    grasp_tolerance_mm: float = 15.0
+    camera: CameraConfig = field(default_factory=CameraConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:
@@ -155,6 +165,7 @@ class SimConfig:
         _finite("stretched_margin_deg", self.stretched_margin_deg, 0.0, 45.0)
         _finite("floor_z_mm", self.floor_z_mm, -2000.0, 2000.0)
         _finite("base_radius_mm", self.base_radius_mm, 0.0, 1000.0)
+        _finite("grasp_tolerance_mm", self.grasp_tolerance_mm, 0.0, 100.0)
         if self.garbage not in GARBAGE_KINDS:
             raise ConfigError(f"`garbage` {self.garbage!r} must be one of {GARBAGE_KINDS}")
         q = self.start_q_deg
@@ -200,6 +211,10 @@ class SimConfig:
                 if not isinstance(value, dict):
                     raise ConfigError(f"{source}: `arm` must be an object")
                 kwargs[key] = ArmConfig.from_mapping(value, source=f"{source}: arm")
+            elif key == "camera":
+                if not isinstance(value, dict):
+                    raise ConfigError(f"{source}: `camera` must be an object")
+                kwargs[key] = CameraConfig.from_mapping(value, source=f"{source}: camera")
             elif key == "faults":
                 if not isinstance(value, dict):
                     raise ConfigError(f"{source}: `faults` must be an object")

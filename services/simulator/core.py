@@ -9,9 +9,11 @@ another reply replaces it (a late or missing reply repeats the last command); a 
 (0x375/0x376) advances only in the cycles after a sync that it answered.
 
 Every 20 ms tick integrates the active command over the tick that ends there
-(:mod:`services.simulator.arm`). Events at the same instant run in this order: the
+(:mod:`services.simulator.arm`), then moves the objects (:mod:`.object_world`: held,
+falling, resting, their contacts). Events at the same instant run in this order: the
 tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
-or sync), frames leaving, then frames from the PC.
+or sync), frames leaving, frames from the PC, then the camera's capture and publications
+(:mod:`.camera`; :meth:`SimCore.take_messages` hands them out).
 
 The core never reads a clock and draws every random number from generators seeded by
 ``config.seed``: same configuration and inputs, same frames, bit for bit.
@@ -19,6 +21,7 @@ The core never reads a clock and draws every random number from generators seede
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import itertools
 
@@ -35,9 +38,13 @@ from manus.protocol import (
     MoveCommand,
     sync_frame,
 )
+from manus.scene import scene_from_setting
+from schemas import endpoints as ep
+from schemas.base import Message
 from schemas.state import SimTruth
 from services.simulator.arm import ArmModel, ArmState, Intent
 from services.simulator.arm_faults import ArmFaults
+from services.simulator.camera import Camera
 from services.simulator.cartesian import cartesian_fields
 from services.simulator.config import MS, SimConfig
 from services.simulator.controller import ArmController, FoldProcedure
@@ -49,6 +56,8 @@ from services.simulator.faults import (
     Silence,
 )
 from services.simulator.messages import MessageBoard
+from services.simulator.object_world import ObjectWorld
+from services.simulator.rays import Primitive
 from services.simulator.replies import WARN_CLAMPED, Reply, classify
 from services.simulator.report import (
     Snapshot,
@@ -80,7 +89,8 @@ class SimCore:
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
-        model_rng, fault_rng, self._garbage_rng = np.random.default_rng(cfg.seed).spawn(3)
+        rngs = np.random.default_rng(cfg.seed).spawn(4)
+        model_rng, fault_rng, self._garbage_rng, camera_rng = rngs
         gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
         self.model = ArmModel(cfg, gains)
         self.counters = SimCounters()
@@ -107,6 +117,13 @@ class SimCore:
         self._arm_faults = ArmFaults()
         for fault in cfg.faults.all:
             self.add_fault(fault)
+        scene = scene_from_setting(cfg.scene)
+        self.objects = ObjectWorld(cfg, scene)
+        """The objects: resting, held, falling (:mod:`services.simulator.object_world`)."""
+        self.model.held = self.objects.held_distance
+        self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
+        """The simulated camera (None: switched off)."""
+        self._messages: list[tuple[int, str, Message]] = []
 
     # -- the harness interface -----------------------------------------------------------
 
@@ -116,10 +133,16 @@ class SimCore:
         return self._now
 
     def next_event_ns(self) -> int:
-        """Time of the next thing the core does: a tick or a frame leaving [ns]."""
+        """Time of the next thing the core does: a tick, a frame leaving, a capture or a
+        publication of the camera [ns]."""
+        t = (
+            self._next_tick
+            if self.camera is None
+            else min(self._next_tick, self.camera.next_event_ns())
+        )
         if self._outbox:
-            return min(self._next_tick, self._outbox[0][0])
-        return self._next_tick
+            return min(t, self._outbox[0][0])
+        return t
 
     def advance(self, t_ns: int) -> list[Frame]:
         """Run every tick and frame up to and including ``t_ns``.
@@ -136,7 +159,8 @@ class SimCore:
         while True:
             t_out = self._outbox[0][0] if self._outbox else None
             t_in = self._inbox[0][0] if self._inbox else None
-            t = min(x for x in (self._next_tick, t_out, t_in) if x is not None)
+            t_cam = None if self.camera is None else self.camera.next_event_ns()
+            t = min(x for x in (self._next_tick, t_out, t_in, t_cam) if x is not None)
             if t > t_ns:
                 break
             self._now = t
@@ -145,8 +169,10 @@ class SimCore:
                 self._next_tick += TICK_NS
             elif t == t_out:
                 sent.append(heapq.heappop(self._outbox)[2])
-            else:
+            elif t == t_in:
                 self._handle(heapq.heappop(self._inbox)[2])
+            else:
+                self._camera_event(t)
         self._now = t_ns
         self.counters.frames_sent += len(sent)
         return sent
@@ -174,7 +200,14 @@ class SimCore:
             SimError: ``t_ns`` is outside [last tick, next tick].
         """
         t = self._now if t_ns is None else t_ns
-        return make_truth(self.model, self.state_at(t), t, t // TICK_NS, self.contact_record)
+        state = self.state_at(t)
+        return make_truth(self.model, state, t, t // TICK_NS, self.contact_record, self.objects)
+
+    def take_messages(self) -> list[tuple[int, str, Message]]:
+        """The bus messages published since the last call (the camera's frames on
+        ``perception/objects``): (publication time [ns], key suffix, message), in order."""
+        out, self._messages = self._messages, []
+        return out
 
     def state_at(self, t_ns: int) -> ArmState:
         """The mechanical state at ``t_ns`` in [last tick, next tick] (exact, not stored)."""
@@ -236,6 +269,10 @@ class SimCore:
     def _tick(self, t: int) -> None:
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
+        if self.objects.objects:
+            if result.contact:
+                self.objects.blocked(t, result.contact)
+            self._move_objects(t)
         self.contact_record.update(result)
         self._board.raise_warnings(result.warnings)
         ctl = self.controller
@@ -259,6 +296,24 @@ class SimCore:
             self._emit(sync_frame(t))
             self._window = (t, t + WINDOW_NS)
             self._window_used = False
+
+    def _move_objects(self, t: int) -> None:
+        state = self._state
+        self.objects.tick(t, self.model.q_true_deg(state), state.gripper_mm)
+        floor = self.objects.gripper_floor_mm
+        if floor > state.gripper_mm:  # the jaws closed on an object this tick: they stop there
+            self._state = dataclasses.replace(state, gripper_mm=floor, gripper_speed_mm_s=0.0)
+
+    def _camera_event(self, t: int) -> None:
+        camera = self.camera
+        assert camera is not None
+        if t >= camera.next_capture_ns:
+            state = self.state_at(t)
+            q = self.model.q_true_deg(state)
+            bodies, poses = self.objects.placed(t, q, state.gripper_mm)
+            arm = [Primitive(b.shape, b.size, b.pose) for b in bodies]
+            camera.capture(t, list(zip(self.objects.objects, poses, strict=True)), arm)
+        self._messages += [(at, ep.PERCEPTION, msg) for at, msg in camera.due(t)]
 
     def _timed_faults(self, t: int) -> None:
         for code in self._arm_faults.errors_due(t):
@@ -312,7 +367,9 @@ class SimCore:
         """What the drives do over the tick starting at ``t0``."""
         stuck = self._arm_faults.stuck_at(t0)
         error = self._board.error is not None
-        return self.controller.intent(t0, self._state.motor_deg, stuck, error=error)
+        intent = self.controller.intent(t0, self._state.motor_deg, stuck, error=error)
+        floor = self.objects.gripper_floor_mm
+        return intent if floor <= 0.0 else dataclasses.replace(intent, gripper_min_mm=floor)
 
     # -- the report ----------------------------------------------------------------------
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,11 +13,20 @@ from manus.protocol import JOINT_UNIT_DEG
 from schemas.state import SimTruth
 from services.simulator.arm import ArmModel, ArmState, StepResult, motor_to_dh_deg
 
+if TYPE_CHECKING:
+    from services.simulator.object_world import ObjectWorld
+
 
 def make_truth(
-    model: ArmModel, state: ArmState, t_ns: int, seq: int, record: ContactRecord | None = None
+    model: ArmModel,
+    state: ArmState,
+    t_ns: int,
+    seq: int,
+    record: ContactRecord | None = None,
+    world: ObjectWorld | None = None,
 ) -> SimTruth:
-    """The truth of ``state`` at ``t_ns`` (``record``: the contacts so far).
+    """The truth of ``state`` at ``t_ns`` (``record``: the contacts so far; ``world``: the
+    objects, their contacts and the held object's clearances).
 
     ``q_true`` are the belt-side joint angles (backlash, joint 1 scale error); ``q_reported``
     the DH angles of the encoder readings (motor angles quantised to 0.1 deg) at the same
@@ -33,6 +43,10 @@ def make_truth(
     lowest = record.min_clearance
     if now is not None:
         lowest = now.distance if lowest is None else min(lowest, now.distance)
+    objects, held = [], None
+    if world is not None and world.objects:
+        objects = world.truth(t_ns, np.degrees(q_true), state.gripper_mm)
+        held = world.contacts.held_clearance
     return SimTruth(
         stamp_ns=t_ns,
         seq=seq,
@@ -47,6 +61,11 @@ def make_truth(
         min_clearance=lowest,
         contacts=record.contacts,
         contact=record.last,
+        objects=objects,
+        object_contacts=world.contacts.contacts() if world is not None else [],
+        held_clearance=None if held is None else held[0],
+        held_clearance_pair="" if held is None else held[1],
+        held_min_person=world.contacts.held_min_person if world is not None else None,
     )
 
 

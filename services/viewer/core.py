@@ -23,8 +23,9 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
   the scene's version in each entity's metadata): :meth:`ViewerCore.describe` gives the
   one in use (the ``scene`` setting at start), and each ``planner/scene_state`` (a scene
   replaced at run time) replaces every entity;
-- ``P/viz/log`` [``foxglove.Log``]: arm warnings and errors, bridge phases, goals and
-  results, task events, e-stops, services appearing and vanishing;
+- ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
+  errors, bridge phases, goals and results, task events, e-stops, services appearing and
+  vanishing;
 - ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/1`` ...]: each message of
   :data:`JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
 
@@ -36,31 +37,29 @@ from __future__ import annotations
 
 import base64
 import json
-import math
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, NamedTuple
 
 import msgpack
 from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 
-from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ManusError
 from manus.kinematics import fk
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
-from manus.trajectory import JointTrajectory
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
-from schemas.commands import EStop
-from schemas.control import GoalResult, TrajectoryGoal
+from schemas.control import TrajectoryGoal
 from schemas.keys import Keys, channel_type
-from schemas.liveliness import LivelinessChange
 from schemas.planning import PlanReply, Trajectory
-from schemas.sequencing import TaskEvent
-from schemas.state import ArmStatus, BridgeState, JointState, SimTruth
+from schemas.state import JointState, SimTruth
 from services.viewer import scene
-from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms, quaternion
+from services.viewer.config import ViewerConfig, ViewerStats
+from services.viewer.events import EventLog, LogLine
+from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
 from services.viewer.path import GripperPath
+from services.viewer.planned import planned_path
 from services.viewer.scene import SchemaInfo
 from services.viewer.surroundings import solids
 from services.viewer.topics import Topics
@@ -96,7 +95,6 @@ PLANNED_RGBA = (0.20, 0.60, 1.00, 0.9)
 PLAN_RGBA = (0.55, 0.55, 1.00, 0.5)
 EXECUTED_RGBA = (1.00, 0.45, 0.10, 1.0)
 TRUE_RGBA = (0.20, 0.85, 0.30, 0.8)
-BAD_PHASES = ("resync", "stopped", "estopped", "arm_error", "shutdown")
 
 
 class FoxMessage(NamedTuple):
@@ -117,57 +115,8 @@ class FoxMessage(NamedTuple):
     log_ns: int
 
 
-@dataclass(frozen=True)
-class ViewerConfig:
-    """What the viewer draws and how much it keeps.
-
-    Attributes:
-        prefix: key prefix of the arm.
-        arm: geometry (forward kinematics, URDF).
-        path_points: most points kept of the executed and true paths.
-        path_step_m: a new path point only after the gripper moved this far [m].
-        path_every: publish a path after this many new points.
-        preview_dt_s: sampling step [s] of a goal's path when it has no preview.
-        scene: the scene drawn until the planner publishes another, as every service's
-            ``scene`` setting (``""``: ``$MANUS_SCENE`` or the shipped one; ``default``;
-            ``none``; a file: :func:`manus.scene.scene_from_setting`).
-    """
-
-    prefix: str = "manus"
-    arm: ArmConfig = DEFAULT_ARM
-    path_points: int = 3000
-    path_step_m: float = 0.0005
-    path_every: int = 3
-    preview_dt_s: float = 0.05
-    scene: str = ""
-
-    def __post_init__(self) -> None:
-        if self.path_points < 2 or self.path_every < 1:
-            raise ValueError(
-                f"path_points {self.path_points} must be >= 2 and path_every {self.path_every} >= 1"
-            )
-        if not (self.path_step_m >= 0 and self.preview_dt_s > 0):
-            raise ValueError(
-                f"path_step_m {self.path_step_m} must be >= 0 and preview_dt_s "
-                f"{self.preview_dt_s} > 0 [m, s]"
-            )
-
-
-@dataclass
-class ViewerStats:
-    """Counters of the core.
-
-    Attributes:
-        inputs: samples received.
-        outputs: Foxglove messages produced.
-        bad_payloads: samples that did not decode, by key suffix.
-        ignored: samples on keys the viewer does not draw.
-    """
-
-    inputs: int = 0
-    outputs: int = 0
-    bad_payloads: dict[str, int] = field(default_factory=dict)
-    ignored: int = 0
+Handler = Callable[[Message, int], list["FoxMessage"]]
+"""A decoded message and its time [ns] -> the messages to show."""
 
 
 def _json_default(value: Any) -> Any:
@@ -195,8 +144,7 @@ class ViewerCore:
         self._true = GripperPath(
             self.config.path_points, self.config.path_step_m, self.config.path_every
         )
-        self._status: tuple[str, int] = ("none", 0)
-        self._phase = ""
+        self.events = EventLog()
         self.joints: JointState | None = None
         """The newest valid joint state (what the arm in the 3D view shows)."""
         self.planned: tuple[list[list[float]], list[list[float]]] = ([], [])
@@ -207,13 +155,13 @@ class ViewerCore:
         """The scene drawn now (None: none)."""
         self._handlers = {
             ep.JOINTS: self._joints,
-            ep.STATUS: self._arm_status,
-            ep.BRIDGE_STATE: self._bridge,
-            ep.RESULT: self._result,
-            ep.EVENTS: self._task_event,
-            ep.ESTOP: self._estop,
+            ep.STATUS: self._logging(self.events.arm_status),
+            ep.BRIDGE_STATE: self._logging(self.events.bridge),
+            ep.RESULT: self._logging(self.events.result),
+            ep.EVENTS: self._logging(self.events.task_event),
+            ep.ESTOP: self._logging(self.events.estop),
             ep.SIM_TRUTH: self._truth,
-            ep.LIVELINESS: self._liveliness,
+            ep.LIVELINESS: self._logging(self.events.liveliness),
             ep.SCENE_STATE: self._scene_state,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
@@ -313,8 +261,19 @@ class ViewerCore:
         schema, data = scene.encoded(msg)
         return FoxMessage(topic, schema, "protobuf", data, t_ns)
 
-    def _log(self, level: str, name: str, text: str, t_ns: int) -> FoxMessage:
-        return self._proto(self.topics.log, scene.log(level, name, text, t_ns), t_ns)
+    def _logged(self, lines: list[LogLine], t_ns: int) -> list[FoxMessage]:
+        return [
+            self._proto(self.topics.log, scene.log(line.level, line.name, line.text, t_ns), t_ns)
+            for line in lines
+        ]
+
+    def _logging(self, lines_of: Callable[[Any], list[LogLine]]) -> Handler:
+        """A handler that only logs: the lines ``lines_of`` gives for the message."""
+
+        def handle(msg: Message, t_ns: int) -> list[FoxMessage]:
+            return self._logged(lines_of(msg), t_ns)
+
+        return handle
 
     def _path(
         self,
@@ -357,102 +316,39 @@ class ViewerCore:
         self, entity: str, traj: Trajectory, rgba: tuple[float, ...], t_ns: int
     ) -> tuple[Any, list[tuple[list[float], tuple[float, float, float, float]]]]:
         """Scene entity of a trajectory's path and via points, and the knots' poses."""
-        cfg = self.config.arm
-        poses = []
-        for q in traj.positions:
-            T = fk(q, cfg)
-            poses.append(([float(v) for v in T[:3, 3]], quaternion(T[:3, :3])))
-        if traj.preview_xyz:
-            points = [list(p) for p in traj.preview_xyz]
-        else:
-            jt = JointTrajectory(traj)
-            n = max(2, math.ceil(jt.duration / self.config.preview_dt_s) + 1)
-            points = [
-                [float(v) for v in fk(jt.sample(jt.duration * i / (n - 1)).q, cfg)[:3, 3]]
-                for i in range(n)
-            ]
-        via = [list(v) for v in traj.via_xyz] if traj.via_xyz else [p for p, _ in poses]
-        labels = [str(i) for i in range(len(via))] if len(via) <= 40 else []
+        drawn = planned_path(traj, self.config.arm, self.config.preview_dt_s)
+        labels = [str(i) for i in range(len(drawn.via))] if len(drawn.via) <= 40 else []
         ent = scene.path_entity(
-            entity, ROOT_FRAME, t_ns, points, rgba, markers=via, labels=labels, thickness=0.003
+            entity,
+            ROOT_FRAME,
+            t_ns,
+            drawn.points,
+            rgba,
+            markers=drawn.via,
+            labels=labels,
+            thickness=0.003,
         )
         if entity == "goal":
-            self.planned = (points, via)
-        return ent, poses
+            self.planned = (drawn.points, drawn.via)
+        return ent, drawn.poses
 
     def _goal(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, TrajectoryGoal)
         ent, poses = self._trajectory_scene("goal", msg.trajectory, PLANNED_RGBA, t_ns)
         self._executed.clear()
-        traj = msg.trajectory
-        text = (
-            f"goal {msg.goal_id}: {len(traj.times)} knots, {traj.times[-1]:.2f} s, mode {msg.mode}"
-        )
         return [
             self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns),
             self._proto(self.topics.via_poses, scene.poses_in_frame(ROOT_FRAME, t_ns, poses), t_ns),
             self._executed_path(t_ns, t_ns),
-            self._log("info", "controller", text, t_ns),
+            *self._logged(self.events.goal(msg), t_ns),
         ]
 
     def _plan_reply(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, PlanReply)
         if not msg.ok or msg.trajectory is None:
-            reason = msg.error.message if msg.error is not None else "no trajectory"
-            return [self._log("warning", "planner", f"plan refused: {reason}", t_ns)]
+            return self._logged(self.events.plan_refused(msg), t_ns)
         ent, _ = self._trajectory_scene("plan", msg.trajectory, PLAN_RGBA, t_ns)
         return [self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns)]
-
-    def _arm_status(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, ArmStatus)
-        now = (msg.msg_class, msg.msg_code)
-        if now == self._status or msg.msg_class == "general":
-            return []
-        self._status = now
-        if msg.msg_class == "none":
-            return [self._log("info", "arm", "message cleared", t_ns)]
-        level = "error" if msg.msg_class == "error" else "warning"
-        return [self._log(level, "arm", f"{msg.msg_class} {msg.msg_code}: {msg.text}", t_ns)]
-
-    def _bridge(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, BridgeState)
-        if msg.phase == self._phase:
-            return []
-        self._phase = msg.phase
-        level = "warning" if msg.phase in BAD_PHASES else "info"
-        detail = f" ({msg.detail})" if msg.detail else ""
-        return [self._log(level, "can_bridge", f"phase {msg.phase}{detail}", t_ns)]
-
-    def _result(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, GoalResult)
-        level = {"succeeded": "info", "aborted": "error"}.get(msg.status, "warning")
-        errs = msg.path_via_errors
-        err = (
-            f", via error mean {1000 * sum(errs) / len(errs):.2f} max {1000 * max(errs):.2f} mm"
-            if errs
-            else ""
-        )
-        text = f"{msg.kind} goal {msg.goal_id} {msg.status}: {msg.reason}{err}"
-        return [self._log(level, "controller", text, t_ns)]
-
-    def _task_event(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, TaskEvent)
-        if msg.event == "step_progress":
-            return []
-        level = {"failed": "error", "step_failed": "error", "cancelled": "warning"}.get(
-            msg.event, "info"
-        )
-        step = f" step {msg.step + 1}/{msg.total} {msg.kind}" if msg.step >= 0 else ""
-        reason = f": {msg.reason}" if msg.reason else ""
-        return [self._log(level, "sequencer", f"task {msg.task_id}{step} {msg.event}{reason}",
-                          t_ns)]  # fmt: skip
-
-    def _estop(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, EStop)
-        what = "engaged" if msg.engaged else "released"
-        reason = f": {msg.reason}" if msg.reason else ""
-        return [self._log("error" if msg.engaged else "info", msg.source or "estop",
-                          f"e-stop {what}{reason}", t_ns)]  # fmt: skip
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)
@@ -463,18 +359,6 @@ class ViewerCore:
             parsed = parse_scene(msg.text, msg.source or "<scene update>")
         except SceneError as exc:  # the planner validated it: another stack's, or garbage
             self._bad(ep.SCENE_STATE)
-            return [self._log("warning", "planner", f"scene {msg.version} not drawn: {exc}", t_ns)]
+            return self._logged(self.events.scene(msg, None, str(exc)), t_ns)
         self.scene = replace(parsed, version=msg.version)
-        text = (
-            f"scene version {msg.version} ({parsed.source}): {len(parsed.objects)} objects, "
-            f"{len(parsed.zones)} zones"
-        )
-        return [self.scene_update(t_ns), self._log("info", "planner", text, t_ns)]
-
-    def _liveliness(self, msg: Message, t_ns: int) -> list[FoxMessage]:
-        assert isinstance(msg, LivelinessChange)
-        if msg.kind != "alive":
-            return []
-        what = "up" if msg.alive else "gone"
-        return [self._log("info" if msg.alive else "warning", msg.service or "liveliness",
-                          f"{msg.service} {what}", t_ns)]  # fmt: skip
+        return [self.scene_update(t_ns), *self._logged(self.events.scene(msg, parsed), t_ns)]

@@ -22,7 +22,8 @@ from manus.config import DEFAULT_ARM, ArmConfig
 from manus.node import Node, now_ns
 from manus.session import ZenohSettings
 from schemas.liveliness import LivelinessChange
-from services.viewer.core import ViewerConfig, ViewerCore
+from services.viewer.config import ViewerConfig
+from services.viewer.core import ViewerCore
 from services.viewer.server import DEFAULT_BACKLOG, DEFAULT_HOST, DEFAULT_PORT, FoxgloveSink
 
 log = logging.getLogger("manus.viewer")

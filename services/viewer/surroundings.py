@@ -11,7 +11,7 @@ cylinder with a sphere at each end, a plane (an unbounded half-space) a thin squ
 workspace a faint translucent green.
 
 The builders of Foxglove messages (:func:`services.viewer.scene.solid_entity`) and the
-README's matplotlib rendering (:mod:`manus_stack.view_render`) both draw these solids.
+matplotlib rendering of docs/viewer.md (:mod:`manus_stack.view_render`) both draw these solids.
 """
 
 from __future__ import annotations

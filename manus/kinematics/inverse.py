@@ -1,31 +1,14 @@
-"""Forward kinematics, geometric Jacobian and closed-form inverse kinematics.
+"""Closed-form inverse kinematics: every branch of a pose, and the one nearest a
+configuration within the joint limits.
 
-Standard Denavit-Hartenberg (docs/protocol.md, Kinematics),
-A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i):
-
-    i  a   alpha  d   theta
-    1  0   -90    0   q1
-    2  L2    0    L1  q2
-    3  0   +90    0   q3
-    4  0   -90    L3  q4
-    5  0   +90    0   q5
-    6  0     0    L4  q6
-
-The inverse kinematics is derived from this product (the thesis's printed IK
-is wrong: docs/protocol.md, Corrections to the thesis).
-With u = L2 c2 + L3 s23 and v = L2 s2 - L3 c23 the wrist centre is
-
-    p_w = (c1 u - s1 L1,  s1 u + c1 L1,  -v)
-
-so q1 follows from the horizontal distance (two shoulder branches, sign of u), (q2, q3)
-from a planar two-link problem (two elbow branches), and (q4, q5, q6) from
-R_36 = R_03^T R, a ZYZ-like spherical wrist (two wrist branches).
+The derivation is in :mod:`manus.kinematics` (wrist centre, shoulder, elbow and wrist
+branches). :func:`ik_all` (scalar, :mod:`math`) and :func:`ik_batch` (NumPy, many poses)
+share formulas and branch order.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -33,163 +16,7 @@ import numpy as np
 from manus.config import N_JOINTS, ArmConfig
 from manus.errors import KinematicsError
 
-_ALPHA = (-math.pi / 2, 0.0, math.pi / 2, -math.pi / 2, math.pi / 2, 0.0)
 TWO_PI = 2.0 * math.pi
-
-
-def dh_table(cfg: ArmConfig) -> list[tuple[float, float, float]]:
-    """The (a, alpha, d) of each joint [m, rad, m], in joint order."""
-    return [
-        (0.0, _ALPHA[0], 0.0),
-        (cfg.l2, _ALPHA[1], cfg.l1),
-        (0.0, _ALPHA[2], 0.0),
-        (0.0, _ALPHA[3], cfg.l3),
-        (0.0, _ALPHA[4], 0.0),
-        (0.0, _ALPHA[5], cfg.l4),
-    ]
-
-
-def dh_matrix(a: float, alpha: float, d: float, theta: float) -> np.ndarray:
-    """A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha), shape (4, 4)."""
-    ct, st = math.cos(theta), math.sin(theta)
-    ca, sa = math.cos(alpha), math.sin(alpha)
-    return np.array(
-        [
-            [ct, -st * ca, st * sa, a * ct],
-            [st, ct * ca, -ct * sa, a * st],
-            [0.0, sa, ca, d],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
-def joint_frames(q: np.ndarray, cfg: ArmConfig) -> list[np.ndarray]:
-    """T_0^i for i = 0..6 (base first, gripper last), each shape (4, 4)."""
-    frames = [np.eye(4)]
-    for (a, alpha, d), theta in zip(dh_table(cfg), q, strict=True):
-        frames.append(frames[-1] @ dh_matrix(a, alpha, d, float(theta)))
-    return frames
-
-
-def fk(q: np.ndarray | tuple[float, ...] | list[float], cfg: ArmConfig) -> np.ndarray:
-    """Gripper pose T_0^6 for DH joint angles ``q`` [rad], shape (6,) -> (4, 4) [m]."""
-    return joint_frames(np.asarray(q, dtype=float), cfg)[-1]
-
-
-def fk_position(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
-    """Gripper position [m], shape (3,)."""
-    return fk(q, cfg)[:3, 3]
-
-
-def fk_batch(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
-    """Gripper poses for many configurations: (N, 6) [rad] -> (N, 4, 4) [m]."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = q.shape[0]
-    out = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for (a, alpha, d), theta in zip(dh_table(cfg), q.T, strict=True):
-        ct, st = np.cos(theta), np.sin(theta)
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        A = np.zeros((n, 4, 4))
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
-        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
-        A[:, 3, 3] = 1.0
-        out = out @ A
-    return out
-
-
-def jacobian(q: np.ndarray, cfg: ArmConfig) -> np.ndarray:
-    """Geometric Jacobian at the gripper frame origin, base-frame axes.
-
-    Rows 0-2 map joint rates [rad/s] to linear velocity [m/s], rows 3-5 to angular
-    velocity [rad/s]. Shape (6, 6).
-    """
-    frames = joint_frames(np.asarray(q, dtype=float), cfg)
-    p_e = frames[-1][:3, 3]
-    J = np.zeros((6, N_JOINTS))
-    for i in range(N_JOINTS):
-        z = frames[i][:3, 2]
-        p = frames[i][:3, 3]
-        J[:3, i] = np.cross(z, p_e - p)
-        J[3:, i] = z
-    return J
-
-
-Vec3 = tuple[float, float, float]
-"""A 3-vector as plain floats (the scalar functions below)."""
-
-
-def gripper_position(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> Vec3:
-    """Gripper position [m] for DH angles ``q`` [rad], shape (6,), in closed form.
-
-    What :func:`fk_position` gives (a test keeps the two equal), with :mod:`math` for the
-    controller's cycle: the wrist centre of the module docstring plus ``l4`` along the
-    approach axis z_6 = R_03 (c4 s5, s4 s5, c5).
-    """
-    q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
-    c1, s1 = math.cos(q1), math.sin(q1)
-    c2, s2 = math.cos(q2), math.sin(q2)
-    c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
-    s5 = math.sin(q5)
-    a0, a1, a2 = math.cos(q4) * s5, math.sin(q4) * s5, math.cos(q5)
-    u = cfg.l2 * c2 + cfg.l3 * s23
-    v = cfg.l2 * s2 - cfg.l3 * c23
-    # R_03 = [[c1 c23, -s1, c1 s23], [s1 c23, c1, s1 s23], [-s23, 0, c23]]
-    zx = c1 * c23 * a0 - s1 * a1 + c1 * s23 * a2
-    zy = s1 * c23 * a0 + c1 * a1 + s1 * s23 * a2
-    zz = -s23 * a0 + c23 * a2
-    return (
-        c1 * u - s1 * cfg.l1 + cfg.l4 * zx,
-        s1 * u + c1 * cfg.l1 + cfg.l4 * zy,
-        -v + cfg.l4 * zz,
-    )
-
-
-def jacobian_columns(
-    q: Sequence[float] | np.ndarray, cfg: ArmConfig
-) -> list[tuple[float, float, float, float, float, float]]:
-    """The geometric Jacobian's columns (what :func:`jacobian` gives) in closed form.
-
-    For the controller's cycle (no NumPy call per joint), from the DH table's
-    structure: z_0 = e_z; z_1 = z_2 = (-s1, c1, 0); z_3 = R_03 e_z = (c1 s23, s1 s23, c23);
-    z_4 = R_03 (-s4, c4, 0); z_5 = R_03 (c4 s5, s4 s5, c5); origins p_0 = p_1 = 0,
-    p_2 = p_3 (the elbow) = R_01 (L2 c2, L2 s2, L1), p_4 = p_5 (the wrist centre)
-    = p_2 + L3 z_3, and the gripper p_e = p_4 + L4 z_5. Column i is z_i x (p_e - p_i)
-    [m/rad] over z_i [-]; column 5's linear part is z_5 x L4 z_5 = 0. A test keeps it
-    equal to :func:`jacobian`.
-    """
-    q1, q2, q3, q4, q5, _ = q.tolist() if isinstance(q, np.ndarray) else q
-    c1, s1 = math.cos(q1), math.sin(q1)
-    c2, s2 = math.cos(q2), math.sin(q2)
-    c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
-    c4, s4 = math.cos(q4), math.sin(q4)
-    c5, s5 = math.cos(q5), math.sin(q5)
-    # R_03 = [[c1 c23, -s1, c1 s23], [s1 c23, c1, s1 s23], [-s23, 0, c23]]
-    z1 = (-s1, c1, 0.0)
-    z3 = (c1 * s23, s1 * s23, c23)
-    a, b = -s4, c4
-    z4 = (c1 * c23 * a - s1 * b, s1 * c23 * a + c1 * b, -s23 * a)
-    a, b, c = c4 * s5, s4 * s5, c5
-    z5 = (
-        c1 * c23 * a - s1 * b + c1 * s23 * c,
-        s1 * c23 * a + c1 * b + s1 * s23 * c,
-        c23 * c - s23 * a,
-    )
-    r2 = cfg.l2 * c2
-    bx, by, bz = c1 * r2 - s1 * cfg.l1, s1 * r2 + c1 * cfg.l1, -cfg.l2 * s2  # elbow
-    wx, wy, wz = bx + cfg.l3 * z3[0], by + cfg.l3 * z3[1], bz + cfg.l3 * z3[2]  # wrist
-    ex, ey, ez = wx + cfg.l4 * z5[0], wy + cfg.l4 * z5[1], wz + cfg.l4 * z5[2]  # gripper
-    columns = [(-ey, ex, 0.0, 0.0, 0.0, 1.0)]
-    # z_i x (p_e - p_i): about the base (z_1), the elbow (z_1, z_3), the wrist (z_4)
-    for (zx, zy, zz), dx, dy, dz in (
-        (z1, ex, ey, ez),
-        (z1, ex - bx, ey - by, ez - bz),
-        (z3, ex - bx, ey - by, ez - bz),
-        (z4, ex - wx, ey - wy, ez - wz),
-    ):
-        columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
-    columns.append((0.0, 0.0, 0.0, *z5))
-    return columns
 
 
 class IkSolutions(NamedTuple):
