@@ -3,27 +3,25 @@
 
 Each output is compared with the recorded message of the same channel and rank. Equal
 encoded bytes are equal. Otherwise both are decoded and compared field by field: keys,
-lengths, types, strings, integers and booleans exactly; floats exactly (a check with
-:data:`EXACT`) or within a relative tolerance (:data:`NUMPY_ROUNDING`). The first
+lengths, types, strings, integers and booleans exactly; floats exactly (:data:`EXACT`)
+or within a relative tolerance (:data:`CPU_ROUNDING`, what the checks use). The first
 difference reported is the one caused by the earliest input.
 
-Why a tolerance, and how large. The controller's tracking arithmetic is ``math`` and
-NumPy's element-wise ``+ - * /`` and comparisons, which IEEE 754 rounds the same on every
-CPU, and its commands are integer counts: its check stays bit for bit (its jog law solves
-with OpenBLAS: a jog recorded on another CPU could differ; ``tests/data`` keeps none).
-The planner's arithmetic is not: NumPy picks a SIMD
-implementation of its vectorised functions (``sin``, ``cos``, ``arctan2``, ``hypot``,
-sums) at import time from the CPU's features, and OpenBLAS picks a kernel for
-``linalg.solve``, ``eigvals`` and matrix products; the implementations round
-differently, by a few units in the last place per operation. A plan made on a CPU with
-AVX-512 differs from one made on an AVX2 CPU, or with NumPy's dispatch limited to its
-baseline, or with another OpenBLAS kernel, by up to 1e-15 relative (measured on the
-thesis paths: ``docs/testing.md``, "The same on every CPU"). :data:`NUMPY_ROUNDING`
-allows 1e-9 relative to ``max(1, |value|)``: 1 nrad on a joint angle, 1 nm on a
-position, 1 ns on a time. That is six orders of magnitude above the rounding, and six
-below anything the arm can show (its joint resolution is 0.1 deg, 1.7 mrad; its command
-resolution 0.1 deg per 20 ms tick), so a real change of the planner still fails the
-check.
+Why a tolerance, and how large. The same inputs give the same outputs on one machine, bit
+for bit; not on every CPU. NumPy picks a SIMD implementation of its vectorised functions
+(``sin``, ``cos``, ``arctan2``, ``hypot``, sums) at import from the CPU's features,
+OpenBLAS a kernel for ``solve``, ``eigvals`` and matrix products, and glibc's libm (which
+Python's ``math`` calls) an FMA variant of ``sin``, ``cos``, ``atan2``, ``exp`` on CPUs
+that have FMA; each rounds differently, by a unit in the last place or a few. Measured
+on the thesis paths (``docs/testing.md``, "The same on every CPU"): the planner's plans
+differ by up to 1.0e-15 relative between NumPy's baseline and AVX-512 dispatch and
+between OpenBLAS kernels; the controller's commands (integer counts) not at all, its
+feedback's Cartesian position (forward kinematics through ``math``) by 1.1e-16 without
+FMA. :data:`CPU_ROUNDING` allows 1e-9 relative to ``max(1, |value|)``: 1 nrad on a joint
+angle, 1 nm on a position, 1 ns on a time. That is six orders of magnitude above the
+rounding, and six below anything the arm can show (its joint resolution is 0.1 deg,
+1.7 mrad; its command resolution 0.1 deg per 20 ms tick), so a real change of a core still
+fails the check; integers (every command count) are never within a tolerance.
 """
 
 from __future__ import annotations
@@ -55,8 +53,8 @@ class Tolerance:
 
 
 EXACT = Tolerance(0.0, "bit for bit")
-NUMPY_ROUNDING = Tolerance(
-    1e-9, "NumPy's SIMD dispatch and OpenBLAS's kernels round differently on each CPU"
+CPU_ROUNDING = Tolerance(
+    1e-9, "NumPy's SIMD dispatch, OpenBLAS's kernels and glibc's libm round differently by CPU"
 )
 """Floats within 1e-9 relative to ``max(1, |value|)`` (see the module docstring)."""
 

@@ -1,8 +1,8 @@
 """Replay-based regression checks: a recording's inputs through a service core, its
-outputs compared with the recorded ones (:mod:`manus_stack.comparison`): the
-controller's bit for bit, the planner's within a stated float tolerance (NumPy's
-vectorised maths rounds differently on different CPUs; the controller's arithmetic
-does not).
+outputs compared with the recorded ones (:mod:`manus_stack.comparison`): structure,
+strings and integers (every command count) exactly, floats within a stated tolerance
+(NumPy's vectorised maths, OpenBLAS and glibc's libm round differently on different
+CPUs; on one machine the outputs are the same bit for bit).
 
 A check reads the recording in log-time order, feeds each input of the service to a
 fresh core (as its shell would), and compares every output with the recorded message
@@ -21,7 +21,7 @@ its queryables' mirrored requests in; its publications and mirrored replies out.
   stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
   the live shell does), the scene, the liveliness tokens that vanished (as the controller
   took them: its ``controller/token_gone`` records) and the controller's query requests
-  in; commands, feedback, results, the jog's state and the query replies out; bit for bit.
+  in; commands, feedback, results, the jog's state and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
@@ -40,7 +40,7 @@ import dataclasses
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from manus_stack.comparison import NUMPY_ROUNDING, CheckResult, Comparer, plain
+from manus_stack.comparison import CPU_ROUNDING, CheckResult, Comparer, plain
 from manus_stack.service_window import Window, service_window
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -106,7 +106,7 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     )
     outputs = PLANNER.output_suffixes
     recorded, last_ns = _recorded_outputs(recording, outputs, window)
-    cmp = Comparer(recorded, last_ns, NUMPY_ROUNDING)
+    cmp = Comparer(recorded, last_ns, CPU_ROUNDING)
     window = (window[0], last_ns)
     recorded_ms = {s: [plain(r.payload) for r in recorded[s]] for s in outputs}
     inputs = 0
@@ -137,7 +137,7 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         CONTROLLER.output_suffixes,  # its clock
     )
     recorded, last_ns = _recorded_outputs(recording, CONTROLLER.output_suffixes, window)
-    cmp = Comparer(recorded, last_ns)  # bit for bit
+    cmp = Comparer(recorded, last_ns, CPU_ROUNDING)  # its counts exactly: integers
     window = (window[0], last_ns)
     inputs = 0
     for rec, msg in _controller_inputs(recording, window):

@@ -124,7 +124,7 @@ def test_plot_of_a_recording_without_arm_data_is_refused(tmp_path: Path) -> None
 @pytest.mark.parametrize(
     "path", [SQUARE, CIRCLE, SQUARE_THESIS], ids=["square", "circle", "thesis"]
 )
-def test_controller_core_reproduces_the_recorded_run_bit_for_bit(path: Path) -> None:
+def test_controller_core_reproduces_the_recorded_run(path: Path) -> None:
     result = check_controller(path)
     assert result.ok, f"{result.difference} (if the controller changed on purpose: {REGENERATE})"
     assert result.compared == result.recorded == result.replayed
