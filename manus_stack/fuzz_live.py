@@ -67,7 +67,14 @@ def fuzz_live(node: Any, seed: int, per_endpoint: int, query_timeout: float = 1.
         done.sent[suffix] = len(batch)
         if part == "request":
             for data in batch:
-                replies = list(node.session.get(keys(suffix), payload=data, timeout=query_timeout))
+                replies = list(
+                    node.session.get(
+                        keys(suffix),
+                        payload=data,
+                        timeout=query_timeout,
+                        congestion_control=zenoh.CongestionControl.BLOCK,  # as the samples
+                    )
+                )
                 if not replies:
                     done.unanswered[suffix] = done.unanswered.get(suffix, 0) + 1
                 for reply in replies:

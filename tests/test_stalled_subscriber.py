@@ -139,7 +139,10 @@ def test_a_slow_subscriber_loses_nothing(
         _subscriber(router_endpoint, prefix) as sub,
         Node("publisher", zenoh_settings, liveliness=False) as node,
     ):
-        beats = node.publisher(node.keys(ep.HEARTBEAT))  # the subscriber is known (above)
+        beats = node.publisher(node.keys(ep.HEARTBEAT))
+        # the router knows the subscriber (above); this publisher too before it stops
+        # (once, under two CPU hogs, it got 1 of 50 when the stop came at once)
+        eventually(lambda: bool(getattr(beats._pub.matching_status, "matching", False)), 10.0)
         os.kill(sub.pid, signal.SIGSTOP)
         try:
             for _ in range(50):
