@@ -15,6 +15,7 @@ import itertools
 import threading
 from collections.abc import Callable
 
+from manus.errors import ConfigError
 from manus.node import Node, QueryError, now_ns
 from manus.session import ZenohSettings
 from manus_stack.panel.jogpad import SOURCE, jog_command, stop_command
@@ -115,7 +116,7 @@ class PanelBus:
         """Submit ``button``'s task (blocks while the sequencer validates it)."""
         try:
             task = button.task(choice)
-        except TaskFileError as exc:
+        except (TaskFileError, ConfigError) as exc:  # a broken or missing task file
             why = str(exc)
             self._update(lambda: self.view.on_not_sent(button, why))
             return

@@ -63,6 +63,8 @@ class Notice:
     text: str
     details: str = ""
     trouble: bool = True
+    jog: bool = False
+    """about the hand control: it goes once the jog runs or is released"""
 
 
 class PanelView:
@@ -129,8 +131,10 @@ class PanelView:
     def on_not_sent(self, button: TaskButton, why: str) -> None:
         """A task could not be submitted (no sequencer answered; the button not set up)."""
         self._submitting = None
-        trouble = Trouble.NOT_SET_UP if not button.ready else Trouble.NO_CONNECTION
-        self.notice = Notice(button.sentence(trouble), why)
+        if not button.ready:
+            self.notice = Notice(sentence(Trouble.NOT_SET_UP, button.label), why)
+        else:
+            self.notice = Notice(button.sentence(Trouble.NO_CONNECTION), why)
 
     def on_event(self, event: TaskEvent) -> None:
         """A task event (of any task: the panel shows whatever task runs)."""
@@ -208,13 +212,9 @@ class PanelView:
         trouble = jog_trouble(msg.reason, grew)
         if trouble is not None:
             self._learn(trouble)
-            self.notice = Notice(sentence(trouble), msg.reason)
-        elif (
-            msg.active
-            and self.notice is not None
-            and self.notice.text.startswith(("Let go", "The arm stopped: the signal"))
-        ):
-            self.notice = None
+            self.notice = Notice(sentence(trouble), msg.reason, jog=True)
+        elif self.notice is not None and self.notice.jog:
+            self.notice = None  # the jog runs again, or was released
 
     def on_notice(self, trouble: Trouble, details: str = "") -> None:
         """Something the panel itself ran into (the bus, a bad request)."""

@@ -1,0 +1,156 @@
+"""The whole stack on the simulator with ``manus panel`` on it, and the simulator's truth:
+what the panel's screenshots (:mod:`manus_stack.panel.shots`) and its browser tests
+(``tests/test_panel_browser.py``) run against.
+
+The stack is ``manus up``'s (:class:`~manus_stack.up.LocalStack`: its own loopback router,
+the simulator, bridge, planner, controller and sequencer; no recorder), the panel a
+``manus panel`` process of its own on a free port, and the truth (``sim/truth``,
+:class:`~schemas.state.SimTruth`) is followed by a node of this process: what the arm
+really does is judged there, never on what the stack or the page says.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from manus.node import Node
+from manus.session import client_settings
+from manus_stack.up import LocalStack, StackError, StackOptions, free_port, port_in_use
+from schemas import endpoints as ep
+from schemas.state import SimTruth
+
+STILL_RAD_S = math.radians(0.5)
+"""A joint is still below this true speed (0.5 deg/s, as ``manus bench jog`` judges)."""
+
+
+class PanelRig:
+    """A stack on the simulator, ``manus panel`` on it, and the truth.
+
+    Args:
+        run_dir: logs of every process (``logs/<name>.log``).
+        prefix: the stack's key prefix.
+        panel_args: more options of ``manus panel``.
+    """
+
+    def __init__(self, run_dir: Path, prefix: str = "panel", panel_args: tuple[str, ...] = ()):
+        self.run_dir = run_dir
+        self.stack = LocalStack(
+            StackOptions(
+                run_dir=run_dir,
+                endpoint=f"tcp/127.0.0.1:{free_port()}",
+                prefix=prefix,
+                record=False,
+                guardian=False,
+                flight_ring_s=0.0,
+            )
+        )
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}/"
+        self._panel_args = panel_args
+        self._panel: subprocess.Popen[bytes] | None = None
+        self._node: Node | None = None
+        self._lock = threading.Lock()
+        self.truths: list[tuple[int, SimTruth]] = []
+        """Every truth received: (receive time [ns, wall clock], truth)."""
+
+    def start(self, timeout: float = 90.0) -> None:
+        """Start the stack, then the panel; wait until the panel listens.
+
+        Raises:
+            StackError: something did not come up (naming its log).
+        """
+        opts = self.stack.options
+        self.stack.start(timeout)
+        self._node = Node("panel_rig", client_settings(opts.endpoint, prefix=opts.prefix),
+                          liveliness=False)  # fmt: skip
+        self._node.subscribe(self._node.keys(ep.SIM_TRUTH), SimTruth, self._truth, locked=False)
+        log = (self.run_dir / "logs" / "panel.log").open("wb")
+        argv = [sys.executable, "-m", "manus_stack.cli", "panel", "--port", str(self.port),
+                "--connect", opts.endpoint, "--prefix", opts.prefix, *self._panel_args]  # fmt: skip
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        env.pop("MANUS_ZENOH_CONFIG", None)
+        self._panel = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                       start_new_session=True)  # fmt: skip
+        log.close()
+        deadline = time.monotonic() + 30.0
+        while not port_in_use(f"tcp/127.0.0.1:{self.port}"):
+            if self._panel.poll() is not None or time.monotonic() > deadline:
+                raise StackError(f"manus panel did not listen (log {self.run_dir}/logs/panel.log)")
+            time.sleep(0.05)
+
+    def _truth(self, truth: SimTruth, rx_ns: int) -> None:
+        with self._lock:
+            self.truths.append((rx_ns, truth))
+            del self.truths[:-2000]  # two minutes of cycles
+
+    def latest(self) -> SimTruth | None:
+        """The newest truth."""
+        with self._lock:
+            return self.truths[-1][1] if self.truths else None
+
+    def speed(self) -> float:
+        """The newest true speed of the fastest joint [rad/s] (0: none yet)."""
+        truth = self.latest()
+        return max((abs(v) for v in truth.qd_true), default=0.0) if truth else 0.0
+
+    def wait_moving(self, timeout: float = 10.0) -> int:
+        """Wait until some joint truly moves; the receive time of that truth [ns].
+
+        Raises:
+            TimeoutError: nothing moved within ``timeout`` [s].
+        """
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                last = self.truths[-1] if self.truths else None
+            if last is not None and max(map(abs, last[1].qd_true), default=0.0) > STILL_RAD_S:
+                return last[0]
+            time.sleep(0.01)
+        raise TimeoutError(f"the arm did not move within {timeout} s")
+
+    def still_since(self, since_ns: int, timeout: float = 3.0) -> tuple[int, float]:
+        """Wait for the first truth received after ``since_ns`` with every joint still.
+
+        Returns:
+            (its receive time [ns], the fastest true joint speed at ``since_ns`` [rad/s]).
+
+        Raises:
+            TimeoutError: the arm still moved ``timeout`` [s] later.
+        """
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                seen = [(rx, t) for rx, t in self.truths if rx >= since_ns]
+                before = [t for rx, t in self.truths if rx < since_ns][-1:]
+            for rx, truth in seen:
+                if max(map(abs, truth.qd_true), default=0.0) < STILL_RAD_S:
+                    moving = max(map(abs, before[0].qd_true), default=0.0) if before else 0.0
+                    return rx, moving
+            time.sleep(0.01)
+        raise TimeoutError(f"the arm still moved {timeout} s after the stop")
+
+    def stop(self) -> None:
+        """Stop the panel, the truth's node and the stack (every process by its pid)."""
+        if self._panel is not None and self._panel.poll() is None:
+            os.kill(self._panel.pid, signal.SIGINT)
+            try:
+                self._panel.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                os.kill(self._panel.pid, signal.SIGKILL)
+                self._panel.wait(timeout=5.0)
+        if self._node is not None:
+            self._node.close()
+        self.stack.stop()
+
+    def __enter__(self) -> PanelRig:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
