@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from manus.errors import ConfigError
+from manus_stack.panel.keys import PANEL_KEYS
 from manus_stack.panel.tasks import DEFAULT_DIR, TaskButton, load_buttons
 from manus_stack.panel.view import PanelView
 from manus_stack.panel.words import (
@@ -236,3 +237,18 @@ def test_a_task_of_another_client_is_shown_and_a_lost_end_is_caught() -> None:
     assert view.task_words() == "A task: Moving the hand, step 2 of 2 (50 %)"
     view.on_status("x", "succeeded")  # its final event was lost on the way
     assert view.task is None
+
+
+def test_the_panel_uses_the_supervisor_and_jog_apis_only() -> None:
+    """Every endpoint the panel's modules name is one of its keys (the access control gives
+    its identity those and no other), and each of them is a supervisor endpoint."""
+    root = Path(__file__).resolve().parent.parent / "manus_stack" / "panel"
+    named = {
+        name
+        for path in root.glob("*.py")
+        if path.name != "keys.py"
+        for name in re.findall(r"\bep\.([A-Z_]+)\b", path.read_text())
+    }
+    keys = {name for name in dir(ep) if getattr(ep, name) in PANEL_KEYS}
+    assert named and named <= keys | {"SIM_TRUTH"}, named - keys  # the truth: the test rig
+    assert all(key.audience is ep.Audience.SUPERVISOR for key in PANEL_KEYS)

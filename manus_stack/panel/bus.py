@@ -5,7 +5,7 @@ services' liveliness tokens (``alive/*``), feeding :class:`~manus_stack.panel.vi
 publishes ``jog`` (one command per message from the page, at once) and ``estop``; queries
 ``sequencer/submit``, ``sequencer/control``, ``sequencer/status`` and
 ``controller/jog_level``. Those are exactly the keys of the panel's identity in the
-deployed access control (``PANEL_KEYS``, ``manus_stack/policy.py``). Its node declares
+deployed access control (:data:`~manus_stack.panel.keys.PANEL_KEYS`). Its node declares
 no liveliness token: the panel is a client, not a service of the stack.
 """
 
@@ -28,18 +28,6 @@ from schemas.control import GoalAck
 from schemas.jog import JogLevel, JogState
 from schemas.sequencing import SubmitReply, TaskAction, TaskControl, TaskEvent, TaskStatus
 from services.sequencer.taskfile import TaskFileError
-
-PANEL_KEYS = (
-    ep.EVENTS,
-    ep.JOG_STATE,
-    ep.ESTOP,
-    ep.JOG,
-    ep.SUBMIT,
-    ep.TASK_CONTROL,
-    ep.TASK_STATUS,
-    ep.JOG_LEVEL,
-)
-"""Every key the panel uses besides the liveliness tokens (it reads ``alive/*``)."""
 
 SUBMIT_TIMEOUT_S = 60.0
 """How long a submission may take: the sequencer plans every move before it answers [s]."""
