@@ -17,8 +17,9 @@ Kinds (:class:`Kind`):
 - ``queryable``: request -> reply, answered by its owner. Queries are invisible to
   subscribers, so every answer is mirrored on ``trace/<suffix>/request`` and
   ``trace/<suffix>/reply`` (:meth:`Endpoint.trace`; ``manus.node.Node.queryable``).
-- ``liveliness``: a token root: ``alive/<service>`` (the service runs) and
-  ``where/<service>/<host>/<pid>`` (where each of its processes runs); no payload.
+- ``liveliness``: a token root: ``alive/<service>`` (the service runs),
+  ``where/<service>/<host>/<pid>`` (where each of its processes runs) and
+  ``disabled/<service>/<why>`` (it is off on purpose, and why); no payload.
 - ``recording``: a channel of recordings only, never published on the bus
   (``liveliness``: the recorder's log of token changes).
 
@@ -366,7 +367,9 @@ SUBMIT = _query(
     _SEQ,
     sequencing.Task,
     sequencing.SubmitReply,
-    "validate a whole task and start it; reply: id or every error",
+    "validate a whole task and start it; reply: id or every error. Held while the bridge "
+    "is still starting (at most the sequencer's bridge_wait_s, 30 s by default); refused "
+    "at once when it is stopped (stopped, estopped, arm_error: phase and detail)",
     _SUP,
     clients=(SUPERVISOR,),
 )
@@ -428,6 +431,15 @@ WHERE = Endpoint(
     audience=_SUP,
     doc="on which computer (host name) and process each service runs",
     params="<service>/<host>/<pid>",
+)
+DISABLED = Endpoint(
+    "disabled",
+    Kind.LIVELINESS,
+    EACH_SERVICE,
+    audience=_SUP,
+    doc="a service deliberately not running in this deployment, and why (a word: "
+    "disabled/guardian/single_reader_channel)",
+    params="<service>/<why>",
 )
 HEALTH = Endpoint(
     "health",
@@ -590,6 +602,7 @@ TABLE = Table(
         GUARDIAN_REPORT,
         ALIVE,
         WHERE,
+        DISABLED,
         HEALTH,
         LIVELINESS,
         FLIGHT_TRIGGER,

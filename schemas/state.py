@@ -89,6 +89,22 @@ STOPPING_PHASES = frozenset(
     }
 )
 """Bridge phases in which no goal can run (the arm is stopped or folding)."""
+ON_ITS_WAY_PHASES = frozenset(
+    {
+        BridgePhase.OPENING,
+        BridgePhase.WAITING_POWER_UP,
+        BridgePhase.ENTERING_JOINT_MODE,
+        BridgePhase.INITIALISING,
+        BridgePhase.RESYNC,
+        BridgePhase.FOLDING_IN,
+        BridgePhase.FOLDING_OUT,
+    }
+)
+"""Bridge phases that lead to ``running`` by themselves: the start-up, a resync, a fold
+in progress. From the others but ``running`` (stopped, estopped, arm_error, shutdown)
+only a command (``clear``, an e-stop's release) or a new bridge brings it back:
+``manus up`` and the sequencer wait a bounded time for the former and refuse at once in
+the latter."""
 
 
 @dataclass(frozen=True)

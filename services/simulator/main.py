@@ -29,7 +29,8 @@ from pathlib import Path
 import can
 
 from manus.canbus import open_bus
-from manus.node import Node, freeze_startup_heap, wait_for_signal
+from manus.node import Node
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import settings_from_env
 from schemas import endpoints as ep
