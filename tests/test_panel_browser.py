@@ -79,7 +79,8 @@ def open_page(rig: PanelRig, browser: BrowserContext, query: str = "", url: str 
     page = browser.new_page()
     page.goto((url or rig.url) + query)
     page.wait_for_selector("#pad-up")  # the server's hello came
-    page.wait_for_function("document.getElementById('arm').textContent === 'Ready'"
+    page.wait_for_function("['Ready', 'Paused'].some(w => document.getElementById('arm')"
+                           ".textContent.startsWith(w))"
                            " || document.getElementById('arm').textContent.startsWith('Stopped')",
                            timeout=30_000)  # fmt: skip
     return page
@@ -181,6 +182,29 @@ def test_a_task_button_runs_its_task(rig: PanelRig, page: Page, button: str, sta
     wait_done(page, label)
     assert page.text_content("#arm") == "Ready"
     assert rig.speed() < STILL_RAD_S
+
+
+def test_a_task_pauses_when_its_last_page_closes(rig: PanelRig, browser: BrowserContext) -> None:
+    """Nobody could press STOP any more: the task the panel started pauses (the arm comes
+    to rest), and a new page resumes it."""
+    page = open_page(rig, browser)
+    arm_to(rig, page, "unfolded")
+    fingers = Fingers(page)
+    hold_until_moving(rig, fingers, "up")
+    time.sleep(1.0)  # away from home, so that Home moves
+    fingers.lift(1)
+    rig.still_since(time.time_ns())
+    page.click("#task-home")
+    rig.wait_moving(timeout=30.0)
+    closed = time.time_ns()
+    page.close()
+    at_rest, _ = rig.still_since(closed, timeout=5.0)
+    print(f"\nlast page closed mid-task: at rest {(at_rest - closed) / 1e6:.0f} ms after")
+    again = open_page(rig, browser)
+    again.wait_for_function("document.getElementById('arm').textContent === 'Paused: Home'")
+    again.click("#resume")
+    wait_done(again, "Home")
+    again.close()
 
 
 def test_stop_brings_the_true_joint_speeds_to_zero(rig: PanelRig, page: Page) -> None:
