@@ -47,7 +47,7 @@ import pinocchio as pin
 from manus.clearance import Check, Clearance, Probe
 from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
-from manus.shapes import coal_shape, cover, inner_distances, partner_boxes
+from manus.shapes import coal_shape, cover, fresh_guesses, inner_distances, partner_boxes
 from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
@@ -114,14 +114,16 @@ class CollisionModel:
         self.checks = [c for c, keep in zip(self.checks, reachable, strict=True) if keep]
         for first, second in pairs:
             gm.addCollisionPair(pin.CollisionPair(first, second))
-        self.geom_data = pin.GeometryData(gm)
+        self.geom_data = fresh_guesses(pin.GeometryData(gm))
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
         self._no_margin = np.full(len(self._moving), math.inf)
         self._set_aside = self._no_margin
         self._inactive: list[tuple[Any, int]] = []
-        self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
+        # Built on the first restrict (the sweep's): a third of building a model, which
+        # the controller's guard never needs.
+        self._partner_boxes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._no_reach = np.zeros((6, len(self._moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
@@ -315,6 +317,8 @@ class CollisionModel:
             per moving body, the least margin of its set-aside pairs [m] (inf: none).
         """
         aside = np.full(len(self._moving), math.inf)
+        if not self._partner_boxes:
+            self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
         for (b, _, gd, _), (fixed, box_lo, box_hi) in zip(
             self._live, self._partner_boxes, strict=True
         ):
@@ -419,7 +423,7 @@ class CollisionModel:
                     index = gm.addGeometryObject(self.geom.geometryObjects[second])
                     gm.addCollisionPair(pin.CollisionPair(0, index))
                     rows.append(k)
-            out.append((gm, pin.GeometryData(gm), rows))
+            out.append((gm, fresh_guesses(pin.GeometryData(gm)), rows))
         return out
 
     def _prepare_points(self) -> None:

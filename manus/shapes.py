@@ -1,12 +1,14 @@
 """Geometry of primitives for the collision model: Coal shapes of scene primitives, the
-convex covers of the arm's bodies, distances to a zone's boundary from inside, and the
-boxes of a geometry model's fixed bodies.
+convex covers of the arm's bodies, distances to a zone's boundary from inside, the
+boxes of a geometry model's fixed bodies, and Coal queries that do not depend on the
+ones before.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from typing import Any
 
 import coal
@@ -95,3 +97,16 @@ def partner_boxes(gm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         lows.append(world.min(axis=0) - grow)
         highs.append(world.max(axis=0) + grow)
     return np.array(fixed, dtype=bool), np.array(lows), np.array(highs)
+
+
+def fresh_guesses(data: Any) -> Any:
+    """``data`` (a ``pin.GeometryData``) with GJK starting from its default guess at every
+    query: Pinocchio's data starts each query from the last one's answer, which makes a
+    distance depend (by ~1e-7 m) on what was asked before, and a planner that answered
+    other requests report another number than a fresh one (no faster either)."""
+    with warnings.catch_warnings():
+        # The flag is deprecated in favour of gjk_initial_guess, which it still overrides.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        for request in data.distanceRequests:
+            request.enable_cached_gjk_guess = False
+    return data

@@ -1,6 +1,10 @@
 """Whole motions through the collision model: continuous checking by conservative
 advancement, from both ends of every stretch.
 
+:func:`sweep` first tries :func:`manus.fast_sweep.fast_sweep` (the fast check's bounds,
+Coal only where the margin is smallest); a motion it cannot prove goes through
+:func:`exact_sweep`, described here.
+
 :func:`sweep` computes distances (:meth:`CollisionModel.pair_margins`, Coal) at few
 configurations of a motion and proves the stretches in between: at a checked
 configuration each moving body has a margin (its distance to the nearest thing it must
@@ -41,6 +45,7 @@ import numpy as np
 
 from manus.clearance import Check, Clearance
 from manus.collision import CollisionModel
+from manus.fast_sweep import fast_sweep
 from manus.travel import BodyPoints
 
 STEP_M = 0.002
@@ -111,6 +116,23 @@ def sweep(
         tolerance: how far below the smallest margin found the unchecked stretches may
             be [m].
     """
+    proof = fast_sweep(model, times, qd_peaks, evaluate, step=step, tolerance=tolerance)
+    if proof is not None:
+        return Sweep(proof.worst, None, proof.checked, proof.checked)
+    return exact_sweep(model, times, qd_peaks, evaluate, step=step, tolerance=tolerance)
+
+
+def exact_sweep(
+    model: CollisionModel,
+    times: np.ndarray,
+    qd_peaks: np.ndarray,
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    *,
+    step: float = STEP_M,
+    tolerance: float = TOLERANCE_M,
+) -> Sweep:
+    """:func:`sweep` with Coal's distances at every configuration it checks (what
+    :func:`sweep` falls back on when the fast check cannot prove the motion)."""
     motion = _Motion(model, np.asarray(times, dtype=float), qd_peaks, evaluate)
     lo, hi = motion.boxes()
     aside = model.restrict(lo, hi, NEAR_M)

@@ -39,6 +39,7 @@ from manus.errors import ManusError
 from manus.node import Node
 from manus.presence import disabled_services
 from manus.session import client_settings
+from manus.validity import warm_up
 from manus_stack.bridge_ready import not_running, wait_running
 from manus_stack.guardian_can import GuardianCan, guardian_can
 
@@ -242,6 +243,9 @@ class LocalStack:
                 f"{opts.endpoint} is already in use (another `manus up`?); "
                 "choose another with --endpoint"
             )
+        # The services' fast collision check: compiled here once if numba's cache is
+        # empty (a fresh checkout: ~15 s), so that no service spends its start on it.
+        warm_up()
         deadline = time.monotonic() + timeout
         router = self._spawn("router", ["--listen", opts.endpoint])
         while not port_in_use(opts.endpoint):

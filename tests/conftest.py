@@ -10,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
+from manus.validity import warm_up
 from manus_stack.up import free_port
 
 # Fixed seeds everywhere: the same examples on every run and in CI.
@@ -21,6 +22,13 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile("manus")
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the fast validity check's kernels before any test: a fresh checkout has
+    an empty numba cache, and a service a test starts must not spend its start-up
+    deadline compiling them (this fills the cache they load)."""
+    warm_up()
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -140,11 +140,12 @@ def test_controller_core_reproduces_the_recorded_run_bit_for_bit(path: Path) -> 
 def test_planner_core_reproduces_the_recorded_plan(path: Path) -> None:
     result = check_planner(path)
     assert result.ok, str(result.difference)
-    # the plan, and the scene in use once a second of the recording (at the first joint
-    # state, then every 1000 ms of stamps: 17 cycles of 60 ms)
+    # the plan, and the scene in use and the world model once a second of the recording
+    # (at the first joint state, then every 1000 ms of stamps: 17 cycles of 60 ms)
     states = len(list(Recording(path).messages(["planner/scene_state"])))
-    assert states >= 15
-    assert result.compared == 1 + states
+    objects = len(list(Recording(path).messages(["planner/objects"])))
+    assert states >= 15 and objects == states
+    assert result.compared == 1 + states + objects
 
 
 def test_replay_as_bridge_drives_a_controller_core_to_the_same_commands() -> None:

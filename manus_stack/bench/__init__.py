@@ -15,6 +15,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "guardian": ("manus_stack.bench.guardian", False),
     "fuzz": ("manus_stack.bench.fuzz", False),
     "collision": ("manus_stack.bench.collision", False),
+    "validity": ("manus_stack.bench.validity", False),
     "jog": ("manus_stack.bench.jog", False),
     "view": ("manus_stack.bench.view", False),
     "flight": ("manus_stack.bench.flight", False),

@@ -2,7 +2,9 @@
 
 - ``trajectory_check``: the thesis circle's whole trajectory (planned without a scene)
   swept through the default wheelchair scene (:func:`services.planner.collisions.
-  check_collisions`), in-process; and the whole plan with and without the check.
+  check_collisions`, the fast check first), in-process, and in turns with it the exact
+  sweep alone (:func:`manus.sweep.exact_sweep`, Coal at every configuration it checks:
+  the check before the fast one); and the whole plan with and without the check.
 - ``zenoh_round_trip``: ``manus planner`` (checking against the default scene) asked
   over a loopback router, as :mod:`manus_stack.bench.plan` does.
 - ``distance_queries``: body-object distances per second through
@@ -30,7 +32,7 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.joint_map import dh_increments_to_encoder
 from manus.quantize import COUNT_RAD_S
 from manus.scene import default_scene
-from manus.sweep import sweep
+from manus.sweep import exact_sweep, sweep
 from manus.viapoints import load_path
 from manus_stack.bench.plan import _over_zenoh, _stats_ms, _timed
 from schemas.planning import PlanRequest
@@ -57,10 +59,24 @@ def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
     curve = _circle_curve(request)
     ex = curve.extremes(1)
     swept = sweep(model, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
-    checked = _stats_ms(_timed(lambda: check_collisions(model, curve, request.path), runs))
+    peaks = np.maximum(-ex.low, ex.high)
+    exact = exact_sweep(model, curve.times, peaks, curve.evaluate)
+    # The check as the planner runs it (fast first) and the exact sweep alone, in turns.
+    fast_s: list[float] = []
+    exact_s: list[float] = []
+    for _ in range(runs):
+        fast_s += _timed(lambda: check_collisions(model, curve, request.path), 1)
+        exact_s += _timed(lambda: exact_sweep(model, curve.times, peaks, curve.evaluate), 1)
+    checked = _stats_ms(fast_s)
     with_check, without = PlannerCore(), PlannerCore(PlannerConfig(scene="none"))
     return {
         "check_only": checked,
+        "exact_sweep_only": {
+            **_stats_ms(exact_s),
+            "configurations_checked": exact.checked,
+            "smallest_clearance": exact.worst.describe(),
+        },
+        "speedup_p50": round(float(np.percentile(exact_s, 50) / np.percentile(fast_s, 50)), 1),
         "configurations_checked": swept.checked,
         "grid_samples": swept.samples,
         "smallest_clearance": swept.worst.describe(),
@@ -125,7 +141,7 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
         out = []
         for k in range(1, len(ts)):
             if force:
-                guard._anchor = None
+                guard.advance.forget()
             started = time.perf_counter()
             guard.filter(list(Q[k]), [float(c) for c in counts[k - 1]], counts[k], 0.0)
             out.append(time.perf_counter() - started)

@@ -14,7 +14,11 @@ Most cycles compute no distance at all: from the last configuration whose distan
 were computed (the anchor), no point of the arm can have moved further than its joint
 moves times each joint's reach (grown by the joints beyond it), and while that bound
 stays under each body's margin at the anchor nothing can be violated (conservative
-advancement, as in :func:`manus.sweep.sweep`).
+advancement, :class:`manus.advancement.Advancement`, compiled). An anchor takes the fast
+check's margins first (:mod:`manus.validity`, lower bounds); only when they do not
+prove the command (a margin under ``slow_zone_m``) does Coal compute, and the guard
+decides on exact distances as it always did. The clearance a goal reports is Coal's:
+computed at an anchor whose fast bound says it may be below the goal's smallest so far.
 
 Pure: no clock, no I/O; the same inputs give the same commands.
 """
@@ -22,22 +26,28 @@ Pure: no clock, no I/O; the same inputs give the same commands.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 
+from manus.advancement import Advancement
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
 from manus.scene import SceneError, parse_scene, scene_from_setting
+from manus.validity import checker_for
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
 _NOTHING = (0,) * 6
 """``JointState.applied`` when the command in flight is not a joint move."""
+
+_TO_DH = np.array([encoder_increments_to_dh_list(list(e)) for e in np.eye(6)]).T
+"""The joint map as a matrix: DH increments from motor increments (it is linear)."""
 
 
 class Verdict(NamedTuple):
@@ -54,15 +64,6 @@ class Verdict(NamedTuple):
     scale: float
     reason: str
     clearance: Clearance | None
-
-
-class _Anchor(NamedTuple):
-    q: list[float]
-    """where the distances were computed [rad]"""
-    bodies: list[tuple[float, list[float]]]
-    """per body that has something to keep clear of: its margin [m] and each joint's
-    reach to it, from the last joint inward [m]"""
-    margin: float
 
 
 class Guard:
@@ -87,7 +88,12 @@ class Guard:
         self.cycle_s = cycle_s
         self.runout_s = runout_s
         self.slow_zone_m = slow_zone_m
-        self._anchor: _Anchor | None = None
+        self.advance = Advancement(checker_for(model))
+        self._first_s = COUNT_RAD_S * cycle_s
+        self._then_s = COUNT_RAD_S * (cycle_s + runout_s)
+        self.report_below = math.inf
+        """A pass computes Coal's clearance only when it may be below this [m] (the
+        smallest its caller has seen: :class:`RunGuard`, per goal)."""
         self.computed = 0
         """Configurations whose distances were computed (most cycles need none)."""
 
@@ -103,15 +109,15 @@ class Guard:
         model = self.model
         if abs(model.opening - opening) > 0.005:  # a wider gripper: the proof is void
             model.set_opening(opening)
-            self._anchor = None
-        # Plain floats on the common path (proven clear): a cycle costs microseconds.
+            self.advance.forget()
         ahead = self.cycle_s + self.runout_s
+        # The common path, proven clear from the anchor: one compiled call.
+        if self.advance.proven_ahead(q, applied, counts, _TO_DH, self._first_s, self._then_s):
+            return Verdict(counts, 1.0, "", None)
         now_dh = encoder_increments_to_dh_list(applied)
         cmd_dh = encoder_increments_to_dh_list(motor)
         nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
         end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
-        if self._proven_clear(list(q), nxt, end):
-            return Verdict(counts, 1.0, "", None)
         return self._decide(counts, list(q), nxt, end, cmd_dh)
 
     def _decide(
@@ -124,9 +130,12 @@ class Guard:
     ) -> Verdict:
         """Compute the distances: pass, slow down or stop (not proven clear already)."""
         q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
+        self.computed += 1
+        if self.advance.anchor_fast(q_s) >= self.slow_zone_m and self.advance.proven(nxt, end):
+            return Verdict(counts, 1.0, "", self._report(q_s))  # the fast bounds prove it
         v_cmd = np.array(cmd_dh) * COUNT_RAD_S
         now = self._anchor_at(q_s)
-        if now.margin >= self.slow_zone_m and self._proven_clear(nxt, end):
+        if now.margin >= self.slow_zone_m and self.advance.proven(nxt, end):
             return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
@@ -166,44 +175,18 @@ class Guard:
         self.computed += 1
         return self.model.probe(q, reach=False).best
 
+    def _report(self, q: np.ndarray) -> Clearance | None:
+        """Coal's tightest check at ``q`` when it may be below :attr:`report_below` (the
+        fast bound says whether it can be), else None."""
+        if self.advance.margin >= self.report_below:
+            return None
+        return self.model.probe(q, reach=False).best
+
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
         best, free, reach = self.model.probe(q)
         self.computed += 1
-        bound = np.isfinite(free)
-        levers = reach[::-1, bound].T.tolist()  # per body, joints 6..1
-        bodies = list(zip(free[bound].tolist(), levers, strict=True))
-        self._anchor = _Anchor(q.tolist(), bodies, best.margin)
+        self.advance.anchor(q, free, reach, best.margin)
         return _AnchorResult(best.margin, best)
-
-    def _proven_clear(self, *qs: list[float]) -> bool:
-        """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
-        body closer to the anchor than its margin there.
-
-        A point moves at most ``sum_j |dq_j| r_j`` with ``r_j`` its largest distance from
-        joint ``j``'s axis on the way, which only the joints beyond ``j`` change: ``r_j
-        <= reach_j + sum_{k>j} |dq_k| r_k`` (:func:`manus.sweep` bounds the same way).
-        Plain floats, unrolled: this runs every cycle.
-        """
-        a = self._anchor
-        if a is None:
-            return False
-        aq = a.q
-        box = [abs(x - y) for x, y in zip(qs[0], aq, strict=True)]
-        for q in qs[1:]:
-            box = [max(b, abs(x - y)) for b, x, y in zip(box, q, aq, strict=True)]
-        b0, b1, b2, b3, b4, b5 = box
-        for free, (r5, r4, r3, r2, r1, r0) in a.bodies:
-            if free <= 0.0:
-                return False
-            grown = b5 * r5
-            grown += b4 * (r4 + grown)
-            grown += b3 * (r3 + grown)
-            grown += b2 * (r2 + grown)
-            grown += b1 * (r1 + grown)
-            grown += b0 * (r0 + grown)
-            if grown >= free:
-                return False
-        return True
 
 
 class _AnchorResult(NamedTuple):
@@ -226,12 +209,17 @@ class RunGuard:
     def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
         """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
         applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
+        low = self.lowest.get(goal_id)
+        # Only a clearance below the goal's smallest so far is worth Coal's time.
+        self.guard.report_below = (
+            -math.inf if not goal_id else math.inf if low is None else low.distance - low.required
+        )
         verdict = self.guard.filter(js.position, applied, counts, js.gripper)
         found = verdict.clearance
-        if goal_id and found is not None:
-            low = self.lowest.get(goal_id)
-            if low is None or found.distance - found.check.required < low.distance - low.required:
-                self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
+        if (goal_id and found is not None) and (
+            low is None or found.distance - found.check.required < low.distance - low.required
+        ):
+            self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
 
     def result(self, goal_id: str) -> ClearanceReport | None:

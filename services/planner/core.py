@@ -33,6 +33,7 @@ import numpy as np
 from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
+from manus.validity import checker_for
 from manus.viapoints import ViaPointError, validate_path
 from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
@@ -81,6 +82,8 @@ class PlannerCore:
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
         model = None if scene is None else CollisionModel(scene, self.config.arm)
+        if model is not None:
+            checker_for(model)  # the sweep's fast check: built (and compiled) at start
         with self.checking:
             self.collision = model
 
@@ -100,6 +103,7 @@ class PlannerCore:
             scene = parse_scene(update.text, update.source or "<scene update>")
             scene = dataclasses.replace(scene, version=version + 1)
             model = CollisionModel(scene, self.config.arm)
+            checker_for(model)
         except SceneError as exc:
             return SceneReply(accepted=False, version=version, error=str(exc))
         with self.checking:

@@ -25,6 +25,7 @@ from manus.collision import CollisionModel
 from manus.config import ArmConfig
 from manus.scene import SceneError, parse_scene, scene_from_setting
 from manus.sweep import straight_motion_problem
+from manus.validity import checker_for
 from schemas.collision import SceneState
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
@@ -169,6 +170,8 @@ def scene_fold_checker(state: SceneState, arm: ArmConfig) -> FoldCheck | None:
 
 
 def _checker(model: CollisionModel) -> FoldCheck:
+    checker_for(model)  # the sweep's fast check: built (and compiled) now, not mid-task
+
     def check(q_from: list[float], q_to: list[float], kind: str) -> str | None:
         return straight_motion_problem(
             model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"

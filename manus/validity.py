@@ -1,0 +1,406 @@
+"""Fast, conservative validity checks of configurations and motions (for sampling planners).
+
+:class:`ValidityChecker` answers the questions of OMPL's ``StateValidityChecker`` and
+``MotionValidator`` for the checks of a :class:`manus.collision.CollisionModel` (the arm
+against itself, the scene's objects and zones, with each class's clearance) in a few
+microseconds, where Coal takes 30-70: compiled kernels (:mod:`manus.validity_kernels`,
+numba) over a cover of each arm body by convex pieces and lower bounds of the distances
+(see that module). It is **conservative**: a margin it reports is never above the exact
+one, so a configuration it calls valid is valid for Coal too; it may call a
+configuration invalid that Coal finds clear (by at most a few millimetres of margin
+near an obstacle: ``manus bench validity`` counts how often).
+
+The pairs checked are exactly the model's (:attr:`CollisionModel.checks`) and its
+keep-in zones (the same cover points and radii as the model). A body held by the arm
+(issue 28) is added to a link with :meth:`ValidityChecker.add_body`. Built from a model,
+so a changed scene means a new model and a new checker (:func:`checker_for` keeps one
+per model); a changed gripper opening of the model is followed on the next call.
+
+First use compiles the kernels (or loads them from numba's cache, next to this module's
+source): :meth:`ValidityChecker.__init__` does it, so build the checker at a service's
+start, never in a control cycle (``manus bench validity`` reports the cost).
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from manus import motion_kernels
+from manus import validity_kernels as k
+from manus.clearance import Check
+from manus.collision import STATIC_BODIES, CollisionModel
+from manus.config import ArmConfig
+from manus.validity_parts import (
+    Piece,
+    body_pieces,
+    cover_points,
+    lever_table,
+    primitive_arrays,
+    primitive_box,
+)
+from manus.validity_scene import fixed_obstacles, static_shapes
+
+MOTION_FLOOR_M = 0.0005
+"""Along a motion, a configuration whose margin bound is below this [m] ends the proof:
+the motion counts as invalid there (each step of the proof is at least this long)."""
+
+MAX_STEPS = 2000
+"""Most steps of one motion check (a motion that needs more counts as invalid)."""
+
+_WARM = False
+"""Whether this process has compiled (or loaded) the kernels."""
+
+SLACK_M = 1e-5
+"""Taken off every bound [m]: Coal's distances carry a tolerance of their own."""
+
+
+class Margins(NamedTuple):
+    """Lower bounds of the margins of one configuration.
+
+    Attributes:
+        free: per body of :attr:`ValidityChecker.bodies`, its smallest margin [m] (inf:
+            nothing to keep clear of), shape (B,).
+        tight: the smallest margin of all [m] (< 0: not proven valid).
+        check: the check it belongs to.
+    """
+
+    free: np.ndarray
+    tight: float
+    check: Check
+
+
+class BatchMargins(NamedTuple):
+    """:class:`Margins` of many configurations (n of them).
+
+    Attributes:
+        free: shape (n, B) [m].
+        tight: shape (n,) [m].
+        which: per configuration, (body, other) of the tightest check, shape (n, 2);
+            :meth:`ValidityChecker.check_of` names it.
+    """
+
+    free: np.ndarray
+    tight: np.ndarray
+    which: np.ndarray
+
+
+class MotionCheck(NamedTuple):
+    """A motion's verdict.
+
+    Attributes:
+        ok: the whole straight joint-space motion is proven valid.
+        fraction: where the proof stopped (0..1; 1.0 when ``ok``).
+    """
+
+    ok: bool
+    fraction: float
+
+
+class ValidityChecker:
+    """The checks of ``model`` as compiled lower bounds (see the module docstring).
+
+    Args:
+        model: the collision model (scene, zones, clearances, gripper opening).
+    """
+
+    def __init__(self, model: CollisionModel) -> None:
+        self.model = model
+        pm = model.model
+        self._placements = np.array([pm.jointPlacements[j].homogeneous for j in range(pm.njoints)])
+        moving = [i for i, s in enumerate(model.shapes) if s.name not in STATIC_BODIES]
+        self.bodies: list[str] = [model.shapes[i].name for i in moving]
+        """The bodies checked, in the order of :attr:`Margins.free`."""
+        self._joint_of = [int(model.geom.geometryObjects[i].parentJoint) for i in moving]
+        self._shape_of: list[tuple[str, tuple[float, ...], np.ndarray]] = [
+            self._shape(i) for i in moving
+        ]
+        self._prims, self._others, self._applies = fixed_obstacles(model, self.bodies)
+        self._opening = model.opening
+        self._build()
+
+    # --- building ----------------------------------------------------------------------------
+
+    def add_body(
+        self,
+        name: str,
+        joint: int,
+        kind: str,
+        size: tuple[float, ...],
+        placement: np.ndarray,
+        *,
+        self_partners: tuple[str, ...] = STATIC_BODIES,
+    ) -> None:
+        """Add a body to joint ``joint``'s link (a held object): ``kind`` ``box`` (sizes
+        x, y, z [m]), ``cylinder`` (radius, length [m]) or ``sphere`` (radius [m]),
+        placed by ``placement`` (4x4) in the joint's frame. It is checked against every
+        scene object and zone (a gripper zone too: it is held by the gripper) and, with
+        the ``self`` clearance, against ``self_partners``. The Coal model does not know
+        it: its exact distances stay those of the arm alone."""
+        if name in self.bodies or any(s.name == name for s in self.model.shapes):
+            raise ValueError(f"body {name!r} exists already")
+        self.bodies.append(name)
+        self._joint_of.append(joint)
+        self._shape_of.append((kind, tuple(size), np.asarray(placement, dtype=float)))
+        row = [cls != "self" or other in self_partners for other, cls, _ in self._others]
+        self._applies = np.vstack((self._applies, np.array(row, dtype=np.bool_)))
+        self._build()
+
+    def _shape(self, index: int) -> tuple[str, tuple[float, ...], np.ndarray]:
+        shape = self.model.shapes[index]
+        obj = self.model.geom.geometryObjects[index]
+        size = shape.size
+        if shape.name == "gripper":
+            size = tuple(2.0 * float(v) for v in obj.geometry.halfSide)  # the opening now
+        return shape.kind, size, np.asarray(obj.placement.homogeneous)
+
+    def _build(self) -> None:
+        """The kernels' arrays from the bodies, the obstacles and the keep-in zones."""
+        pieces: list[Piece] = []
+        p_joint, p_body, b_start, b_center, b_radius = [], [], [0], [], []
+        for b, ((kind, size, placement), joint) in enumerate(
+            zip(self._shape_of, self._joint_of, strict=True)
+        ):
+            mine = body_pieces(kind, size, placement)
+            pieces += mine
+            p_joint += [joint] * len(mine)
+            p_body += [b] * len(mine)
+            b_start.append(len(pieces))
+            centre = np.mean([p.center for p in mine], axis=0)
+            b_center.append(centre)
+            b_radius.append(max(float(np.linalg.norm(p.center - centre)) + p.rb for p in mine))
+        statics = static_shapes(self.model)
+        cover_local, cover_r, cover_joint, cover_body = cover_points(
+            statics, self._shape_of, self._joint_of
+        )
+        cover_names = [STATIC_BODIES[-1 - b] if b < 0 else self.bodies[b] for b in cover_body]
+        self._arm = (
+            self._placements,
+            np.array(p_joint, dtype=np.int64),
+            np.array(p_body, dtype=np.int64),
+            np.array([p.center for p in pieces]),
+            np.array([p.axes for p in pieces]),
+            np.array([p.half for p in pieces]),
+            np.array([p.rc for p in pieces]),
+            np.array([p.rs for p in pieces]),
+            np.array([p.rb for p in pieces]),
+            np.array(b_start, dtype=np.int64),
+            np.array(self._joint_of, dtype=np.int64),
+            np.array(b_center),
+            np.array(b_radius),
+            cover_joint,
+            cover_body,
+            cover_local,
+            cover_r,
+        )
+        o_kind, o_R, o_t, o_s = primitive_arrays(self._prims)
+        req = np.array([r for _, _, r in self._others]) + SLACK_M
+        zones = self.model._keep_in_bodies
+        zk, zR, zt, zs = primitive_arrays([z for _, z, _ in zones])
+        holds = np.zeros((len(zones), len(cover_body)), dtype=np.bool_)
+        arm_names = {s.name for s in self.model.shapes}
+        for z, (_, _, members) in enumerate(zones):
+            names = {self.model.shapes[i].name for i in members}
+            for i, name in enumerate(cover_names):
+                # A held body (not the arm's own) is in every zone: the gripper holds it.
+                holds[z, i] = name in names or name not in arm_names
+        z_req = np.array([c.required for c, _, _ in zones]) + SLACK_M
+        self._zone_checks = [c for c, _, _ in zones]
+        boxes = np.array([primitive_box(p) for p in self._prims]).reshape(-1, 2, 3)
+        self._scene = (
+            o_kind,
+            o_R,
+            o_t,
+            o_s,
+            req,
+            self._applies,
+            zk,
+            zR,
+            zt,
+            zs,
+            z_req,
+            holds,
+            boxes,
+        )
+        n, B, m = len(pieces), len(self.bodies), len(cover_body)
+        self._scratch = (
+            np.zeros((self._placements.shape[0], 4, 4)),
+            np.zeros((n, 3)),
+            np.zeros((n, 3, 3)),
+            np.zeros((B, 3)),
+            np.zeros((m, 3)),
+            np.zeros(3),
+            np.full(B, -1, dtype=np.int64),  # per body, the obstacle nearest last time
+        )
+        self._free = np.empty(B)
+        self._levers = np.empty((self._placements.shape[0] - 1, B))
+        self._lever_table = lever_table(self.model, self._arm, self._joint_of)
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile (or load) every kernel now, once per process: the first call costs
+        up to seconds."""
+        global _WARM
+        if _WARM:
+            return
+        _WARM = True
+        q = np.zeros(self._placements.shape[0] - 1)
+        self.is_valid(q)
+        self.margins(q)
+        self.is_valid_batch(q[None])
+        self.margins_batch(q[None])
+        self.motion_valid(q, q)
+        self.reach(q)
+        self.reach_batch(q[None])
+        self.anchor_into(q, self._free, self._levers)
+        motion_kernels.proven(q, self._free, self._levers, q[None])
+        motion_kernels.proven_ahead(q, self._free, self._levers, q, q, q, np.eye(6), 0.06, 0.12)
+        motion_kernels.stretch_bounds(
+            np.zeros((1, 6)), np.zeros((2, 1)), np.zeros((2, 6, 1)), np.empty(1), np.empty(1)
+        )
+        motion_kernels.motion(  # past the margins to the reach: compiled too
+            q,
+            q + 1e-3,
+            -math.inf,
+            1,
+            self._arm,
+            self._scene,
+            self._scratch,
+            self._free,
+            self._levers,
+        )
+
+    def _follow_opening(self) -> None:
+        if self.model.opening != self._opening:
+            self._opening = self.model.opening
+            gripper = self.bodies.index("gripper")
+            index = self.model.body_index["gripper"]
+            self._shape_of[gripper] = self._shape(index)
+            self._build()
+
+    # --- questions -------------------------------------------------------------------------
+
+    def is_valid(self, q: np.ndarray) -> bool:
+        """Whether ``q`` [rad] (6,) is proven to keep every clearance."""
+        self._follow_opening()
+        return bool(k.valid(_f64(q), self._arm, self._scene, self._scratch))
+
+    def is_valid_batch(self, Q: np.ndarray) -> np.ndarray:
+        """:meth:`is_valid` of each row of ``Q`` [rad] (n, 6), shape (n,) bool."""
+        self._follow_opening()
+        Q = _f64(np.atleast_2d(Q))
+        out = np.empty(len(Q), dtype=np.bool_)
+        k.valid_batch(Q, self._arm, self._scene, self._scratch, out)
+        return out
+
+    def clearance_lower_bound(self, q: np.ndarray) -> float:
+        """The smallest margin at ``q`` [rad], at most the exact one [m] (< 0: not
+        proven valid)."""
+        return self.margins(q).tight
+
+    def margins(self, q: np.ndarray) -> Margins:
+        """Lower bounds of each body's margin and the tightest check at ``q`` [rad]."""
+        self._follow_opening()
+        free = np.empty(len(self.bodies))
+        tight, body, other = k.margins(
+            _f64(q), self._arm, self._scene, self._scratch, free, math.inf
+        )
+        return Margins(free, float(tight), self.check_of(int(body), int(other)))
+
+    def margins_batch(self, Q: np.ndarray, cap: float = math.inf) -> BatchMargins:
+        """:meth:`margins` of each row of ``Q`` [rad] (n, 6), each at most ``cap`` [m]
+        (a finite cap skips the pairs that cannot come under it: cheaper; a margin at
+        the cap names no check)."""
+        self._follow_opening()
+        Q = _f64(np.atleast_2d(Q))
+        free = np.empty((len(Q), len(self.bodies)))
+        tight = np.empty(len(Q))
+        which = np.empty((len(Q), 2), dtype=np.int64)
+        k.margins_batch(Q, self._arm, self._scene, self._scratch, free, tight, which, cap)
+        return BatchMargins(free, tight, which)
+
+    def reach(self, q: np.ndarray) -> np.ndarray:
+        """Per joint and body, the farthest any point of the body is from the joint's
+        axis at ``q`` [m], shape (6, B): a body moves no faster than ``|qd| @ reach``."""
+        self._follow_opening()
+        k.pose(_f64(q), self._arm, self._scratch)
+        out = np.empty((self._placements.shape[0] - 1, len(self.bodies)))
+        motion_kernels.reach(self._arm, self._scratch, out)
+        return out
+
+    def anchor_into(self, q: np.ndarray, free: np.ndarray, reach: np.ndarray) -> float:
+        """:meth:`margins` (into ``free`` (B,)) and :meth:`reach` (into ``reach`` (6, B))
+        at ``q`` [rad] (float64) in one call; returns the tightest margin [m]."""
+        self._follow_opening()
+        return float(motion_kernels.anchor(q, self._arm, self._scene, self._scratch, free, reach))
+
+    def reach_batch(self, Q: np.ndarray) -> np.ndarray:
+        """:meth:`reach` at each row of ``Q`` [rad] (n, 6), shape (n, 6, B) [m]."""
+        self._follow_opening()
+        Q = _f64(np.atleast_2d(Q))
+        out = np.empty((len(Q), self._placements.shape[0] - 1, len(self.bodies)))
+        motion_kernels.reach_batch(Q, self._arm, self._scratch, out)
+        return out
+
+    def levers(self) -> np.ndarray:
+        """Per joint and body, the farthest any point of the body can ever be from the
+        joint's origin [m], shape (6, B) (0: the joint does not move it): whatever the
+        configuration, a body moves no faster than ``|qd| @ levers``."""
+        return self._lever_table
+
+    def motion_valid(
+        self, q0: np.ndarray, q1: np.ndarray, floor: float = MOTION_FLOOR_M
+    ) -> MotionCheck:
+        """Whether the straight joint-space motion ``q0`` -> ``q1`` [rad] keeps every
+        clearance, proven continuously (conservative advancement: no point of a body
+        travels further than its margin between two configurations checked); a margin
+        below ``floor`` [m] on the way counts as invalid."""
+        self._follow_opening()
+        t = motion_kernels.motion(
+            _f64(q0),
+            _f64(q1),
+            floor,
+            MAX_STEPS,
+            self._arm,
+            self._scene,
+            self._scratch,
+            self._free,
+            self._levers,
+        )
+        return MotionCheck(t >= 1.0, min(float(t), 1.0))
+
+    def check_of(self, body: int, other: int) -> Check:
+        """The check of ``body`` (-1: a static body) and ``other`` (obstacle, or keep-in
+        zone after the obstacles) as the kernels number them."""
+        if other < 0:
+            return Check("", "", "self", 0.0)
+        if other >= len(self._others):
+            zone = self._zone_checks[other - len(self._others)]
+            return zone._replace(body=self.bodies[body] if body >= 0 else "base")
+        name, cls, required = self._others[other]
+        return Check(self.bodies[body], name, cls, required)
+
+
+_CHECKERS: weakref.WeakKeyDictionary[CollisionModel, ValidityChecker] = weakref.WeakKeyDictionary()
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel of the fast check now, in this
+    process: what a service's start or a test session pays once (seconds with an empty
+    cache, under one with a filled one), never a control cycle."""
+    ValidityChecker(CollisionModel(None, ArmConfig()))
+
+
+def checker_for(model: CollisionModel) -> ValidityChecker:
+    """The model's checker, built once per model."""
+    found = _CHECKERS.get(model)
+    if found is None:
+        found = _CHECKERS[model] = ValidityChecker(model)
+    return found
+
+
+def _f64(a: Any) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
