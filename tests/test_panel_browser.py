@@ -271,6 +271,25 @@ def test_closing_the_tab_mid_jog_stops_the_arm(rig: PanelRig, browser: BrowserCo
     assert elapsed <= stop_bound_ms(speed)
 
 
+def test_the_keyboard_holds_a_pad_button(rig: PanelRig, page: Page) -> None:
+    """A key held on the focused pad button moves the arm; released, the arm stops."""
+    arm_to(rig, page, "unfolded")
+    page.focus("#pad-back")
+    for attempt in range(3):  # a jog stopped by an earlier test wants a release first
+        page.keyboard.down("Enter")
+        try:
+            rig.wait_moving(timeout=2.0)
+            break
+        except TimeoutError:
+            page.keyboard.up("Enter")
+            assert attempt < 2, "Enter held on Back never moved the arm"
+    released = time.time_ns()
+    page.keyboard.up("Enter")
+    at_rest, speed = rig.still_since(released)
+    report("key released", (at_rest - released) / 1e6, speed)
+    assert (at_rest - released) / 1e6 <= stop_bound_ms(speed)
+
+
 def test_a_silent_network_stops_the_arm(rig: PanelRig, browser: BrowserContext) -> None:
     proxy = FreezingProxy(rig.port)
     try:
