@@ -18,13 +18,12 @@ import pytest
 
 from manus.config import FOLDED_Q_DEG
 from manus_stack.panel.browser import chromium, missing
-from manus_stack.panel.rig import STILL_RAD_S, PanelRig
-from services.controller.jog_config import JogConfig
-from services.simulator.config import SimConfig
-from tests.freezing_proxy import FreezingProxy
+from manus_stack.panel.freezing_proxy import FreezingProxy
+from manus_stack.panel.rig import STILL_RAD_S, PanelRig, floor_ms, recover, stop_bound_ms
+from manus_stack.panel.touch import Fingers
 
 if TYPE_CHECKING:
-    from playwright.sync_api import BrowserContext, CDPSession, Page
+    from playwright.sync_api import BrowserContext, Page
 
 pytestmark = [
     pytest.mark.slow,
@@ -37,29 +36,7 @@ TASK_BUTTONS = [
 ]
 """Task buttons pressed in the browser, each with the arm's pose before it runs."""
 
-DEADMAN_MS = JogConfig().timeout_ms
-"""The controller's jog deadman [ms]."""
-CYCLE_MS = 60.0
-"""The arm's cycle: the longest wait for the next sync, and the truth's period [ms]."""
-ACTS_MS = 20.0
-"""From a sync's reply to its motion (docs/architecture.md, Time) [ms]."""
-TAU_MS = SimConfig().transient_tau_ms
-"""The drives' speed lag [ms]."""
 TASK_TIMEOUT_S = 60.0
-
-
-def floor_ms(speed: float) -> float:
-    """The protocol's floor: the longest any PC program needs to bring a joint moving at
-    ``speed`` [rad/s] to rest (docs/jog.md, Measured): the wait for the next sync, the
-    reply acting 20 ms later, and the drives' lag down to 0.5 deg/s (a motor may turn up
-    to twice a DH joint's speed: the joint map couples motors 2 and 3)."""
-    return CYCLE_MS + ACTS_MS + TAU_MS * math.log(max(1.0, 2 * speed / STILL_RAD_S))
-
-
-def stop_bound_ms(speed: float) -> float:
-    """What a stop may take as the truth shows it: the deadman, the floor, and one period
-    of the truth (it is seen at the first truth published after it)."""
-    return DEADMAN_MS + floor_ms(speed) + CYCLE_MS
 
 
 @pytest.fixture(scope="module")
@@ -94,29 +71,6 @@ def page(rig: PanelRig, browser: BrowserContext) -> Iterator[Page]:
         opened.close()
 
 
-class Fingers:
-    """Touches on a page: each finger goes down on an element and stays until lifted."""
-
-    def __init__(self, page: Page) -> None:
-        self.page = page
-        self.cdp: CDPSession = page.context.new_cdp_session(page)
-        self.down: dict[int, dict[str, float]] = {}
-
-    def _points(self) -> list[dict[str, float]]:
-        return [{**xy, "id": i} for i, xy in self.down.items()]
-
-    def press(self, finger: int, selector: str) -> None:
-        box = self.page.locator(selector).bounding_box()
-        assert box is not None, selector
-        self.down[finger] = {"x": box["x"] + box["width"] / 2, "y": box["y"] + box["height"] / 2}
-        self.cdp.send("Input.dispatchTouchEvent", {"type": "touchStart",
-                                                   "touchPoints": self._points()})  # fmt: skip
-
-    def lift(self, finger: int) -> None:
-        point = {**self.down.pop(finger), "id": finger}
-        self.cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": [point]})
-
-
 def folded(rig: PanelRig) -> bool:
     truth = rig.latest()
     assert truth is not None
@@ -147,17 +101,6 @@ def run_task(page: Page, button: str) -> None:
     wait_done(page, label)
 
 
-def recover(page: Page) -> None:
-    """What a helper does after a failure left the arm stopped (a fold stopped by its
-    deadman: the bridge's phase ``stopped``): STOP, then Release stop (the bridge re-enters
-    joint mode when the e-stop is released)."""
-    page.click("#stop")
-    page.wait_for_selector("#release-stop", state="visible")
-    page.click("#release-stop")
-    page.wait_for_selector("#release-stop", state="hidden")
-    time.sleep(1.0)  # the bridge back in running
-
-
 def arm_to(rig: PanelRig, page: Page, pose: str) -> None:
     """Bring the arm to ``pose`` (folded, unfolded) with the panel's own buttons (after a
     failed test, :func:`recover` first, so that one failure does not fail the rest)."""
@@ -169,21 +112,6 @@ def arm_to(rig: PanelRig, page: Page, pose: str) -> None:
     if pose == "unfolded" and folded(rig):
         run_task(page, "unfold")
     assert folded(rig) == (pose == "folded")
-
-
-def hold_until_moving(rig: PanelRig, fingers: Fingers, pad: str, tries: int = 5) -> None:
-    """Hold the pad button ``pad`` until the arm truly moves (a jog refused while the arm
-    was not ready yet, after a STOP's release, needs the finger lifted and pressed again)."""
-    for _ in range(tries):
-        fingers.press(1, f"#pad-{pad}")
-        try:
-            rig.wait_moving(timeout=2.0)
-            time.sleep(0.3)  # up to speed
-            return
-        except TimeoutError:
-            fingers.lift(1)
-            time.sleep(0.5)
-    raise AssertionError(f"holding {pad} never moved the arm")
 
 
 def report(what: str, elapsed_ms: float, speed: float) -> None:
@@ -213,7 +141,7 @@ def test_a_task_pauses_when_its_last_page_closes(rig: PanelRig, browser: Browser
     page = open_page(rig, browser)
     arm_to(rig, page, "unfolded")
     fingers = Fingers(page)
-    hold_until_moving(rig, fingers, "up")
+    rig.hold_until_moving(fingers, "up")
     time.sleep(1.0)  # away from home, so that Home moves
     fingers.lift(1)
     rig.still_since(time.time_ns())
@@ -239,7 +167,7 @@ def test_a_task_pauses_when_its_last_page_closes(rig: PanelRig, browser: Browser
 def test_stop_brings_the_true_joint_speeds_to_zero(rig: PanelRig, page: Page) -> None:
     arm_to(rig, page, "unfolded")
     fingers = Fingers(page)
-    hold_until_moving(rig, fingers, "up")
+    rig.hold_until_moving(fingers, "up")
     pressed = time.time_ns()
     fingers.press(2, "#stop")  # a second finger, while the first still holds the pad
     at_rest, speed = rig.still_since(pressed)
@@ -262,7 +190,7 @@ def test_stop_brings_the_true_joint_speeds_to_zero(rig: PanelRig, page: Page) ->
 def test_closing_the_tab_mid_jog_stops_the_arm(rig: PanelRig, browser: BrowserContext) -> None:
     page = open_page(rig, browser)
     arm_to(rig, page, "unfolded")
-    hold_until_moving(rig, Fingers(page), "down")
+    rig.hold_until_moving(Fingers(page), "down")
     closed = time.time_ns()
     page.close()
     at_rest, speed = rig.still_since(closed)
@@ -296,9 +224,9 @@ def test_a_silent_network_stops_the_arm(rig: PanelRig, browser: BrowserContext) 
         page = open_page(rig, browser, url=f"http://127.0.0.1:{proxy.port}/")
         arm_to(rig, page, "unfolded")
         fingers = Fingers(page)
-        hold_until_moving(rig, fingers, "up")
+        rig.hold_until_moving(fingers, "up")
         silent = time.time_ns()
-        proxy.frozen.set()  # the finger stays on the button; nothing gets through
+        proxy.freeze()  # the finger stays on the button; nothing gets through
         at_rest, speed = rig.still_since(silent)
         elapsed = (at_rest - silent) / 1e6
         report("network silent", elapsed, speed)

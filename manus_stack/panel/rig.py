@@ -19,15 +19,56 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from manus.node import Node
 from manus.session import client_settings
+from manus_stack.panel.touch import Fingers
 from manus_stack.up import LocalStack, StackError, StackOptions, free_port, port_in_use
 from schemas import endpoints as ep
 from schemas.state import SimTruth
+from services.controller.jog_config import JogConfig
+from services.simulator.config import SimConfig
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Page
 
 STILL_RAD_S = math.radians(0.5)
 """A joint is still below this true speed (0.5 deg/s, as ``manus bench jog`` judges)."""
+DEADMAN_MS = JogConfig().timeout_ms
+"""The controller's jog deadman [ms]."""
+CYCLE_MS = 60.0
+"""The arm's cycle: the longest wait for the next sync, and the truth's period [ms]."""
+ACTS_MS = 20.0
+"""From a sync's reply to its motion (docs/architecture.md, Time) [ms]."""
+TAU_MS = SimConfig().transient_tau_ms
+"""The drives' speed lag [ms]."""
+
+
+def floor_ms(speed: float) -> float:
+    """The protocol's floor: the longest any PC program needs to bring a joint moving at
+    ``speed`` [rad/s] to rest (docs/jog.md, Measured): the wait for the next sync, the
+    reply acting 20 ms later, and the drives' lag down to 0.5 deg/s (a motor may turn up
+    to twice a DH joint's speed: the joint map couples motors 2 and 3)."""
+    return CYCLE_MS + ACTS_MS + TAU_MS * math.log(max(1.0, 2 * speed / STILL_RAD_S))
+
+
+def stop_bound_ms(speed: float) -> float:
+    """What a stop may take as the truth shows it (docs/panel.md, Tests and screenshots):
+    the deadman, the floor, and one period of the truth (a stop is seen at the first truth
+    published after it)."""
+    return DEADMAN_MS + floor_ms(speed) + CYCLE_MS
+
+
+def recover(page: Page) -> None:
+    """What a helper does when a fault left the arm held stopped (the bridge's phase
+    ``stopped``, "The arm stopped itself after a fault"): STOP, then Release stop on the
+    panel's ``page`` (the bridge re-enters joint mode when the e-stop is released)."""
+    page.click("#stop")
+    page.wait_for_selector("#release-stop", state="visible")
+    page.click("#release-stop")
+    page.wait_for_selector("#release-stop", state="hidden")
+    time.sleep(1.0)  # the bridge back in running
 
 
 class PanelRig:
@@ -114,6 +155,25 @@ class PanelRig:
                 return last[0]
             time.sleep(0.01)
         raise TimeoutError(f"the arm did not move within {timeout} s")
+
+    def hold_until_moving(self, fingers: Fingers, pad: str, tries: int = 5) -> None:
+        """Hold the pad button ``pad`` with finger 1 until the arm truly moves and is up to
+        speed (a jog that an earlier stop left waiting for a release needs the finger
+        lifted and pressed again, as a person would).
+
+        Raises:
+            TimeoutError: ``tries`` presses did not move the arm.
+        """
+        for _ in range(tries):
+            fingers.press(1, f"#pad-{pad}")
+            try:
+                self.wait_moving(timeout=2.0)
+                time.sleep(0.3)
+                return
+            except TimeoutError:
+                fingers.lift(1)
+                time.sleep(0.5)
+        raise TimeoutError(f"holding {pad} never moved the arm ({tries} presses)")
 
     def still_since(self, since_ns: int, timeout: float = 3.0) -> tuple[int, float]:
         """Wait for the first truth received after ``since_ns`` with every joint still.

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from manus_stack.panel.browser import chromium
 from manus_stack.panel.rig import PanelRig
+from manus_stack.panel.touch import Fingers
 
 if TYPE_CHECKING:
     from playwright.sync_api import Page
@@ -31,19 +32,6 @@ def _text_is(page: Page, element: str, text: str, timeout_s: float = 60.0) -> No
         f"document.getElementById({element!r}).textContent === {text!r}",
         timeout=timeout_s * 1000,
     )
-
-
-def _hold(page: Page, selector: str, shot: Path) -> None:
-    """A finger held on ``selector`` (a real touch) for a while, the screenshot ``shot``
-    taken meanwhile."""
-    box = page.locator(selector).bounding_box()
-    assert box is not None, selector
-    point = {"x": box["x"] + box["width"] / 2, "y": box["y"] + box["height"] / 2, "id": 1}
-    cdp = page.context.new_cdp_session(page)
-    cdp.send("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": [point]})
-    page.wait_for_timeout(1200)
-    page.screenshot(path=str(shot))
-    cdp.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": [point]})
 
 
 def take(out: Path) -> list[Path]:
@@ -65,8 +53,13 @@ def take(out: Path) -> list[Path]:
             page.screenshot(path=str(out / "panel_task.png"))
             _text_is(page, "notice-text", "Done: Unfold.")
             page.screenshot(path=str(out / "panel_ready.png"))
-            _hold(page, "#pad-up", out / "panel_jog.png")
-            page.click("#stop")
+            fingers = Fingers(page)
+            fingers.press(1, "#pad-up")  # held, while a second finger presses STOP
+            page.wait_for_timeout(1200)
+            page.screenshot(path=str(out / "panel_jog.png"))
+            fingers.press(2, "#stop")
+            fingers.lift(2)
+            fingers.lift(1)
             page.wait_for_selector("#release-stop", state="visible")
             page.screenshot(path=str(out / "panel_stop.png"))
             page.click("#release-stop")

@@ -43,7 +43,10 @@ class Trouble(StrEnum):
     ARM_ERROR = "arm_error"
     """the arm reports an error"""
     NOT_READY = "not_ready"
-    """the arm is not ready (the bridge is starting, folding or stopped; no joint state)"""
+    """the arm is not ready (the bridge is starting or folding; no joint state)"""
+    HELD_STOPPED = "held_stopped"
+    """the bridge holds the arm stopped after a fault (phase ``stopped``: a fold's deadman,
+    the arm's frames lost and back) until it is cleared; releasing an e-stop clears it"""
     BUSY = "busy"
     """another task runs"""
     PARTS_MISSING = "parts_missing"
@@ -77,6 +80,8 @@ SENTENCES: dict[Trouble, str] = {
     Trouble.STOPPED: "STOP is on. Press Release stop when it is safe to move.",
     Trouble.ARM_ERROR: "The arm reports a fault. Ask your helper to check it.",
     Trouble.NOT_READY: "The arm is not ready yet. Try again in a moment.",
+    Trouble.HELD_STOPPED: "The arm stopped itself after a fault. When it is safe, press STOP, "
+    "then Release stop.",
     Trouble.BUSY: "The arm is busy with another task. Wait for it, or press Cancel.",
     Trouble.PARTS_MISSING: "Part of the arm's system is not running. Ask your helper.",
     Trouble.LINK_LOST: "The connection to the arm was lost, so the arm stopped.",
@@ -117,11 +122,15 @@ PLAN_TROUBLES: dict[str, Trouble] = {
 _PHASES: tuple[tuple[str, Trouble], ...] = (
     ("estopped", Trouble.STOPPED),
     ("arm_error", Trouble.ARM_ERROR),
+    ("the arm reports an error", Trouble.ARM_ERROR),
+    ("phase 'stopped'", Trouble.HELD_STOPPED),
 )
-"""Bridge phases named in a report that have a trouble of their own (others: not ready)."""
+"""What the controller names when it refuses a jog that has a trouble of its own."""
 
 _PHRASES: tuple[tuple[str, Trouble], ...] = (
     ("the arm is folded there", Trouble.FOLDED),
+    ("phase stopped", Trouble.HELD_STOPPED),  # before the fault that stopped it: it is held
+    ("(stopped", Trouble.HELD_STOPPED),
     ("e-stop", Trouble.STOPPED),
     ("phase estopped", Trouble.STOPPED),
     ("(estopped)", Trouble.STOPPED),

@@ -1,5 +1,6 @@
 """A loopback TCP relay that can go silent: a network that stops carrying anything while
-every connection stays open (no FIN, no RST), as a Wi-Fi link that drops does."""
+every connection stays open (no FIN, no RST), as a Wi-Fi link that drops does. The page
+reaches the panel through it in ``manus bench panel`` and the browser tests."""
 
 from __future__ import annotations
 
@@ -52,6 +53,10 @@ class FreezingProxy:
                     if not data:
                         return
                     (b if src is a else a).sendall(data)
+
+    def freeze(self, *_: object) -> None:
+        """Go silent now (:attr:`frozen`; clear it to carry the held bytes on)."""
+        self.frozen.set()
 
     def close(self) -> None:
         """Stop relaying and close every connection."""
