@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
+import time
 from typing import Any
 
 from aiohttp import ClientWebSocketResponse
@@ -58,25 +59,43 @@ async def _session(script: Any) -> list[str]:
 
 def test_a_held_pad_is_forwarded_at_once_and_stopped_when_the_page_goes() -> None:
     async def script(ws: ClientWebSocketResponse) -> None:
-        for _ in range(3):
-            await ws.send_json({"t": "jog", "axis": "up"})
+        for i in range(3):
+            await ws.send_json({"t": "jog", "axis": "up", "at": 1000 + 50 * i})
         await ws.send_json({"t": "release"})
         await ws.send_json({"t": "release"})  # not held: nothing more
-        await ws.send_json({"t": "jog", "axis": "left"})
+        await ws.send_json({"t": "jog", "axis": "left", "at": 1200})
         await ws.close()  # the tab closed with the pad held
 
     calls = asyncio.run(_session(script))
     assert calls == ["jog up", "jog up", "jog up", "stop", "jog left", "stop"]
 
 
+def test_a_backlog_of_late_commands_is_not_forwarded() -> None:
+    """Commands that sat in a buffer (a network that went silent and came back) arrive
+    together, long after the page sent them: dropped; the fresh ones after them pass."""
+
+    async def script(ws: ClientWebSocketResponse) -> None:
+        start = time.monotonic() * 1e3  # the page's clock: this process's, here
+        await ws.send_json({"t": "jog", "axis": "up", "at": start})
+        await asyncio.sleep(0.4)  # the link held the next ones for 400 ms or more
+        for i in range(1, 5):
+            await ws.send_json({"t": "jog", "axis": "up", "at": start + 50 * i})
+        await ws.send_json({"t": "jog", "axis": "up", "at": time.monotonic() * 1e3})  # fresh
+        await ws.send_json({"t": "release"})
+        await ws.close()
+
+    calls = asyncio.run(_session(script))
+    assert calls == ["jog up", "jog up", "stop"]
+
+
 def test_stop_and_bad_messages_stop_the_pad() -> None:
     async def script(ws: ClientWebSocketResponse) -> None:
-        await ws.send_json({"t": "jog", "axis": "down"})
+        await ws.send_json({"t": "jog", "axis": "down", "at": 10})
         await ws.send_json({"t": "stop"})
         await ws.send_json({"t": "release_stop"})
-        await ws.send_json({"t": "jog", "axis": "open"})
-        await ws.send_json({"t": "jog", "axis": "sideways"})  # no such button
-        await ws.send_json({"t": "jog", "axis": "close"})
+        await ws.send_json({"t": "jog", "axis": "open", "at": 20})
+        await ws.send_json({"t": "jog", "axis": "sideways", "at": 30})  # no such button
+        await ws.send_json({"t": "jog", "axis": "close", "at": 40})
         await ws.send_str("not json")
         await ws.send_json({"t": "dance"})
         await ws.send_json({"t": "level", "level": 3})

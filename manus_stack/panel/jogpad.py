@@ -41,6 +41,36 @@ LABELS: dict[str, str] = {
 
 SOURCE = "panel"
 """``JogCommand.source`` of the panel's commands."""
+STALE_MS = 100.0
+"""A pad message that reaches the server this much later than the page's fastest ones is
+not forwarded [ms] (two repeats)."""
+
+
+class Lateness:
+    """How late a page's pad messages reach the server, judged on the page's own clock.
+
+    Each message carries when the page sent it (its monotonic clock, ``performance.now()``
+    [ms]); the smallest (arrival - sent) seen is the clocks' offset plus the quickest
+    trip, and a message later than that by more than :data:`STALE_MS` is stale: it sat in
+    a buffer (a network that went silent and came back, a server that was not given the
+    CPU). Forwarding it would move the arm on a command the person may have let go of long
+    ago, and restart the jog's deadman with it; dropped, the stream's gap stops the arm.
+    """
+
+    def __init__(self) -> None:
+        self.best: float | None = None
+        self.dropped = 0
+
+    def stale(self, sent_ms: float, arrived_ms: float) -> bool:
+        """Whether a message sent at ``sent_ms`` (page clock) that arrived at
+        ``arrived_ms`` (server clock) is stale (counted in :attr:`dropped`)."""
+        offset = arrived_ms - sent_ms
+        if self.best is None or offset < self.best:
+            self.best = offset
+        if offset - self.best > STALE_MS:
+            self.dropped += 1
+            return True
+        return False
 
 
 def jog_command(axis: str, seq: int, stamp_ns: int) -> JogCommand:

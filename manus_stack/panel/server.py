@@ -2,10 +2,12 @@
 
 The page and the server speak JSON over the WebSocket ``/ws``. The page sends:
 
-- ``{"t": "jog", "axis": NAME}`` while a pad button is held, every
-  :data:`~manus_stack.panel.jogpad.REPEAT_MS`: each is published as a jog command at once,
-  so the stream is the page's own: when the page or the network goes silent, the stream
-  stops and the controller's jog deadman (150 ms) stops the arm;
+- ``{"t": "jog", "axis": NAME, "at": MS}`` while a pad button is held, every
+  :data:`~manus_stack.panel.jogpad.REPEAT_MS` (``at``: when, on the page's monotonic
+  clock): each is published as a jog command at once, so the stream is the page's own:
+  when the page or the network goes silent, the stream stops and the controller's jog
+  deadman (150 ms) stops the arm; one that arrives late (it sat in a buffer:
+  :class:`~manus_stack.panel.jogpad.Lateness`) is not forwarded;
 - ``{"t": "release"}`` when the button is let go: a stop at once;
 - ``{"t": "stop"}`` (STOP) and ``{"t": "release_stop"}``: the e-stop, engaged or released;
 - ``{"t": "task", "id": ID, "object": NAME}``, ``{"t": "control", "action": A}`` (pause,
@@ -26,6 +28,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import time
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +37,7 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from manus_stack.panel.bus import PanelBus
-from manus_stack.panel.jogpad import AXES, LABELS, REPEAT_MS
+from manus_stack.panel.jogpad import AXES, LABELS, REPEAT_MS, Lateness
 from manus_stack.panel.words import Trouble
 from schemas.sequencing import TaskAction
 
@@ -148,11 +151,12 @@ class PanelServer:
         await ws.send_str(self._view())
         self.sockets.add(ws)
         held = False
+        lateness = Lateness()
         try:
             async for msg in ws:
                 if msg.type != WSMsgType.TEXT:
                     break
-                held = self._handle(msg.data, held)
+                held = self._handle(msg.data, held, lateness)
         finally:
             self.sockets.discard(ws)
             if held:
@@ -161,12 +165,14 @@ class PanelServer:
                 await self._nobody_left()
         return ws
 
-    def _handle(self, text: str, held: bool) -> bool:
+    def _handle(self, text: str, held: bool, lateness: Lateness) -> bool:
         """One message from a page; whether its pad is held afterwards."""
         try:
             data: Any = json.loads(text)
             kind = data["t"]
             if kind == "jog":
+                if lateness.stale(float(data["at"]), time.monotonic() * 1e3):
+                    return held  # sat in a buffer: not forwarded (Lateness)
                 self.bus.jog(str(data["axis"]))
                 return True
             if kind == "release":
@@ -178,16 +184,7 @@ class PanelServer:
                 if held:
                     self.bus.stop_jog()
                 return False
-            if kind == "release_stop":
-                self.bus.estop(False)
-            elif kind == "task":
-                self._start(str(data["id"]), str(data.get("object", "")))
-            elif kind == "control" and data["action"] in ("pause", "resume", "cancel"):
-                self._off_loop(self.bus.control, str(data["action"]))
-            elif kind == "level":
-                self._off_loop(self.bus.set_level, max(1, int(data["level"])))
-            else:
-                raise ValueError(f"unknown message {kind!r}")
+            self._request(kind, data)
         except (ValueError, KeyError, TypeError) as exc:
             log.warning("panel: bad message from a page: %s (%r)", exc, text[:200])
             if held:
@@ -197,6 +194,19 @@ class PanelServer:
             self.changed()
             return False
         return held
+
+    def _request(self, kind: str, data: Any) -> None:
+        """A message that does not touch the pad (ValueError: an unknown one)."""
+        if kind == "release_stop":
+            self.bus.estop(False)
+        elif kind == "task":
+            self._start(str(data["id"]), str(data.get("object", "")))
+        elif kind == "control" and data["action"] in ("pause", "resume", "cancel"):
+            self._off_loop(self.bus.control, str(data["action"]))
+        elif kind == "level":
+            self._off_loop(self.bus.set_level, max(1, int(data["level"])))
+        else:
+            raise ValueError(f"unknown message {kind!r}")
 
     def _start(self, button_id: str, choice: str) -> None:
         button = next((b for b in self.bus.view.buttons if b.id == button_id), None)

@@ -31,8 +31,10 @@ export class Hold {
     this.el = el;
     el.classList.add("held");
     el.setAttribute("aria-pressed", "true");
+    // `at`: when, on this page's monotonic clock; the server drops a command that
+    // reaches it late (it sat in a buffer), so a backlog never moves the arm
     const tick = () => {
-      if (!this.send({ t: "jog", axis })) this.cancel();
+      if (!this.send({ t: "jog", axis, at: performance.now() })) this.cancel();
     };
     tick();
     this.timer = setInterval(tick, this.repeatMs);
