@@ -168,8 +168,7 @@ def test_stop_brings_the_true_joint_speeds_to_zero(rig: PanelRig, page: Page) ->
     arm_to(rig, page, "unfolded")
     fingers = Fingers(page)
     rig.hold_until_moving(fingers, "up")
-    pressed = time.time_ns()
-    fingers.press(2, "#stop")  # a second finger, while the first still holds the pad
+    pressed = fingers.press(2, "#stop")  # a second finger, while the first holds the pad
     at_rest, speed = rig.still_since(pressed)
     elapsed = (at_rest - pressed) / 1e6
     report("STOP", elapsed, speed)

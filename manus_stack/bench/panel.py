@@ -69,12 +69,12 @@ def _unfold(page: Page, tries: int = 3) -> None:
     raise RuntimeError(f"Unfold did not run: {said!r}: {page.text_content('#notice-details')}")
 
 
-def _trial(rig: PanelRig, page: Page, pad: str, stop: Callable[[Fingers], None]) -> list[float]:
-    """One trial: [ms to rest, the speed at the stop [rad/s], its floor, its bound]."""
+def _trial(rig: PanelRig, page: Page, pad: str, stop: Callable[[Fingers], int]) -> list[float]:
+    """One trial: [ms to rest, the speed at the stop [rad/s], its floor, its bound];
+    ``stop`` stops the arm and returns when it acted [ns]."""
     fingers = Fingers(page)
     rig.hold_until_moving(fingers, pad)
-    at = time.time_ns()
-    stop(fingers)
+    at = stop(fingers)
     rest, speed = rig.still_since(at)
     if not page.is_closed():
         for finger in list(fingers.down):
@@ -96,16 +96,27 @@ def _figures(trials: list[list[float]]) -> dict[str, Any]:
     }
 
 
-def _press_stop(fingers: Fingers) -> None:
-    fingers.press(2, "#stop")  # a second finger, the first still on the pad
+def _press_stop(fingers: Fingers) -> int:
+    return fingers.press(2, "#stop")  # a second finger, the first still on the pad
 
 
-def _lift(fingers: Fingers) -> None:
-    fingers.lift(1)
+def _lift(fingers: Fingers) -> int:
+    return fingers.lift(1)
 
 
-def _close(fingers: Fingers) -> None:
+def _close(fingers: Fingers) -> int:
+    at = time.time_ns()
     fingers.page.close()
+    return at
+
+
+def _silence(proxy: FreezingProxy) -> Callable[[Fingers], int]:
+    def freeze(fingers: Fingers) -> int:
+        at = time.time_ns()
+        proxy.freeze()
+        return at
+
+    return freeze
 
 
 def run(quick: bool = False) -> dict[str, Any]:
@@ -134,7 +145,7 @@ def run(quick: bool = False) -> dict[str, Any]:
                     other = _open(browser, rig.url)
                     results["tab_closed"].append(_trial(rig, other, pad, _close))
                     silent = _open(browser, f"http://127.0.0.1:{proxy.port}/")
-                    results["network_silent"].append(_trial(rig, silent, back, proxy.freeze))
+                    results["network_silent"].append(_trial(rig, silent, back, _silence(proxy)))
                     time.sleep(0.5)
                     silent.close()
                     proxy.frozen.clear()

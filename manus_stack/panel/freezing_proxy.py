@@ -54,7 +54,7 @@ class FreezingProxy:
                         return
                     (b if src is a else a).sendall(data)
 
-    def freeze(self, *_: object) -> None:
+    def freeze(self) -> None:
         """Go silent now (:attr:`frozen`; clear it to carry the held bytes on)."""
         self.frozen.set()
 

@@ -176,10 +176,15 @@ class PanelRig:
         raise TimeoutError(f"holding {pad} never moved the arm ({tries} presses)")
 
     def still_since(self, since_ns: int, timeout: float = 3.0) -> tuple[int, float]:
-        """Wait for the first truth received after ``since_ns`` with every joint still.
+        """Wait for the first truth sampled after ``since_ns`` with every joint still.
+
+        A truth is placed in time by its own stamp (the simulator's clock), moved onto this
+        process's clock by the smallest (receive time - stamp) seen: the time it was
+        sampled, not when it arrived (a test process short of CPU receives it late).
 
         Returns:
-            (its receive time [ns], the fastest true joint speed at ``since_ns`` [rad/s]).
+            (when it was sampled [ns, this process's wall clock], the fastest true joint
+            speed of the last truth sampled before ``since_ns`` [rad/s]).
 
         Raises:
             TimeoutError: the arm still moved ``timeout`` [s] later.
@@ -187,12 +192,13 @@ class PanelRig:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             with self._lock:
-                seen = [(rx, t) for rx, t in self.truths if rx >= since_ns]
-                before = [t for rx, t in self.truths if rx < since_ns][-1:]
-            for rx, truth in seen:
-                if max(map(abs, truth.qd_true), default=0.0) < STILL_RAD_S:
+                offset = min(rx - t.stamp_ns for rx, t in self.truths)
+                placed = [(t.stamp_ns + offset, t) for _, t in self.truths]
+            before = [t for at, t in placed if at < since_ns][-1:]
+            for at, truth in placed:
+                if at >= since_ns and max(map(abs, truth.qd_true), default=0.0) < STILL_RAD_S:
                     moving = max(map(abs, before[0].qd_true), default=0.0) if before else 0.0
-                    return rx, moving
+                    return at, moving
             time.sleep(0.01)
         raise TimeoutError(f"the arm still moved {timeout} s after the stop")
 
