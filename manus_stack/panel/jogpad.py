@@ -41,9 +41,11 @@ LABELS: dict[str, str] = {
 
 SOURCE = "panel"
 """``JogCommand.source`` of the panel's commands."""
-STALE_MS = 100.0
+STALE_MS = 150.0
 """A pad message that reaches the server this much later than the page's fastest ones is
-not forwarded [ms] (two repeats)."""
+not forwarded [ms]: the controller's jog deadman (``jog_timeout``'s default), so that no
+command the deadman would have outlived moves the arm, while the jitter the deadman lets
+pass (a late message, a busy server) is let pass here too."""
 
 
 class Lateness:

@@ -159,6 +159,9 @@ class PanelServer:
                 held = self._handle(msg.data, held, lateness)
         finally:
             self.sockets.discard(ws)
+            if lateness.dropped:
+                log.warning("panel: a page's %d late pad messages were not forwarded",
+                            lateness.dropped)  # fmt: skip
             if held:
                 self.bus.stop_jog()  # the page went while its pad was held: stop now
             if not self.sockets:
