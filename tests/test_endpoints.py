@@ -257,7 +257,7 @@ def test_the_files_derived_from_the_table_are_current() -> None:
     assert len([p for p, _ in derived() if p.exists()]) == 4
     assert stale() == [], "run: manus schemas --update"
     text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
-    assert ep.markdown_table() in text
+    assert ep.markdown_table(ep.TABLE) in text
 
 
 def test_channel_types_come_from_the_table() -> None:
