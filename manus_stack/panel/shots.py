@@ -1,6 +1,6 @@
 """Screenshots of every screen of the panel, for docs/panel.md:
 
-    python -m manus_stack.panel.shots --out docs/img      # about a minute
+    python -m manus_stack.panel.shots --out docs/img      # about 30 s
 
 Starts the whole stack on the simulator and ``manus panel`` (:class:`PanelRig`), opens the
 page in Debian's headless Chromium (:mod:`manus_stack.panel.browser`) and goes through
