@@ -19,7 +19,7 @@ from manus_stack.lockstep import LockStep
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import GoalAck, GoalResult, TrajectoryGoal
-from schemas.planning import PlanRequest, Trajectory
+from schemas.planning import PlanRequest, Trajectory, ViaPointPath
 from schemas.state import BridgePhase, JointState
 from services.can_bridge.config import BridgeConfig
 from services.controller.config import ControllerConfig
@@ -113,7 +113,7 @@ class ControlledArm:
         """
         js = self.core.last_js
         start = list(js.position) if js is not None else None
-        request = PlanRequest(path=load_path(path_file), start=start, preview_dt=0.0)
+        request = PlanRequest(ViaPointPath(path=load_path(path_file)), start=start, preview_dt=0.0)
         reply = PlannerCore().plan(request)
         if reply.trajectory is None:
             raise RuntimeError(f"planning {path_file} failed: {reply.error}")

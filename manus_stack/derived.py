@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from manus_stack import policy
-from schemas.endpoints import markdown_table
+from schemas.endpoints import TABLE, markdown_table
 from schemas.export import SUPERVISOR_FILE, dumps, supervisor_document
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -39,11 +39,12 @@ def _between(text: str, begin: str, end: str, body: str, where: Path) -> str:
 def derived() -> list[tuple[Path, Callable[[str], str]]]:
     """(file, its current text -> what it should be) for every derived file."""
     architecture = ROOT / "docs" / "architecture.md"
+    keys = markdown_table(TABLE)
     files: list[tuple[Path, Callable[[str], str]]] = [
         (SUPERVISOR_FILE, lambda _: dumps(supervisor_document())),
         (
             architecture,
-            lambda text: _between(text, TABLE_BEGIN, TABLE_END, markdown_table(), architecture),
+            lambda text: _between(text, TABLE_BEGIN, TABLE_END, keys, architecture),
         ),
     ]
     for router in policy.COMPUTERS:

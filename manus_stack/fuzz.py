@@ -45,6 +45,7 @@ from schemas.keys import channel_types
 from schemas.planning import PlanRequest
 from schemas.sequencing import Task, TaskControl
 from schemas.state import BridgeState, JointState
+from schemas.tagged import TaggedUnion
 from services.planner.core import PlannerCore
 from services.sequencer.core import SequencerCore
 from services.sequencer.validate import Validator
@@ -86,6 +87,9 @@ def _value(tp: Any, meta: Any, rng: random.Random) -> Any:
         n = meta.get("length") or rng.randint(0, 3)
         return [_value(args[0], meta, rng) for _ in range(n)]
     if isinstance(tp, type) and issubclass(tp, Message):
+        union = meta.get("union") if meta else None
+        if isinstance(union, TaggedUnion):  # one of its members, in turn at random
+            tp = union.members[rng.choice(union.kinds())]
         return example(tp, rng)
     make = _SCALAR.get(tp)
     if make is None:

@@ -16,7 +16,7 @@ from manus.protocol import Frame
 from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
 from schemas.control import TrajectoryGoal
-from schemas.planning import PlanRequest, Trajectory
+from schemas.planning import PlanRequest, Trajectory, ViaPointPath
 from services.guardian.core import Action, GuardianCore
 from services.planner.core import PlannerCore
 from services.simulator.config import SimConfig
@@ -153,7 +153,8 @@ SHORT_MOVE = """
 def _short_move(arm: ControlledArm) -> Trajectory:
     js = arm.core.last_js
     start = list(js.position) if js is not None else None
-    request = PlanRequest(path=parse_viapoints(SHORT_MOVE), start=start, preview_dt=0.0)
+    motion = ViaPointPath(path=parse_viapoints(SHORT_MOVE))
+    request = PlanRequest(motion, start=start, preview_dt=0.0)
     reply = PlannerCore().plan(request)
     if reply.trajectory is None:
         raise RuntimeError(f"planning the short move failed: {reply.error}")

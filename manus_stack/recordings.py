@@ -29,7 +29,7 @@ from manus_stack.controlled import ControlledArm
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import TrajectoryGoal
-from schemas.planning import PlanReply, PlanRequest
+from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from services.planner.core import PlannerCore
 from services.planner.wiring import WIRING as PLANNER
 from services.recorder.writer import RecordingWriter
@@ -109,7 +109,8 @@ def record_thesis_runs(
     result = None
     for i, shape in enumerate(shapes):
         name = f"paths/thesis_{shape}.txt"  # not the checkout's path: the same in any clone
-        request = PlanRequest(path=parse_viapoints((PATHS.parent / name).read_text(), name))
+        path = parse_viapoints((PATHS.parent / name).read_text(), name)
+        request = PlanRequest(ViaPointPath(path=path))
         arm.ls.publish(ep.PLAN.trace("request"), request)
         reply: PlanReply = planner.plan(request)
         arm.ls.publish(ep.PLAN.trace("reply"), reply)

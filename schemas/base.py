@@ -6,29 +6,47 @@ definition gives the MessagePack codec (:meth:`Message.encode` / :meth:`Message.
 validated on decode) and the language-neutral JSON Schema (:meth:`Message.json_schema`).
 
 Supported field types: ``int``, ``float``, ``bool``, ``str``, ``bytes``, a nested
-``Message``, ``list[T]`` of any of these, and ``T | None``.
+``Message``, ``list[T]`` of any of these, and ``T | None``. A nested field may hold one of
+several message types told apart by a tag field (``field(..., union=...)``: a
+:class:`schemas.tagged.TaggedUnion`).
 
 A ``str`` field with ``choices`` (a tuple, or a ``StrEnum`` class whose members are the
-allowed values: the typed states of :mod:`schemas.states`) is checked when a message is
-built, not only when it is decoded: ``GoalResult(status="preemted", ...)`` raises a
-:class:`~manus.errors.SchemaError` naming the field and the allowed values.
+allowed values: the typed states of :mod:`schemas.states`; for a ``list[str]`` field, of
+each item) is checked when a message is built, not only when it is decoded:
+``GoalResult(status="preemted", ...)`` raises a :class:`~manus.errors.SchemaError` naming
+the field and the allowed values. So is the kind of a union field's value.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
-import math
 import types
 import typing
-from collections.abc import Callable
-from typing import Any, ClassVar, Self, TypeVar, get_args, get_origin
+from typing import Any, ClassVar, Protocol, Self, TypeVar, get_args, get_origin
 
 import msgpack
 
 from manus.errors import SchemaError
+from schemas.scalars import DECODERS, finite_floats_in_range, float_table, ints_in_range, strings
 
 M = TypeVar("M", bound="Message")
+
+
+class UnionCodec(Protocol):
+    """What a union field needs of its union (:class:`schemas.tagged.TaggedUnion`)."""
+
+    def decode(self, data: Any, path: str) -> Message:
+        """The member ``data`` names, built from it (errors name ``path``)."""
+        ...
+
+    def check(self, value: object, where: str) -> None:
+        """Raise :class:`SchemaError` unless ``value`` is an instance of a member."""
+        ...
+
+    def json_schema(self) -> dict[str, Any]:
+        """JSON Schema of the field: one of the members, by the tag."""
+        ...
 
 
 def field(
@@ -41,6 +59,8 @@ def field(
     choices: tuple[str, ...] | type[enum.StrEnum] | None = None,
     minimum: float | None = None,
     maximum: float | None = None,
+    union: UnionCodec | None = None,
+    kw_only: bool = False,
 ) -> Any:
     """A documented message field.
 
@@ -54,6 +74,10 @@ def field(
             members' values); checked when the message is built and when it is decoded.
         minimum: smallest allowed numeric value.
         maximum: largest allowed numeric value.
+        union: for a nested message field, the members it may hold, told apart by their
+            tag (:class:`schemas.tagged.TaggedUnion`).
+        kw_only: a keyword-only argument of the constructor (a field with a default
+            before fields without one: a union member's tag).
     """
     if isinstance(choices, type):
         choices = tuple(member.value for member in choices)
@@ -64,10 +88,12 @@ def field(
         "choices": choices,
         "minimum": minimum,
         "maximum": maximum,
+        "union": union,
     }
+    extra: dict[str, Any] = {"kw_only": True} if kw_only else {}
     if default_factory is not dataclasses.MISSING:
-        return dataclasses.field(default_factory=default_factory, metadata=meta)
-    return dataclasses.field(default=default, metadata=meta)
+        return dataclasses.field(default_factory=default_factory, metadata=meta, **extra)
+    return dataclasses.field(default=default, metadata=meta, **extra)
 
 
 class Message:
@@ -77,18 +103,25 @@ class Message:
     """Stable, versioned name of the message type, e.g. ``manus/JointState/1``."""
 
     def __post_init__(self) -> None:
-        """Check the fields with ``choices`` (built or decoded alike).
+        """Check the fields with ``choices`` and the union fields (built or decoded alike).
 
         Raises:
             SchemaError: naming the type, the field, the value and the allowed values.
         """
-        for name, allowed in _choice_fields(type(self)):
+        cls = type(self)
+        for name, allowed in _choice_fields(cls):
             value = getattr(self, name)
-            if value not in allowed:
-                raise SchemaError(
-                    f"{self.TYPE_NAME or type(self).__name__}.{name}: {value!r} is not one of "
-                    f"{sorted(allowed)}"
-                )
+            for item in value if type(value) is list else (value,):
+                if item not in allowed:
+                    raise SchemaError(
+                        f"{self.TYPE_NAME or cls.__name__}.{name}: {item!r} is not one of "
+                        f"{sorted(allowed)}"
+                    )
+        for name, union in _union_fields(cls):
+            value = getattr(self, name)
+            for item in value if type(value) is list else (value,):
+                if item is not None:
+                    union.check(item, f"{self.TYPE_NAME or cls.__name__}.{name}")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of plain values (lists, dicts, numbers, strings, bytes)."""
@@ -105,13 +138,18 @@ class Message:
         return bytes(msgpack.packb(self.to_dict(), use_bin_type=True))
 
     @classmethod
-    def from_dict(cls, data: Any) -> Self:
+    def from_dict(cls, data: Any, path: str = "") -> Self:
         """Validate ``data`` and build the message.
+
+        Args:
+            data: the plain values (a map).
+            path: how errors name it (default: the type's name; a field path when it is
+                nested).
 
         Raises:
             SchemaError: naming the type, the field path, the value and what is allowed.
         """
-        return _build(cls, data, cls.TYPE_NAME or cls.__name__)
+        return _build(cls, data, path or cls.TYPE_NAME or cls.__name__)
 
     @classmethod
     def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
@@ -155,6 +193,8 @@ def _plain(value: Any) -> Any:
     if isinstance(value, list | tuple):
         if all(type(v) is float or type(v) is int for v in value):
             return list(value)  # numeric rows, the bulk of trajectories: no recursion
+        if all(type(v) is str for v in value):
+            return list(value)
         return [_plain(v) for v in value]
     return value
 
@@ -175,6 +215,21 @@ def _choice_fields(cls: type) -> tuple[tuple[str, frozenset[str]], ...]:
     return found
 
 
+_UNIONS: dict[type, tuple[tuple[str, UnionCodec], ...]] = {}
+
+
+def _union_fields(cls: type) -> tuple[tuple[str, UnionCodec], ...]:
+    """(field name, union) of every union field of ``cls``, cached as :func:`_choice_fields`."""
+    found = _UNIONS.get(cls)
+    if found is None:
+        found = _UNIONS[cls] = tuple(
+            (f.name, f.metadata["union"])
+            for f in dataclasses.fields(cls)
+            if f.metadata.get("union") is not None
+        )
+    return found
+
+
 _HINTS: dict[type, dict[str, Any]] = {}
 
 
@@ -186,140 +241,89 @@ def _hints(cls: type) -> dict[str, Any]:
     return hints
 
 
+_FIELDS: dict[type, tuple[tuple[str, Any, bool, Any], ...]] = {}
+
+
+def _decoded_fields(cls: type) -> tuple[tuple[str, Any, bool, Any], ...]:
+    """(name, type, required, metadata) of each field of ``cls``, cached (decoding time)."""
+    found = _FIELDS.get(cls)
+    if found is None:
+        hints = _hints(cls)
+        found = _FIELDS[cls] = tuple(
+            (
+                f.name,
+                hints[f.name],
+                f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING,
+                f.metadata,
+            )
+            for f in dataclasses.fields(cls)
+        )
+    return found
+
+
+_SHAPES: dict[Any, tuple[Any, tuple[Any, ...]]] = {}
+
+
+def _shape(tp: Any) -> tuple[Any, tuple[Any, ...]]:
+    """``(get_origin(tp), get_args(tp))``, cached: the typing calls dominated decoding."""
+    found = _SHAPES.get(tp)
+    if found is None:
+        found = _SHAPES[tp] = (get_origin(tp), get_args(tp))
+    return found
+
+
 def _build(cls: type[M], data: Any, path: str) -> M:
     if not isinstance(data, dict):
         raise SchemaError(f"{path}: expected a map, got {type(data).__name__}")
-    hints = _hints(cls)
     kwargs: dict[str, Any] = {}
-    known = set()
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-        known.add(f.name)
-        fpath = f"{path}.{f.name}"
-        if f.name not in data:
-            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-                raise SchemaError(f"{fpath}: missing required field")
+    fields = _decoded_fields(cls)
+    for name, tp, required, meta in fields:
+        if name not in data:
+            if required:
+                raise SchemaError(f"{path}.{name}: missing required field")
             continue
-        kwargs[f.name] = _convert(hints[f.name], data[f.name], fpath, f.metadata)
-    extra = set(data) - known
-    if extra:
+        kwargs[name] = _convert(tp, data[name], f"{path}.{name}", meta)
+    if len(kwargs) != len(data):
+        extra = set(data) - {name for name, *_ in fields}
         raise SchemaError(f"{path}: unknown field(s) {sorted(map(str, extra))}")
     return cls(**kwargs)
 
 
 def _convert(tp: Any, value: Any, path: str, meta: Any) -> Any:
-    origin = get_origin(tp)
+    origin, args = _shape(tp)
     if origin in (types.UnionType, typing.Union):
-        args = [a for a in get_args(tp) if a is not type(None)]
         if value is None:
             return None
-        return _convert(args[0], value, path, meta)
+        return _convert(next(a for a in args if a is not type(None)), value, path, meta)
     if origin is list:
         return _convert_list(tp, value, path, meta)
     if isinstance(tp, type) and issubclass(tp, Message):
-        return _build(tp, value, path)
-    scalar = _DECODERS.get(tp)
+        union = meta.get("union") if meta else None
+        return _build(tp, value, path) if union is None else union.decode(value, path)
+    scalar = DECODERS.get(tp)
     if scalar is None:  # pragma: no cover
         raise SchemaError(f"{path}: unsupported field type {tp!r}")
     return scalar(value, path, meta)
 
 
 def _convert_list(tp: Any, value: Any, path: str, meta: Any) -> list[Any]:
-    (inner,) = get_args(tp)
+    (inner,) = _shape(tp)[1]
     if not isinstance(value, list | tuple):
         raise SchemaError(f"{path}: expected a list, got {type(value).__name__}")
     length = meta.get("length") if meta else None
-    if length is not None and get_origin(inner) is not list and len(value) != length:
+    inner_origin, inner_args = _shape(inner)
+    if length is not None and inner_origin is not list and len(value) != length:
         raise SchemaError(f"{path}: expected {length} values, got {len(value)}")
-    # Fast paths for numeric rows and tables (trajectories, previews); anything they
-    # do not accept goes through the item-by-item checks below, which name the item.
-    if inner is float and _finite_floats_in_range(value, meta):
+    # Fast paths for numeric rows and tables (trajectories, previews), integers and
+    # strings; anything they do not accept goes through the item-by-item checks below,
+    # which name the item.
+    if inner is float and finite_floats_in_range(value, meta):
         return list(value)
-    if (
-        get_origin(inner) is list
-        and get_args(inner) == (float,)
-        and _float_table(value, meta, length)
-    ):
+    if inner_origin is list and inner_args == (float,) and float_table(value, meta, length):
         return [list(row) for row in value]
+    if (inner is int and ints_in_range(value, meta)) or (inner is str and strings(value, meta)):
+        return list(value)
     return [_convert(inner, v, f"{path}[{i}]", meta) for i, v in enumerate(value)]
-
-
-def _to_bool(value: Any, path: str, meta: Any) -> bool:
-    if not isinstance(value, bool):
-        raise SchemaError(f"{path}: expected a boolean, got {value!r}")
-    return value
-
-
-def _to_int(value: Any, path: str, meta: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise SchemaError(f"{path}: expected an integer, got {value!r}")
-    _range(path, value, meta)
-    return value
-
-
-def _to_float(value: Any, path: str, meta: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SchemaError(f"{path}: expected a number, got {value!r}")
-    fv = float(value)
-    if not math.isfinite(fv):
-        raise SchemaError(f"{path}: expected a finite number, got {value!r}")
-    _range(path, fv, meta)
-    return fv
-
-
-def _to_str(value: Any, path: str, meta: Any) -> str:
-    if not isinstance(value, str):
-        raise SchemaError(f"{path}: expected a string, got {value!r}")
-    choices = meta.get("choices") if meta else None
-    if choices and value not in choices:
-        raise SchemaError(f"{path}: {value!r} is not one of {list(choices)}")
-    return value
-
-
-def _to_bytes(value: Any, path: str, meta: Any) -> bytes:
-    if not isinstance(value, bytes | bytearray):
-        raise SchemaError(f"{path}: expected bytes, got {type(value).__name__}")
-    return bytes(value)
-
-
-_DECODERS: dict[Any, Callable[[Any, str, Any], Any]] = {
-    bool: _to_bool,
-    int: _to_int,
-    float: _to_float,
-    str: _to_str,
-    bytes: _to_bytes,
-}
-"""Decoder of each scalar field type: (value, field path, field metadata) -> value."""
-
-
-def _finite_floats_in_range(values: list[Any] | tuple[Any, ...], meta: Any) -> bool:
-    """True when every item is a finite ``float`` within the field's range (no error to
-    report, so the per-item checks can be skipped: long numeric rows decode fast)."""
-    if not values or not all(type(v) is float for v in values):
-        return False
-    if not math.isfinite(sum(values)):  # any inf or nan makes the sum non-finite
-        return False
-    lo, hi = (meta.get("minimum"), meta.get("maximum")) if meta else (None, None)
-    return (lo is None or min(values) >= lo) and (hi is None or max(values) <= hi)
-
-
-def _float_table(rows: list[Any] | tuple[Any, ...], meta: Any, length: int | None) -> bool:
-    """True when every row is a list of ``length`` (if set) finite floats in range."""
-    return all(
-        isinstance(row, list | tuple)
-        and (length is None or len(row) == length)
-        and _finite_floats_in_range(row, meta)
-        for row in rows
-    )
-
-
-def _range(path: str, value: float, meta: Any) -> None:
-    if not meta:
-        return
-    lo, hi = meta.get("minimum"), meta.get("maximum")
-    if lo is not None and value < lo:
-        raise SchemaError(f"{path}: {value!r} is below the minimum {lo!r}")
-    if hi is not None and value > hi:
-        raise SchemaError(f"{path}: {value!r} is above the maximum {hi!r}")
 
 
 def _object_schema(cls: type) -> dict[str, Any]:
@@ -355,7 +359,8 @@ def _type_schema(tp: Any, meta: Any, *, top: bool = True) -> dict[str, Any]:
             out["minItems"] = out["maxItems"] = length
         return out
     if isinstance(tp, type) and issubclass(tp, Message):
-        return _object_schema(tp)
+        union = meta.get("union") if meta else None
+        return _object_schema(tp) if union is None else union.json_schema()
     simple = {bool: "boolean", int: "integer", float: "number", str: "string"}
     if tp in simple:
         out = {"type": simple[tp]}

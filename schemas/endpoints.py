@@ -1,30 +1,15 @@
 """The table of endpoints: every key of the stack, declared once.
 
-An :class:`Endpoint` is a key suffix (under the prefix, default ``manus``) with what it
-carries and who owns it. It *is* its suffix (a ``str`` subclass), so it is used wherever a
-suffix is: ``Keys(prefix)(JOINTS)`` is ``manus/state/joints``, a core returns
-``(FEEDBACK, message)``, a recording's channel is named by it. Everything else that lists
-keys is derived from :data:`TABLE`: :class:`schemas.keys.Keys` and its channel types (the
+Each key is one :class:`~schemas.endpoint.Endpoint` (what an endpoint is, its kinds and
+audiences: :mod:`schemas.endpoint`), collected in :data:`TABLE` (a
+:class:`~schemas.endpoint_table.Table`). The types those modules define are re-exported
+here, so that ``ep.Kind``, ``ep.Service``, ``ep.TABLE`` and the endpoints are all read as
+``from schemas import endpoints as ep``. Everything else that lists keys is derived from
+:data:`TABLE`: :class:`schemas.keys.Keys` and its channel types (the
 recorder's JSON Schemas), the schema export (``manus schemas``,
 ``schemas/supervisor.schema.json``), the replay's per-service outputs and queryables, the
 access-control policy check, the services' wiring maps and the key table of
-docs/architecture.md (:func:`markdown_table`).
-
-Kinds (:class:`Kind`):
-
-- ``publication``: a stream of one message type, published by its owner (``estop``: by
-  anyone; the bridge latches it).
-- ``queryable``: request -> reply, answered by its owner. Queries are invisible to
-  subscribers, so every answer is mirrored on ``trace/<suffix>/request`` and
-  ``trace/<suffix>/reply`` (:meth:`Endpoint.trace`; ``manus.node.Node.queryable``).
-- ``liveliness``: a token root: ``alive/<service>`` (the service runs),
-  ``where/<service>/<host>/<pid>`` (where each of its processes runs) and
-  ``disabled/<service>/<why>`` (it is off on purpose, and why); no payload.
-- ``recording``: a channel of recordings only, never published on the bus
-  (``liveliness``: the recorder's log of token changes).
-
-Audience (:class:`Audience`): ``supervisor`` endpoints are the public API (documented in
-``schemas/supervisor.schema.json``); ``internal`` ones are between the stack's services.
+docs/architecture.md (:func:`~schemas.endpoint_table.markdown_table`).
 
 Adding an endpoint is one :class:`Endpoint` here (and, for its owner's core, one line of
 the service's wiring map, ``services/<name>/wiring.py``). A key suffix is spelled as a
@@ -33,12 +18,7 @@ string literal only here.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-from enum import StrEnum
-from typing import Any, Generic, TypeVar
-
-from manus.errors import SchemaError
+# ruff: noqa: PLC0414 - the `X as X` imports below re-export (mypy strict): ep.Kind etc.
 from schemas import (
     collision,
     commands,
@@ -55,155 +35,20 @@ from schemas import (
     simfault,
     state,
 )
-from schemas.base import Message
-
-M = TypeVar("M", bound=Message)
-R = TypeVar("R", bound=Message)
-
-
-class Kind(StrEnum):
-    """How an endpoint travels (see the module docstring)."""
-
-    PUBLICATION = "publication"
-    QUERYABLE = "queryable"
-    LIVELINESS = "liveliness"
-    RECORDING = "recording"
-
-
-class Audience(StrEnum):
-    """Who uses an endpoint."""
-
-    INTERNAL = "internal"
-    """between the stack's own services"""
-    SUPERVISOR = "supervisor"
-    """the public API: supervisors, user interfaces, other systems"""
-
-
-class Service(StrEnum):
-    """The stack's services, each one process (``manus <command>``) and liveliness name."""
-
-    SIMULATOR = "simulator"
-    CAN_BRIDGE = "can_bridge"
-    PLANNER = "planner"
-    CONTROLLER = "controller"
-    SEQUENCER = "sequencer"
-    RECORDER = "recorder"
-    GUARDIAN = "guardian"
-
-
-ANYONE = "anyone"
-"""Owner of an endpoint every identity may publish on (``estop``)."""
-EACH_SERVICE = "each service"
-"""Owner of the liveliness roots: each service holds its own tokens under them."""
-
-TRACE_ROOT = "trace"
-"""Root of the query mirrors: ``trace/<queryable>/request|reply``."""
-TRACE_PARTS = ("request", "reply")
-
-
-def trace_suffix(queryable: str, part: str) -> str:
-    """``trace/<queryable>/<part>``: the suffix of a query mirror (``part``: request or
-    reply).
-
-    Raises:
-        SchemaError: ``part`` is neither request nor reply.
-    """
-    if part not in TRACE_PARTS:
-        raise SchemaError(f"trace part {part!r} is not one of {list(TRACE_PARTS)}")
-    return f"{TRACE_ROOT}/{queryable}/{part}"
-
-
-class Endpoint(str):
-    """One key suffix and what travels on it (a ``str``: the suffix itself).
-
-    Args:
-        suffix: the key after the prefix, e.g. ``state/joints``.
-        kind: how it travels.
-        owner: the service that publishes it or answers it (:data:`ANYONE`,
-            :data:`EACH_SERVICE` for the shared ones).
-        msg_type: the message type (publications, recording channels), or the request
-            type (queryables); None for liveliness roots.
-        reply_type: the reply type of a queryable.
-        audience: internal or supervisor.
-        doc: one line: what it is for.
-        params: for a liveliness root, what follows it in a token's key
-            (``<service>/<host>/<pid>``).
-        clients: for a queryable, the identities besides its owner that may query it
-            (the deployed access control, ``manus_stack.policy``); None: every identity.
-    """
-
-    kind: Kind
-    owner: str
-    msg_type: type[Message] | None
-    reply_type: type[Message] | None
-    audience: Audience
-    doc: str
-    params: str
-    clients: tuple[str, ...] | None
-
-    def __new__(
-        cls,
-        suffix: str,
-        kind: Kind,
-        owner: str,
-        msg_type: type[Message] | None = None,
-        reply_type: type[Message] | None = None,
-        *,
-        audience: Audience = Audience.INTERNAL,
-        doc: str = "",
-        params: str = "",
-        clients: tuple[str, ...] | None = None,
-    ) -> Any:
-        if not suffix or suffix.startswith("/") or suffix.endswith("/") or "*" in suffix:
-            raise SchemaError(f"endpoint {suffix!r}: a suffix is non-empty, without * or edge /")
-        if (kind is Kind.QUERYABLE) != (reply_type is not None):
-            raise SchemaError(f"endpoint {suffix!r}: a reply type iff it is a queryable")
-        if (kind is Kind.LIVELINESS) != (msg_type is None):
-            raise SchemaError(f"endpoint {suffix!r}: a message type unless it is liveliness")
-        self = str.__new__(cls, suffix)
-        self.kind = kind
-        self.owner = owner
-        self.msg_type = msg_type
-        self.reply_type = reply_type
-        self.audience = audience
-        self.doc = doc
-        self.params = params
-        self.clients = clients
-        return self
-
-    @property
-    def suffix(self) -> str:
-        """The key suffix as a plain ``str``."""
-        return str.__str__(self)
-
-    @property
-    def pattern(self) -> str:
-        """The key as documented: the suffix, and the parameters of a token root."""
-        return f"{self.suffix}/{self.params}" if self.params else self.suffix
-
-    def trace(self, part: str) -> str:
-        """Suffix of this queryable's mirror: ``trace/<suffix>/<part>`` (request, reply).
-
-        Raises:
-            SchemaError: not a queryable, or ``part`` is neither request nor reply.
-        """
-        if self.kind is not Kind.QUERYABLE:
-            raise SchemaError(f"{self.suffix}: only a queryable has trace mirrors")
-        return trace_suffix(self.suffix, part)
-
-    def __repr__(self) -> str:
-        return f"Endpoint({self.suffix!r}, {self.kind.value}, owner {self.owner})"
-
-    def __str__(self) -> str:
-        return self.suffix
-
-
-class Topic(Endpoint, Generic[M]):
-    """A publication (or recording channel) carrying messages of type ``M``."""
-
-
-class Queryable(Endpoint, Generic[M, R]):
-    """A queryable: request ``M`` -> reply ``R``."""
+from schemas.endpoint import ANYONE as ANYONE
+from schemas.endpoint import EACH_SERVICE as EACH_SERVICE
+from schemas.endpoint import TRACE_PARTS as TRACE_PARTS
+from schemas.endpoint import TRACE_ROOT as TRACE_ROOT
+from schemas.endpoint import Audience as Audience
+from schemas.endpoint import Endpoint as Endpoint
+from schemas.endpoint import Kind as Kind
+from schemas.endpoint import M, R
+from schemas.endpoint import Queryable as Queryable
+from schemas.endpoint import Service as Service
+from schemas.endpoint import Topic as Topic
+from schemas.endpoint import trace_suffix as trace_suffix
+from schemas.endpoint_table import Table as Table
+from schemas.endpoint_table import markdown_table as markdown_table
 
 
 def _pub(
@@ -495,78 +340,6 @@ OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS)
 """The objects' endpoints (a block of their own in :data:`TABLE`)."""
 
 
-class Table:
-    """The endpoints, by suffix, in declaration order (:data:`TABLE`)."""
-
-    def __init__(self, endpoints: tuple[Endpoint, ...]) -> None:
-        self._by_suffix: dict[str, Endpoint] = {}
-        self.version = 0
-        """Bumped on every change (caches derived from the table compare it)."""
-        for endpoint in endpoints:
-            self.add(endpoint)
-
-    def add(self, endpoint: Endpoint) -> None:
-        """Declare one more endpoint.
-
-        Raises:
-            SchemaError: its suffix is taken, or lies under another endpoint's (or the
-                trace root).
-        """
-        suffix = endpoint.suffix
-        if suffix in self._by_suffix:
-            raise SchemaError(f"endpoint {suffix!r} is declared twice")
-        root = suffix.split("/")[0]
-        if root == TRACE_ROOT:
-            raise SchemaError(f"endpoint {suffix!r}: {TRACE_ROOT}/ holds the query mirrors")
-        for other in self._by_suffix.values():
-            if other.kind is Kind.LIVELINESS and root == other.suffix:
-                raise SchemaError(f"endpoint {suffix!r} lies under the token root {other!r}")
-        self._by_suffix[suffix] = endpoint
-        self.version += 1
-
-    def remove(self, endpoint: Endpoint) -> None:
-        """Withdraw an endpoint (tests that declare a throwaway one)."""
-        del self._by_suffix[endpoint.suffix]
-        self.version += 1
-
-    @contextlib.contextmanager
-    def extended(self, *endpoints: Endpoint) -> Iterator[None]:
-        """Declare ``endpoints`` for the duration of a ``with`` block."""
-        for endpoint in endpoints:
-            self.add(endpoint)
-        try:
-            yield
-        finally:
-            for endpoint in endpoints:
-                self.remove(endpoint)
-
-    def __iter__(self) -> Iterator[Endpoint]:
-        return iter(list(self._by_suffix.values()))
-
-    def __contains__(self, suffix: object) -> bool:
-        return suffix in self._by_suffix
-
-    def get(self, suffix: str) -> Endpoint | None:
-        """The endpoint of ``suffix`` (None: not declared)."""
-        return self._by_suffix.get(suffix)
-
-    def of_kind(self, *kinds: Kind) -> list[Endpoint]:
-        """The endpoints of these kinds, in declaration order."""
-        return [e for e in self if e.kind in kinds]
-
-    def owned_by(self, owner: str, *kinds: Kind) -> list[Endpoint]:
-        """What ``owner`` publishes or answers (of ``kinds``; all kinds when none given)."""
-        return [e for e in self if e.owner == owner and (not kinds or e.kind in kinds)]
-
-    def outputs(self, service: str) -> tuple[Endpoint, ...]:
-        """What ``service`` publishes (its publications; not the trace mirrors)."""
-        return tuple(self.owned_by(service, Kind.PUBLICATION))
-
-    def queryables(self, service: str) -> tuple[Endpoint, ...]:
-        """The queryables ``service`` answers."""
-        return tuple(self.owned_by(service, Kind.QUERYABLE))
-
-
 TABLE = Table(
     (
         JOINTS,
@@ -611,21 +384,3 @@ TABLE = Table(
     )
 )
 """Every endpoint of the stack."""
-
-
-def markdown_table(table: Table = TABLE) -> str:
-    """The key table of docs/architecture.md (kept equal by a test)."""
-    rows = [
-        "| key (after the prefix) | kind | type | owner | audience |",
-        "|---|---|---|---|---|",
-    ]
-    for e in table:
-        if e.kind is Kind.QUERYABLE:
-            assert e.msg_type is not None and e.reply_type is not None
-            what = f"{e.msg_type.__name__} -> {e.reply_type.__name__}"
-        elif e.msg_type is not None:
-            what = e.msg_type.__name__
-        else:
-            what = "(token, no payload)"
-        rows.append(f"| `{e.pattern}` | {e.kind.value} | {what} | {e.owner} | {e.audience.value} |")
-    return "\n".join(rows) + "\n"

@@ -7,9 +7,18 @@ when the plan is made; only the first and last velocities are used; ``time`` is 
 time since the first via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch)
 Rx(roll).
 
+A plan request asks for one kind of motion (:class:`Motion`, told apart by its ``kind``;
+:data:`MOTIONS` holds the kinds the planner serves: today the via-point path,
+:class:`ViaPointPath`). Each kind is served by its own planner and answered with the same
+:class:`Trajectory`. A request that resumes a paused plan (:class:`PlanResume`) carries
+that plan's trajectory and how far it got, and asks for the same motion again: the
+planner of its kind plans what is left from where the arm is.
+
 A trajectory is piecewise Hermite in joint space: positions and velocities at each knot
 (cubic segments), plus accelerations when present (quintic segments). Its time starts at
-0 at the first knot; the controller anchors it when the goal starts.
+0 at the first knot; the controller anchors it when the goal starts. Each knot says what
+it is (:class:`KnotKind`): the start, a via point of the request's path (with its index
+there), or a waypoint the planner chose.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.collision import ClearanceReport
+from schemas.tagged import TaggedUnion, tag
 
 
 class Interpolation(StrEnum):
@@ -51,6 +61,18 @@ class PlanErrorReason(StrEnum):
     """the request itself is inconsistent"""
     COLLISION = "collision"
     """the arm would come too close to the scene, a protection zone or itself"""
+
+
+class KnotKind(StrEnum):
+    """What a knot of a trajectory is (``Trajectory.knot_kinds``)."""
+
+    START = "start"
+    """where the arm is when the trajectory begins (a path's via point 0 is replaced by it;
+    a resumed plan's start is no via point of the path)"""
+    VIA_POINT = "via_point"
+    """a via point of the request's path (``Trajectory.via_indices``: which one)"""
+    WAYPOINT = "waypoint"
+    """a configuration the planner chose on its way (no via point)"""
 
 
 INTERPOLATIONS = tuple(Interpolation)
@@ -87,18 +109,30 @@ class Path(Message):
 
 
 @dataclass(frozen=True)
-class PlanRequest(Message):
-    """Ask the planner for a joint trajectory along a path."""
+class Motion(Message):
+    """What a plan request asks for: one of the kinds in :data:`MOTIONS`.
 
-    TYPE_NAME = "manus/PlanRequest/1"
+    The base of the kinds of motion; each is told apart by its ``kind`` field and served by
+    its own planner.
+    """
 
+
+MOTIONS: TaggedUnion[Motion] = TaggedUnion(Motion)
+"""The kinds of motion the planner serves, by ``kind`` (``PlanRequest.motion``)."""
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class ViaPointPath(Motion):
+    """A path of via points, each reached at its time (the thesis's via-point file).
+
+    docs/protocol.md, Thesis via-point format; the first via point stands for the start.
+    """
+
+    TYPE_NAME = "manus/ViaPointPath/1"
+
+    kind: str = tag("via_points", "a path of via points (the thesis's via-point file)")
     path: Path = field("the path")
-    start: list[float] | None = field(
-        "start configuration (DH joint angles); None: the newest joint state",
-        unit="rad",
-        default=None,
-        length=6,
-    )
     interpolation: str = field(
         "cubic spline through all via points, or quintic segments",
         default="cubic",
@@ -106,14 +140,6 @@ class PlanRequest(Message):
     )
     speed_scaling: bool = field(
         "stretch time to respect joint speed/acceleration limits instead of refusing", default=False
-    )
-    preview_dt: float = field(
-        "sampling step of the Cartesian preview in the reply (0: no preview; the planner "
-        "coarsens it for very long trajectories)",
-        unit="s",
-        default=0.06,
-        minimum=0.0,
-        maximum=10.0,
     )
 
 
@@ -134,12 +160,24 @@ class Trajectory(Message):
         default_factory=list,
     )
     via_xyz: list[list[float]] = field(
-        "Cartesian gripper position of each knot (the via point it reaches)",
+        "Cartesian gripper position of each knot",
         unit="m",
         default_factory=list,
     )
     via_lines: list[int] = field(
         "source line of each knot's via point (0: none)", default_factory=list
+    )
+    knot_kinds: list[str] = field(
+        "what each knot is: start, via_point (a via point of the request's path) or waypoint "
+        "(the planner's); empty: knot i is via point i (the start being via point 0)",
+        default_factory=list,
+        choices=KnotKind,
+    )
+    via_indices: list[int] = field(
+        "for each knot, the 0-based index in the request's path of the via point it is (-1: "
+        "none: a waypoint, or a resumed plan's start); empty: knot i is via point i",
+        default_factory=list,
+        minimum=-1,
     )
     preview_xyz: list[list[float]] = field(
         "gripper positions sampled every `preview_dt` along the trajectory, for display",
@@ -155,6 +193,65 @@ class Trajectory(Message):
     )
     scene_version: int = field(
         "version of the scene it was checked against (-1: not checked)", default=-1, minimum=-1
+    )
+
+    def knot_kind(self, i: int) -> KnotKind:
+        """What knot ``i`` is (a trajectory without ``knot_kinds``: a via point, knot 0 the
+        start)."""
+        if self.knot_kinds:
+            return KnotKind(self.knot_kinds[i])
+        return KnotKind.START if i == 0 else KnotKind.VIA_POINT
+
+    def via_index(self, i: int) -> int:
+        """The index in the request's path of knot ``i``'s via point (-1: none)."""
+        return self.via_indices[i] if self.via_indices else i
+
+
+@dataclass(frozen=True)
+class PlanResume(Message):
+    """A paused plan going on: the plan as it was and how far it got.
+
+    The request asks for the same motion again, from where the arm is now (its ``start``);
+    the planner of that kind plans what is left (for a path: the via points not reached
+    yet, at the plan's pace).
+    """
+
+    TYPE_NAME = "manus/PlanResume/1"
+
+    trajectory: Trajectory = field(
+        "the paused plan's trajectory, as the planner made it (after an earlier pause: the "
+        "resumed one)"
+    )
+    reached: float = field(
+        "trajectory time the arm had reached when it stopped", unit="s", minimum=0.0
+    )
+
+
+@dataclass(frozen=True)
+class PlanRequest(Message):
+    """Ask the planner for a joint trajectory: one kind of motion, from a start."""
+
+    TYPE_NAME = "manus/PlanRequest/2"
+
+    motion: Motion = field(
+        "what to plan: one of the kinds the planner serves, named by its `kind`", union=MOTIONS
+    )
+    start: list[float] | None = field(
+        "start configuration (DH joint angles); None: the newest joint state",
+        unit="rad",
+        default=None,
+        length=6,
+    )
+    preview_dt: float = field(
+        "sampling step of the Cartesian preview in the reply (0: no preview; the planner "
+        "coarsens it for very long trajectories)",
+        unit="s",
+        default=0.06,
+        minimum=0.0,
+        maximum=10.0,
+    )
+    resume: PlanResume | None = field(
+        "a paused plan of this motion to go on with (None: plan it whole)", default=None
     )
 
 

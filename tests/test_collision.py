@@ -15,7 +15,7 @@ from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import default_scene
 from manus.sweep import TOLERANCE_M, sweep
 from manus.viapoints import load_path, parse_viapoints
-from schemas.planning import PlanReply, PlanRequest
+from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
 from services.planner.spline import PiecewisePolynomial
@@ -39,14 +39,18 @@ def moves(*steps: tuple[float, ...]) -> str:
 
 def plan(text: str, source: str = "test.txt") -> PlanReply:
     path = parse_viapoints(text, source)
-    return CORE.plan(PlanRequest(path=path, start=UNFOLDED, preview_dt=0.0, speed_scaling=True))
+    return CORE.plan(
+        PlanRequest(ViaPointPath(path=path, speed_scaling=True), start=UNFOLDED, preview_dt=0.0)
+    )
 
 
 @pytest.mark.parametrize("name", ["thesis_square.txt", "thesis_circle.txt"])
 @pytest.mark.parametrize("interpolation", ["cubic", "quintic"])
 def test_thesis_paths_are_clear_of_the_default_scene(name: str, interpolation: str) -> None:
     path = load_path(ROOT / "paths" / name)
-    reply = CORE.plan(PlanRequest(path=path, start=UNFOLDED, interpolation=interpolation))
+    reply = CORE.plan(
+        PlanRequest(ViaPointPath(path=path, interpolation=interpolation), start=UNFOLDED)
+    )
     assert reply.ok, reply.error
     assert reply.trajectory is not None
     clearance = reply.trajectory.clearance
@@ -78,7 +82,7 @@ def test_a_path_that_clips_the_table_is_refused() -> None:
     # The same path without the scene plans.
     bare = PlannerCore(PlannerConfig(scene="none"))
     path = parse_viapoints(moves((140, 0, -110, 0, 0, 15), (140, 0, -110, 0, 0, 15)), "t")
-    assert bare.plan(PlanRequest(path=path, start=UNFOLDED, speed_scaling=True)).ok
+    assert bare.plan(PlanRequest(ViaPointPath(path=path, speed_scaling=True), start=UNFOLDED)).ok
 
 
 def test_plan_names_the_scene_and_its_version() -> None:

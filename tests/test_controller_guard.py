@@ -13,7 +13,7 @@ from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
 from schemas.control import TrajectoryGoal
-from schemas.planning import PlanRequest
+from schemas.planning import PlanRequest, ViaPointPath
 from services.controller.guard import Guard
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
@@ -39,7 +39,10 @@ def test_a_trajectory_into_the_head_is_stopped_at_the_clearance() -> None:
     # A planner without the scene plans it; the controller's guard must stop it.
     blind = PlannerCore(PlannerConfig(scene="none"))
     reply = blind.plan(
-        PlanRequest(path=parse_viapoints(HEAD_PATH, "head.txt"), start=UNFOLDED, speed_scaling=True)
+        PlanRequest(
+            ViaPointPath(path=parse_viapoints(HEAD_PATH, "head.txt"), speed_scaling=True),
+            start=UNFOLDED,
+        )
     )
     assert reply.trajectory is not None
     arm = ControlledArm(SimConfig(start_pose="unfolded"))

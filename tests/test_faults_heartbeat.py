@@ -25,8 +25,9 @@ from schemas.base import Message
 from schemas.control import CancelGoal, GoalResult, GripperGoal, Heartbeat, TrajectoryGoal
 from schemas.state import BridgeState, JointState
 from services.controller.core import ControllerCore, Output
+from services.sequencer.actions import HEARTBEAT_SUFFIX, Action, Publish, Query
 from services.sequencer.config import SequencerConfig
-from services.sequencer.core import HEARTBEAT_SUFFIX, Action, Publish, Query, SequencerCore
+from services.sequencer.core import SequencerCore
 from services.sequencer.taskfile import task_from_args
 from services.simulator.config import SimConfig
 from tests.test_sequencer_core import SQUARE, UNFOLDED, joint_state, square_task

@@ -17,7 +17,8 @@ from schemas.sequencing import Task, TaskStep
 from schemas.state import JointState
 from services.can_bridge.config import BridgeConfig
 from services.controller.core import ControllerCore, Output
-from services.sequencer.core import Action, SequencerCore
+from services.sequencer.actions import Action
+from services.sequencer.core import SequencerCore
 from services.simulator.config import SimConfig
 from tests.bridge_scenarios import MS, UNFOLDED, VelocityController, check_safety, running
 

@@ -14,7 +14,7 @@ from manus.kinematics import fk, jacobian
 from manus.orientation import matrix_to_ypr
 from manus.trajectory import JointTrajectory
 from manus.viapoints import load_path, parse_viapoints
-from schemas.planning import PlanReply, PlanRequest, Trajectory
+from schemas.planning import PlanReply, PlanRequest, Trajectory, ViaPointPath
 from schemas.state import JointState
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
@@ -31,7 +31,9 @@ def plan_text(
     core: PlannerCore | None = None,
     **options: object,
 ) -> PlanReply:
-    request = PlanRequest(path=parse_viapoints(text, "test.txt"), start=list(start), **options)  # type: ignore[arg-type]
+    preview_dt = float(options.pop("preview_dt", 0.06))  # type: ignore[arg-type]
+    motion = ViaPointPath(path=parse_viapoints(text, "test.txt"), **options)  # type: ignore[arg-type]
+    request = PlanRequest(motion, start=list(start), preview_dt=preview_dt)
     return (core or PlannerCore()).plan(request)
 
 
@@ -65,7 +67,7 @@ def ok(reply: PlanReply) -> Trajectory:
 def test_thesis_paths_plan_from_the_unfolded_pose(name: str, interpolation: str) -> None:
     path = load_path(ROOT / "paths" / name)
     reply = PlannerCore().plan(
-        PlanRequest(path=path, start=list(UNFOLDED), interpolation=interpolation)
+        PlanRequest(ViaPointPath(path=path, interpolation=interpolation), start=list(UNFOLDED))
     )
     traj = ok(reply)
     assert reply.start == pytest.approx(list(UNFOLDED))
@@ -210,6 +212,7 @@ def _check_curve(q5_deg: list[float], v5_deg: list[float]) -> PlanReply:
     """Run the trajectory checks on a hand-made two-knot curve of joint 5."""
     from services.planner.checks import check_geometry
     from services.planner.errors import PlanningError
+    from services.planner.labels import KnotLabels
 
     q = np.tile(UNFOLDED, (2, 1))
     v = np.zeros((2, 6))
@@ -217,7 +220,7 @@ def _check_curve(q5_deg: list[float], v5_deg: list[float]) -> PlanReply:
     curve = PiecewisePolynomial.hermite(np.array([0.0, 1.0]), q, v)
     path = parse_viapoints(f"{START}\n0 0 0 0 0 0 0 0 0 0 0 0 1 2\n", "curve.txt")
     try:
-        check_geometry(curve, path, (1, -1, -1), PlannerConfig())
+        check_geometry(curve, KnotLabels.of_path(path), (1, -1, -1), PlannerConfig())
     except PlanningError as exc:
         return PlanReply(ok=False, error=exc.error)
     return PlanReply(ok=True)
@@ -280,7 +283,9 @@ def test_singular_jacobian_with_a_boundary_velocity_is_refused() -> None:
 
 def test_start_from_the_latest_valid_joint_state() -> None:
     core = PlannerCore()
-    request = PlanRequest(path=parse_viapoints(f"{START}\n0 10 0 0 0 0 0 0 0 0 0 0 1 2\n"))
+    request = PlanRequest(
+        ViaPointPath(path=parse_viapoints(f"{START}\n0 10 0 0 0 0 0 0 0 0 0 0 1 2\n"))
+    )
     assert "no start configuration" in _refused(core.plan(request), "no_state")
 
     def state(q: np.ndarray, valid: bool, seq: int) -> JointState:
@@ -302,17 +307,17 @@ def test_inconsistent_requests_get_structured_errors() -> None:
     path = parse_viapoints(f"{START}\n0 10 0 0 0 0 0 0 0 0 0 0 1 2\n", "p.txt")
     late = path.via_points[1]
     swapped = type(path)(via_points=[path.via_points[0], late, late], source="p.txt")
-    reply = PlannerCore().plan(PlanRequest(path=swapped, start=list(UNFOLDED)))
+    reply = PlannerCore().plan(PlanRequest(ViaPointPath(path=swapped), start=list(UNFOLDED)))
     message = _refused(reply, "parse")
     assert reply.error is not None and reply.error.line == 2 and reply.error.via_point == 2
     assert "p.txt:2: via point 2: column time = 1 s" in message
-    bad_start = PlanRequest(path=path, start=[math.nan] * 6)
+    bad_start = PlanRequest(ViaPointPath(path=path), start=[math.nan] * 6)
     _refused(PlannerCore().plan(bad_start), "invalid")
 
 
 def test_same_request_same_reply() -> None:
     request = PlanRequest(
-        path=load_path(ROOT / "paths" / "thesis_circle.txt"), start=list(UNFOLDED)
+        ViaPointPath(path=load_path(ROOT / "paths" / "thesis_circle.txt")), start=list(UNFOLDED)
     )
     assert PlannerCore().plan(request).encode() == PlannerCore().plan(request).encode()
 

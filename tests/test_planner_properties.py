@@ -11,7 +11,13 @@ from hypothesis import strategies as st
 from manus.config import UNFOLDED_Q_DEG
 from manus.trajectory import JointTrajectory
 from manus.viapoints import ViaPointError, parse_viapoints
-from schemas.planning import INTERPOLATIONS, PLAN_ERROR_REASONS, PlanReply, PlanRequest
+from schemas.planning import (
+    INTERPOLATIONS,
+    PLAN_ERROR_REASONS,
+    PlanReply,
+    PlanRequest,
+    ViaPointPath,
+)
 from services.planner.core import PlannerCore
 
 CORE = PlannerCore()
@@ -25,7 +31,7 @@ def _plan_text(text: str, start: list[float], interpolation: str, scaling: bool)
         assert str(exc).startswith("fuzz.txt") and "\n" not in str(exc)
         return
     request = PlanRequest(
-        path=path, start=start, interpolation=interpolation, speed_scaling=scaling
+        ViaPointPath(path=path, interpolation=interpolation, speed_scaling=scaling), start=start
     )
     reply = CORE.plan(request)
     _check_reply(reply, len(path.via_points))

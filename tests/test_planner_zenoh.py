@@ -12,7 +12,7 @@ from manus.node import Node, QueryError
 from manus.session import ZenohSettings
 from manus.viapoints import load_path
 from schemas import endpoints as ep
-from schemas.planning import Path, PlanReply, PlanRequest
+from schemas.planning import Path, PlanReply, PlanRequest, ViaPointPath
 from schemas.state import JointState
 from services.planner.core import PlannerCore
 from services.planner.shell import PlannerShell
@@ -24,7 +24,7 @@ UNFOLDED = [math.radians(q) for q in UNFOLDED_Q_DEG]
 
 def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
     square = load_path(ROOT / "paths" / "thesis_square.txt")
-    request = PlanRequest(path=square, start=UNFOLDED)
+    request = PlanRequest(ViaPointPath(path=square), start=UNFOLDED)
     with (
         PlannerShell(zenoh_settings) as shell,
         Node("test_client", zenoh_settings, liveliness=False) as client,
@@ -47,7 +47,7 @@ def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
         assert reply.trajectory == PlannerCore().plan(request).trajectory
 
         # No start in the request and no joint state yet: a structured refusal.
-        no_start = PlanRequest(path=square)
+        no_start = PlanRequest(ViaPointPath(path=square))
         refused = client.query(key, no_start, PlanReply)
         assert refused.error is not None and refused.error.reason == "no_state"
 
@@ -70,13 +70,13 @@ def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
         assert first.ok is None
         err = first.err
         assert err is not None
-        assert "PlanRequest/1: payload is not MessagePack" in err.payload.to_bytes().decode()
+        assert "PlanRequest/2: payload is not MessagePack" in err.payload.to_bytes().decode()
         assert shell.node.bad_payload_count == 1
 
         # A well-formed request with a malformed path: a PlanError naming the via point.
         late = square.via_points[2]
         broken = Path(via_points=[square.via_points[0], late, late], source="sent.txt")
-        reply = client.query(key, PlanRequest(path=broken, start=UNFOLDED), PlanReply)
+        reply = client.query(key, PlanRequest(ViaPointPath(path=broken), start=UNFOLDED), PlanReply)
         assert not reply.ok and reply.error is not None
         assert (reply.error.reason, reply.error.via_point, reply.error.line) == ("parse", 2, 5)
         assert "sent.txt:5: via point 2: column time" in reply.error.message

@@ -4,6 +4,7 @@ the command as a process."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -50,7 +51,8 @@ def two_plans(path: Path) -> Path:
             t = 1_000_000_000 * (k + 1)
             writer.write_payload("manus/trace/planner/plan/request", request, t, t)
             writer.write_payload("manus/trace/planner/plan/reply", reply, t + 3_000_000, t)
-        refused = PlanRequest(path=PlanRequest.decode(SQUARE[0]).path, start=[9.0] * 6)
+        square = PlanRequest.decode(SQUARE[0])
+        refused = dataclasses.replace(square, start=[9.0] * 6)
         writer.write_payload("manus/trace/planner/plan/request", refused.encode(), 5 * 10**9)
     return path
 
@@ -69,7 +71,7 @@ def test_standing_in_for_the_planner_answers_live_queries_from_the_recording(
     zenoh_settings: ZenohSettings, tmp_path: Path
 ) -> None:
     path = two_plans(tmp_path / "plans.mcap")
-    other = PlanRequest(path=PlanRequest.decode(CIRCLE[0]).path, start=[0.1] * 6).encode()
+    other = dataclasses.replace(PlanRequest.decode(CIRCLE[0]), start=[0.1] * 6).encode()
     with (
         RecorderShell(zenoh_settings, tmp_path / "during.mcap") as recorder,
         Node("client", zenoh_settings, liveliness=False) as client,
@@ -86,7 +88,7 @@ def test_standing_in_for_the_planner_answers_live_queries_from_the_recording(
             assert got.encode() == CIRCLE[1]
             refused = ask(client, b"\xc1")  # not a PlanRequest: refused, nothing used
             assert isinstance(refused, str) and refused.startswith("error: planner (replay): ")
-            assert "manus/PlanRequest/1" in refused
+            assert "manus/PlanRequest/2" in refused
             assert ask(client, other) == SQUARE[1]  # no identical request left: fallback
             last = ask(client, SQUARE[0])
             assert isinstance(last, str) and last.startswith(f"error: {path}: no recorded")

@@ -26,7 +26,7 @@ from schemas import endpoints as ep
 from schemas.commands import EStop
 from schemas.control import GoalAck, TrajectoryGoal
 from schemas.liveliness import LivelinessChange
-from schemas.planning import PlanReply, PlanRequest
+from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from services.controller.shell import ControllerShell
 from services.planner.shell import PlannerShell
 from services.recorder.reading import Recording, decode
@@ -78,14 +78,16 @@ def test_live_planner_queries_are_recorded_and_replay_through_the_core(
 
         def answered() -> bool:
             try:
-                request = PlanRequest(path=square, start=start)
+                request = PlanRequest(ViaPointPath(path=square), start=start)
                 client.query(client.keys(ep.PLAN), request, PlanReply, timeout=1.0)
             except QueryError:
                 return False
             return True
 
         eventually(answered, what="planner answers")
-        client.query(client.keys(ep.PLAN), PlanRequest(path=square), PlanReply)  # refused: no state
+        client.query(
+            client.keys(ep.PLAN), PlanRequest(ViaPointPath(path=square)), PlanReply
+        )  # refused: no state
         eventually(lambda: recorder.samples_recorded >= 4, what="mirrors recorded")
         assert recorder.samples_recorded == 4
     rec = Recording(out)

@@ -13,7 +13,7 @@ from manus.session import ZenohSettings
 from manus.viapoints import load_path
 from schemas import endpoints as ep
 from schemas.collision import SceneReply, SceneState, SceneUpdate
-from schemas.planning import PlanReply, PlanRequest
+from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from schemas.state import JointState
 from services.planner.core import PlannerCore
 from services.planner.shell import PlannerShell
@@ -21,7 +21,9 @@ from tests.conftest import eventually
 
 ROOT = FilePath(__file__).resolve().parent.parent
 UNFOLDED = [math.radians(q) for q in UNFOLDED_Q_DEG]
-SQUARE = PlanRequest(path=load_path(ROOT / "paths" / "thesis_square.txt"), start=UNFOLDED)
+SQUARE = PlanRequest(
+    ViaPointPath(path=load_path(ROOT / "paths" / "thesis_square.txt")), start=UNFOLDED
+)
 DEFAULT = default_scene_path().read_text()
 # A cup on a tray right where the square passes (the gripper's start, in the chair frame).
 CUP = DEFAULT.replace(

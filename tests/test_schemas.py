@@ -14,7 +14,7 @@ from manus.errors import SchemaError
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.keys import Keys, channel_types
-from schemas.planning import Path, PlanRequest, ViaPoint
+from schemas.planning import Path, PlanRequest, ViaPoint, ViaPointPath
 from schemas.state import JointState
 
 TYPES = sorted({t for t in channel_types().values()}, key=lambda t: t.TYPE_NAME)
@@ -38,7 +38,8 @@ def _value(tp: Any, meta: Any) -> Any:
         n = meta.get("length") or 2
         return [_value(args[0], meta) for _ in range(n)]
     if isinstance(tp, type) and issubclass(tp, Message):
-        return example(tp)
+        union = meta.get("union") if meta else None
+        return example(tp if union is None else next(iter(union.members.values())))
     return _SCALAR_EXAMPLES[tp](meta or {})
 
 
@@ -127,12 +128,14 @@ def test_missing_field_and_garbage_are_schema_errors() -> None:
 def test_nested_errors_name_the_path() -> None:
     vp = example(ViaPoint).to_dict()
     vp["type"] = 7
-    bad = {"path": {"via_points": [example(ViaPoint).to_dict(), vp], "source": "x"}}
+    path = {"via_points": [example(ViaPoint).to_dict(), vp], "source": "x"}
+    bad = {"motion": {"kind": "via_points", "path": path}}
     with pytest.raises(
-        SchemaError, match=r"PlanRequest/1.path.via_points\[1\].type: 7 is above the maximum 2"
+        SchemaError,
+        match=r"PlanRequest/2.motion.path.via_points\[1\].type: 7 is above the maximum 2",
     ):
         PlanRequest.decode(msgpack.packb(bad))
-    assert PlanRequest.decode(PlanRequest(Path([])).encode()).start is None
+    assert PlanRequest.decode(PlanRequest(ViaPointPath(path=Path([]))).encode()).start is None
 
 
 def test_keys_are_rooted_at_the_prefix() -> None:

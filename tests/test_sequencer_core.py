@@ -25,12 +25,13 @@ from schemas.control import (
     TrajectoryGoal,
 )
 from schemas.guardian import GuardianReport
-from schemas.planning import PlanRequest
+from schemas.planning import PlanRequest, PlanResume, ViaPointPath
 from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
 from schemas.state import BridgeState, JointState
 from services.planner.core import PlannerCore
-from services.sequencer.core import Action, Publish, Query, SequencerCore
-from services.sequencer.poses import pose_path, remainder_path
+from services.sequencer.actions import Action, Publish, Query
+from services.sequencer.core import SequencerCore
+from services.sequencer.poses import pose_path
 from services.sequencer.taskfile import TaskFileError, parse_task_text, task_from_args
 from services.sequencer.validate import Validator
 
@@ -227,7 +228,8 @@ def test_validation_static_problems_and_no_planner() -> None:
     ])  # fmt: skip
     v = Validator(task, UNFOLDED, DEFAULT_ARM)
     request = v.next_request()
-    assert request is not None and request.speed_scaling  # a pose may stretch
+    assert request is not None and isinstance(request.motion, ViaPointPath)
+    assert request.motion.speed_scaling  # a pose may stretch
     v.on_reply(None, "planner/plan: no reply within 5 s")
     assert v.next_request() is None
     assert v.errors == [
@@ -243,24 +245,11 @@ def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
     path = pose_path("folded", 5.0, DEFAULT_ARM)
     assert len(path.via_points) == 2 and path.via_points[1].type == 0
     start = [0.3, *UNFOLDED[1:]]
-    reply = PlannerCore().plan(PlanRequest(path=pose_path("home", 4.0, DEFAULT_ARM), start=start,
-                                           speed_scaling=True))  # fmt: skip
+    motion = ViaPointPath(path=pose_path("home", 4.0, DEFAULT_ARM), speed_scaling=True)
+    reply = PlannerCore().plan(PlanRequest(motion, start=start))
     assert reply.ok and reply.trajectory is not None
     end = fk(reply.trajectory.positions[-1], DEFAULT_ARM)[:3, 3]
     assert end == pytest.approx(fk(UNFOLDED, DEFAULT_ARM)[:3, 3], abs=1e-6)
-
-
-def test_remainder_path_keeps_the_unreached_knots_and_their_pace() -> None:
-    task = task_from_args([SQUARE])
-    traj = validate(task).plans[0]
-    rest = remainder_path(traj, 5.0, source="sq", lead=0.5, cfg=DEFAULT_ARM)
-    assert rest is not None
-    times = [v.time for v in rest.via_points]
-    later = [t for t in traj.times if t > 5.0]
-    assert times == pytest.approx([0.0, *(t - 5.0 + 0.5 for t in later)])
-    got = [x for v in rest.via_points[1:] for x in v.xyz]
-    assert got == pytest.approx([x for row in traj.via_xyz[-len(later) :] for x in row])
-    assert remainder_path(traj, traj.times[-1], source="sq", cfg=DEFAULT_ARM) is None
 
 
 # -- the step state machine -------------------------------------------------------------------
@@ -463,6 +452,7 @@ def test_cancel_without_confirmation_asks_the_bridge_to_stop() -> None:
 def test_pause_and_resume_replan_the_rest_from_where_the_arm_stopped() -> None:
     rig = Rig()
     rig.start(square_task())
+    asked = [q.request for q in rig.sent if isinstance(q.request, PlanRequest)]
     first = rig.goals()[-1]
     assert isinstance(first, TrajectoryGoal)
     rig.feedback(5.0)
@@ -475,11 +465,15 @@ def test_pause_and_resume_replan_the_rest_from_where_the_arm_stopped() -> None:
     rig.core.on_joint_state(joint_state(stopped_at, 2), rig.now)
     assert rig.control("resume")
     plan = rig.sent[-2].request
-    assert isinstance(plan, PlanRequest) and plan.start == stopped_at and plan.speed_scaling
-    remaining = [t for t in first.trajectory.times if t > 5.0]
-    assert len(plan.path.via_points) == 1 + len(remaining)
+    # The same motion again, for the planner that made it: the plan and how far it got.
+    assert isinstance(plan, PlanRequest) and plan.start == stopped_at
+    assert plan.motion == asked[-1].motion
+    assert plan.resume == PlanResume(trajectory=first.trajectory, reached=5.0)
+    remaining = [i for i, t in enumerate(first.trajectory.times) if t > 5.0]
     second = rig.goals()[-1]
     assert isinstance(second, TrajectoryGoal) and second.goal_id != first.goal_id
+    assert second.trajectory.via_indices == [-1, *remaining]
+    assert second.trajectory.knot_kinds == ["start", *["via_point"] * len(remaining)]
     rig.feedback(second.trajectory.times[-1] / 2)
     assert rig.core.status().progress > 0.25
     rig.result("succeeded")

@@ -35,8 +35,9 @@ from services.sequencer.actions import Action, Publish, Query, Reply
 from services.sequencer.client import TaskClient
 from services.sequencer.core import SequencerCore
 from services.sequencer.shell import SequencerShell
-from services.sequencer.steps import STEP_TYPES, WaitStep
+from services.sequencer.steps import STEP_TYPES
 from services.sequencer.taskfile import parse_task_text, task_from_args
+from services.sequencer.wait_step import WaitStep
 from tests.conftest import eventually
 from tests.sequencer_fakes import FakeBridge, FakeController
 from tests.test_sequencer_core import SQUARE, UNFOLDED, bridge_state, far_task, joint_state

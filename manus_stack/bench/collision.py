@@ -35,11 +35,12 @@ from manus.scene import default_scene
 from manus.sweep import exact_sweep, sweep
 from manus.viapoints import load_path
 from manus_stack.bench.plan import _over_zenoh, _stats_ms, _timed
-from schemas.planning import PlanRequest
+from schemas.planning import PlanRequest, ViaPointPath
 from services.controller.guard import Guard
 from services.planner.collisions import check_collisions
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
+from services.planner.labels import KnotLabels
 from services.planner.spline import PiecewisePolynomial
 
 CIRCLE = FilePath(__file__).resolve().parents[2] / "paths" / "thesis_circle.txt"
@@ -61,11 +62,13 @@ def _trajectory(request: PlanRequest, runs: int) -> dict[str, Any]:
     swept = sweep(model, curve.times, np.maximum(-ex.low, ex.high), curve.evaluate)
     peaks = np.maximum(-ex.low, ex.high)
     exact = exact_sweep(model, curve.times, peaks, curve.evaluate)
+    assert isinstance(request.motion, ViaPointPath)
+    labels = KnotLabels.of_path(request.motion.path)
     # The check as the planner runs it (fast first) and the exact sweep alone, in turns.
     fast_s: list[float] = []
     exact_s: list[float] = []
     for _ in range(runs):
-        fast_s += _timed(lambda: check_collisions(model, curve, request.path), 1)
+        fast_s += _timed(lambda: check_collisions(model, curve, labels), 1)
         exact_s += _timed(lambda: exact_sweep(model, curve.times, peaks, curve.evaluate), 1)
     checked = _stats_ms(fast_s)
     with_check, without = PlannerCore(), PlannerCore(PlannerConfig(scene="none"))
@@ -161,13 +164,14 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Figures of the trajectory check, distance queries and the guard (see the module)."""
+    path = load_path(CIRCLE)
     request = PlanRequest(
-        path=load_path(CIRCLE), start=list(np.radians(UNFOLDED_Q_DEG)), preview_dt=0.0
+        ViaPointPath(path=path), start=list(np.radians(UNFOLDED_Q_DEG)), preview_dt=0.0
     )
     runs = 50 if quick else 500
     return {
-        "path": f"{CIRCLE.name} ({len(request.path.via_points)} via points, cubic, "
-        f"{math.ceil(request.path.via_points[-1].time)} s)",
+        "path": f"{CIRCLE.name} ({len(path.via_points)} via points, cubic, "
+        f"{math.ceil(path.via_points[-1].time)} s)",
         "scene": str(default_scene().source),
         "trajectory_check": _trajectory(request, runs),
         "zenoh_round_trip_no_preview": _over_zenoh(

@@ -32,7 +32,7 @@ from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
 from manus_stack.up import free_port
 from schemas import endpoints as ep
-from schemas.planning import PlanReply, PlanRequest
+from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from services.planner.core import PlannerCore
 from services.planner.resolve import resolve_path
 from services.planner.spline import PiecewisePolynomial, clamped_cubic_velocities
@@ -64,8 +64,10 @@ def _in_process(request: PlanRequest, runs: int) -> dict[str, Any]:
     q0 = np.asarray(request.start, dtype=float)
     reply = core.plan(request)
     assert reply.ok, reply.error
-    resolved = resolve_path(request.path, q0, core.config.arm)
-    times = np.array([vp.time for vp in request.path.via_points])
+    assert isinstance(request.motion, ViaPointPath)
+    path = request.motion.path
+    resolved = resolve_path(path, q0, core.config.arm)
+    times = np.array([vp.time for vp in path.via_points])
     knots = np.asarray(reply.trajectory.positions if reply.trajectory else [])
     zero = np.zeros(6)
 
@@ -140,11 +142,12 @@ def _round_trips(client: Node, key: str, request: PlanRequest, runs: int) -> dic
 
 def run(quick: bool = False) -> dict[str, Any]:
     """Figures: in-process plan of the 19-point circle and the Zenoh query round trip."""
-    request = PlanRequest(path=load_path(CIRCLE), start=list(np.radians(UNFOLDED_Q_DEG)))
+    path = load_path(CIRCLE)
+    request = PlanRequest(ViaPointPath(path=path), start=list(np.radians(UNFOLDED_Q_DEG)))
     bare = dataclasses.replace(request, preview_dt=0.0)
     runs = 300 if quick else 2000
     return {
-        "path": f"{CIRCLE.name} ({len(request.path.via_points)} via points, cubic)",
+        "path": f"{CIRCLE.name} ({len(path.via_points)} via points, cubic)",
         "in_process": _in_process(request, 200 if quick else 2000),
         "zenoh_round_trip": _over_zenoh(request, runs),
         "zenoh_round_trip_no_preview": _over_zenoh(bare, runs),

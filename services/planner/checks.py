@@ -16,30 +16,25 @@ from typing import NamedTuple
 import numpy as np
 
 from manus.viapoints import MAX_TIME_S
-from schemas.planning import Path
 from services.planner.config import PlannerConfig
-from services.planner.errors import refuse, via_label
+from services.planner.errors import refuse
 from services.planner.knots import branch_name, effective_wrist_margin, wrist_distance
+from services.planner.labels import KnotLabels
 from services.planner.spline import PiecewisePolynomial, time_stretch
 
 
-def _between(path: Path, segment: int) -> str:
-    a, b = path.via_points[segment], path.via_points[segment + 1]
-    return (
-        f"between {via_label(path.source, segment, a.line)} and "
-        f"{via_label('', segment + 1, b.line)}"
-    )
-
-
 def check_geometry(
-    curve: PiecewisePolynomial, path: Path, branch: tuple[int, int, int], config: PlannerConfig
+    curve: PiecewisePolynomial,
+    labels: KnotLabels,
+    branch: tuple[int, int, int],
+    config: PlannerConfig,
 ) -> None:
     """Refuse a trajectory that breaks a joint limit, nears the wrist singularity or
     changes IK branch anywhere between its knots.
 
     Raises:
         PlanningError: ``joint_limit``, ``singular`` or ``branch``, naming the segment's
-            via points and lines, the joint, the time, the value and the limit.
+            knots (via points and lines), the joint, the time, the value and the limit.
     """
     arm = config.arm
     ex = curve.extremes(0)
@@ -54,7 +49,7 @@ def check_geometry(
     bad = (ex.low < lower).any(axis=1) | (ex.high > upper).any(axis=1) | near_wrist | elbow_flip
     if bad.any():
         seg = int(np.argmax(bad))
-        line = path.via_points[seg + 1].line
+        index, line = labels.via_indices[seg + 1], labels.lines[seg + 1]
         for j in range(len(lower)):
             for value, when, lim, broken in (
                 (ex.low[seg, j], ex.t_low[seg, j], lower[j], ex.low[seg, j] < lower[j]),
@@ -63,9 +58,9 @@ def check_geometry(
                 if broken:
                     raise refuse(
                         "joint_limit",
-                        f"{_between(path, seg)}: joint {j + 1} reaches {math.degrees(value):.2f} "
+                        f"{labels.between(seg)}: joint {j + 1} reaches {math.degrees(value):.2f} "
                         f"deg at t = {when:.3f} s, beyond its limit {math.degrees(lim):.1f} deg",
-                        via_point=seg + 1,
+                        via_point=index,
                         line=line,
                         joint=j + 1,
                         value=float(value),
@@ -77,10 +72,10 @@ def check_geometry(
             i = int(wrist_distance(q5).argmin())
             raise refuse(
                 "singular",
-                f"{_between(path, seg)}: the wrist passes within {math.degrees(margin):.1f} deg "
+                f"{labels.between(seg)}: the wrist passes within {math.degrees(margin):.1f} deg "
                 f"of its singularity (joint 5 at {math.degrees(q5[i]):.2f} deg at "
                 f"t = {ts[i]:.3f} s; joints 4 and 6 aligned)",
-                via_point=seg + 1,
+                via_point=index,
                 line=line,
                 joint=5,
                 value=float(q5[i]),
@@ -89,20 +84,23 @@ def check_geometry(
         crossing = float(k3[seg] * math.pi + math.pi / 2)
         raise refuse(
             "branch",
-            f"{_between(path, seg)}: the elbow straightens (joint 3 crosses "
+            f"{labels.between(seg)}: the elbow straightens (joint 3 crosses "
             f"{math.degrees(crossing):.0f} deg) and would flip branch ({branch_name(branch)}); "
             "add via points",
-            via_point=seg + 1,
+            via_point=index,
             line=line,
             joint=3,
             value=float(ex.high[seg, 2]),
             limit=crossing,
         )
-    _check_shoulder(curve, path, branch, config)
+    _check_shoulder(curve, labels, branch, config)
 
 
 def _check_shoulder(
-    curve: PiecewisePolynomial, path: Path, branch: tuple[int, int, int], config: PlannerConfig
+    curve: PiecewisePolynomial,
+    labels: KnotLabels,
+    branch: tuple[int, int, int],
+    config: PlannerConfig,
 ) -> None:
     arm = config.arm
     m = config.check_samples
@@ -115,11 +113,11 @@ def _check_shoulder(
         seg = min(i // (m + 1), len(curve.h) - 1)
         raise refuse(
             "branch",
-            f"{_between(path, seg)}: the wrist centre crosses the shoulder axis at "
+            f"{labels.between(seg)}: the wrist centre crosses the shoulder axis at "
             f"t = {ts[i]:.3f} s and the shoulder would flip branch ({branch_name(branch)}); "
             "add via points",
-            via_point=seg + 1,
-            line=path.via_points[seg + 1].line,
+            via_point=labels.via_indices[seg + 1],
+            line=labels.lines[seg + 1],
             value=float(u[i]),
             limit=0.0,
         )
@@ -140,9 +138,21 @@ class RateCheck(NamedTuple):
 
 
 def check_rates(
-    curve: PiecewisePolynomial, path: Path, config: PlannerConfig, *, speed_scaling: bool
+    curve: PiecewisePolynomial,
+    labels: KnotLabels,
+    config: PlannerConfig,
+    *,
+    speed_scaling: bool,
+    moving_ends: bool = False,
 ) -> RateCheck:
     """Check every joint's peak speed and acceleration against the arm's limits.
+
+    Args:
+        curve: the trajectory.
+        labels: its knots (for messages).
+        config: the arm's limits.
+        speed_scaling: stretch time uniformly instead of refusing.
+        moving_ends: the curve starts or ends moving (said in the note of a stretch).
 
     Raises:
         PlanningError: ``speed_limit`` (without ``speed_scaling``), naming the joint, the
@@ -175,10 +185,10 @@ def check_rates(
     if not speed_scaling:
         raise refuse(
             "speed_limit",
-            f"{_between(path, seg)}: {what}; the path's times would have to be {stretch:.3f}x "
+            f"{labels.between(seg)}: {what}; the path's times would have to be {stretch:.3f}x "
             "longer (ask for speed scaling, or give later times)",
-            via_point=seg + 1,
-            line=path.via_points[seg + 1].line,
+            via_point=labels.via_indices[seg + 1],
+            line=labels.lines[seg + 1],
             joint=j + 1,
             value=value,
             limit=limit,
@@ -188,10 +198,10 @@ def check_rates(
     if curve.duration * stretch > MAX_TIME_S:
         raise refuse(
             "speed_limit",
-            f"{_between(path, seg)}: {what}; slowing the path down enough would make it "
+            f"{labels.between(seg)}: {what}; slowing the path down enough would make it "
             f"last {curve.duration * stretch:.4g} s, more than {MAX_TIME_S:g} s",
-            via_point=seg + 1,
-            line=path.via_points[seg + 1].line,
+            via_point=labels.via_indices[seg + 1],
+            line=labels.lines[seg + 1],
             joint=j + 1,
             value=value,
             limit=limit,
@@ -200,7 +210,6 @@ def check_rates(
         f"time stretched {stretch:.4f}x (duration {curve.duration:.3f} s -> "
         f"{curve.duration * stretch:.3f} s) because {what}"
     ]
-    first, last = path.via_points[0], path.via_points[-1]
-    if any([*first.velocity, *first.angular_velocity, *last.velocity, *last.angular_velocity]):
+    if moving_ends:
         notes.append(f"the boundary velocities are slowed by the same factor ({stretch:.4f}x)")
     return RateCheck(curve.stretched(stretch), stretch, notes)

@@ -4,7 +4,7 @@ The whole curve (after any time stretching) is swept by :func:`manus.sweep.sweep
 distances at a few configurations, and bounds of how far each body can have travelled
 that prove the stretches in between (a violation shallower than 2 mm can hide only in
 a stretch shorter than that; the smallest clearance is within 10 mm). A violation
-refuses the plan as ``collision``, naming the segment (its via points and lines), the
+refuses the plan as ``collision``, naming the segment (its knots: via points and lines), the
 time, the arm body, the object and the distance; otherwise the smallest clearance goes
 into the trajectory.
 """
@@ -16,13 +16,13 @@ import numpy as np
 from manus.collision import CollisionModel
 from manus.sweep import sweep
 from schemas.collision import ClearanceReport
-from schemas.planning import Path
-from services.planner.errors import refuse, via_label
+from services.planner.errors import refuse
+from services.planner.labels import KnotLabels
 from services.planner.spline import PiecewisePolynomial
 
 
 def check_collisions(
-    model: CollisionModel, curve: PiecewisePolynomial, path: Path
+    model: CollisionModel, curve: PiecewisePolynomial, labels: KnotLabels
 ) -> ClearanceReport:
     """Sweep ``curve`` through ``model``; the smallest clearance, or a refusal.
 
@@ -37,17 +37,13 @@ def check_collisions(
         seg = int(
             np.clip(np.searchsorted(curve.times, bad.time, side="right") - 1, 0, len(curve.h) - 1)
         )
-        a, b = path.via_points[seg], path.via_points[seg + 1]
-        where = (
-            f"between {via_label(path.source, seg, a.line)} and {via_label('', seg + 1, b.line)}"
-        )
         scene = model.scene
         version = f" (scene version {scene.version}: {scene.source})" if scene is not None else ""
         raise refuse(
             "collision",
-            f"{where}: at t = {bad.time:.3f} s the {bad.describe()}{version}",
-            via_point=seg + 1,
-            line=b.line,
+            f"{labels.between(seg)}: at t = {bad.time:.3f} s the {bad.describe()}{version}",
+            via_point=labels.via_indices[seg + 1],
+            line=labels.lines[seg + 1],
             value=float(bad.distance),
             limit=float(bad.check.required),
         )

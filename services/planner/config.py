@@ -34,6 +34,9 @@ class PlannerConfig:
             run-time update, and a recording, learn it; 0: only when an update replaces it.
         world: the world model's rules (stale time, jumps; :mod:`manus.world`): the planner
             keeps the objects perception reports and publishes them on ``planner/objects``.
+        resume_lead_s: time added to reach the first via point left when a paused path
+            goes on [s]: the arm starts from rest (and the planner stretches more if the
+            joint limits need it).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -44,8 +47,11 @@ class PlannerConfig:
     scene: str = ""
     scene_every_ms: float = 1000.0
     world: WorldConfig = field(default_factory=WorldConfig)
+    resume_lead_s: float = 0.6
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.resume_lead_s) and 0.0 <= self.resume_lead_s <= 60.0):
+            raise ConfigError(f"`resume_lead_s` must be in [0, 60] s, got {self.resume_lead_s!r}")
         if not (math.isfinite(self.scene_every_ms) and 0.0 <= self.scene_every_ms <= 60_000.0):
             raise ConfigError(
                 f"`scene_every_ms` must be in [0, 60000] ms, got {self.scene_every_ms!r}"

@@ -16,9 +16,9 @@ import numpy as np
 
 from manus.errors import KinematicsError
 from manus.kinematics import BRANCHES, TWO_PI, branch_of, ik_all, ik_batch, wrap
-from schemas.planning import Path
 from services.planner.config import PlannerConfig
-from services.planner.errors import PlanningError, refuse, via_label
+from services.planner.errors import PlanningError, refuse
+from services.planner.labels import KnotLabels
 
 _SIDE = {1: "+", -1: "-"}
 
@@ -29,10 +29,12 @@ def branch_name(branch: tuple[int, int, int]) -> str:
     return f"shoulder {_SIDE[s]}, elbow {_SIDE[e]}, wrist {_SIDE[w]}"
 
 
-def check_start(q: np.ndarray, path: Path, config: PlannerConfig) -> None:
-    """Refuse a start configuration beyond a joint limit or at the wrist singularity."""
-    line = path.via_points[0].line
-    where = f"{via_label(path.source, 0, line)}, the start configuration"
+def check_start(q: np.ndarray, labels: KnotLabels, config: PlannerConfig) -> None:
+    """Refuse a start configuration (knot 0 of ``labels``) beyond a joint limit or at the
+    wrist singularity."""
+    index, line = labels.via_indices[0], labels.lines[0]
+    # A path's via point 0 stands for the start; a resumed plan's start is only the start.
+    where = f"{labels.label(0)}, the start configuration" if index >= 0 else labels.label(0)
     arm = config.arm
     for j in range(len(q)):
         if not arm.lower[j] <= q[j] <= arm.upper[j]:
@@ -41,22 +43,22 @@ def check_start(q: np.ndarray, path: Path, config: PlannerConfig) -> None:
                 "joint_limit",
                 f"{where}: joint {j + 1} at {math.degrees(q[j]):.2f} deg is beyond its limit "
                 f"{math.degrees(lim):.1f} deg",
-                via_point=0,
+                via_point=index,
                 line=line,
                 joint=j + 1,
                 value=float(q[j]),
                 limit=lim,
             )
-    _check_wrist(q, 0, line, where, config)
+    _check_wrist(q, index, line, where, config)
 
 
 def solve_knots(
-    path: Path, poses: np.ndarray, q_start: np.ndarray, config: PlannerConfig
+    labels: KnotLabels, poses: np.ndarray, q_start: np.ndarray, config: PlannerConfig
 ) -> np.ndarray:
     """Joint configuration of every via point [rad], shape (n, 6); row 0 is ``q_start``.
 
     Args:
-        path: the path (for via point lines and the source name in errors).
+        labels: what each knot is (for the via points' indices, lines and source in errors).
         poses: absolute via point poses (row 0: the start's), shape (n, 4, 4) [m].
         q_start: start configuration [rad], shape (6,).
         config: planner settings.
@@ -86,12 +88,12 @@ def solve_knots(
         )
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        _explain(path, i, poses[i], knots[i], knots[i - 1], solved.valid[i - 1], row, config)
+        _explain(labels, i, poses[i], knots[i], knots[i - 1], solved.valid[i - 1], row, config)
     return knots
 
 
 def _explain(
-    path: Path,
+    labels: KnotLabels,
     i: int,
     T: np.ndarray,
     q: np.ndarray,
@@ -103,24 +105,24 @@ def _explain(
     """Raise the error of via point ``i``, the first one found wrong (in that order:
     workspace, branch existence, wrist, jump, joint limits)."""
     arm = config.arm
-    vp = path.via_points[i]
-    where = via_label(path.source, i, vp.line)
+    index, line = labels.via_indices[i], labels.lines[i]
+    where = labels.label(i)
     s, e, w = (int(b) for b in BRANCHES[row])
     branch = (s, e, w)
     if not valid.any():
-        raise _unreachable(T, i, vp.line, where, config)
+        raise _unreachable(T, index, line, where, config)
     if not valid[row]:
         # Reachable but not on this branch: only the exact wrist singularity does that.
         raise refuse(
             "singular",
             f"{where}: the wrist is exactly singular there (joints 4 and 6 aligned)",
-            via_point=i,
-            line=vp.line,
+            via_point=index,
+            line=line,
             joint=5,
             value=0.0,
             limit=config.wrist_margin,
         )
-    _check_wrist(q, i, vp.line, where, config)
+    _check_wrist(q, index, line, where, config)
     jump = np.abs(q - previous)
     j = int(jump.argmax())
     if jump[j] > config.max_knot_jump:
@@ -130,8 +132,8 @@ def _explain(
             f"previous via point (more than {math.degrees(config.max_knot_jump):.0f} deg) "
             f"to stay on the start's IK branch ({branch_name(branch)}): the path needs "
             "a branch flip; add via points or start from another configuration",
-            via_point=i,
-            line=vp.line,
+            via_point=index,
+            line=line,
             joint=j + 1,
             value=float(jump[j]),
             limit=config.max_knot_jump,
@@ -143,8 +145,8 @@ def _explain(
                 "joint_limit",
                 f"{where}: joint {j + 1} would be at {math.degrees(q[j]):.2f} deg, beyond "
                 f"its limit {math.degrees(lim):.1f} deg",
-                via_point=i,
-                line=vp.line,
+                via_point=index,
+                line=line,
                 joint=j + 1,
                 value=float(q[j]),
                 limit=lim,

@@ -21,7 +21,7 @@ import numpy as np
 from manus.config import UNFOLDED_Q_DEG, load_arm_config
 from manus.viapoints import load_path
 from schemas.collision import ClearanceReport
-from schemas.planning import PlanRequest
+from schemas.planning import PlanRequest, ViaPointPath
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
 from services.planner.errors import PlanningError
@@ -88,11 +88,14 @@ def _mm(a: list[Any]) -> list[Any]:
 def run(args: argparse.Namespace) -> int:
     """Plan ``args.file`` from ``args.start_joints``; print JSON."""
     config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
-    request = PlanRequest(
+    motion = ViaPointPath(
         path=load_path(args.file),
-        start=[math.radians(q) for q in args.start_joints],
         interpolation="quintic" if args.quintic else "cubic",
         speed_scaling=args.speed_scaling,
+    )
+    request = PlanRequest(
+        motion,
+        start=[math.radians(q) for q in args.start_joints],
         preview_dt=0.06 if args.preview else 0.0,
     )
     reply = PlannerCore(config).plan(request)
@@ -102,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     assert traj is not None
     out: dict[str, Any] = {
         "source": args.file,
-        "interpolation": request.interpolation,
+        "interpolation": motion.interpolation,
         "start_deg": _deg(request.start or []),
         "times_s": [round(t, 9) for t in traj.times],
         "positions_deg": _deg(traj.positions),

@@ -17,7 +17,8 @@ from manus.config import ArmConfig
 from manus.kinematics import fk, jacobian
 from manus.orientation import matrix_to_ypr
 from schemas.planning import Path, ViaPoint
-from services.planner.errors import refuse, via_label
+from services.planner.errors import refuse
+from services.planner.labels import KnotLabels
 
 # Condition number of the Jacobian above which a Cartesian boundary velocity is refused.
 MAX_JACOBIAN_CONDITION = 1e8
@@ -88,30 +89,38 @@ def ypr_rates_to_angular_velocity(ypr: np.ndarray, rates: np.ndarray) -> np.ndar
     return np.asarray(E @ rates)
 
 
-def boundary_joint_velocity(
-    vp: ViaPoint, index: int, q: np.ndarray, ypr: np.ndarray, arm: ArmConfig, source: str
-) -> np.ndarray:
-    """Joint velocities [rad/s] giving via point ``vp``'s Cartesian velocity at ``q``.
-
-    Raises:
-        PlanningError: ``singular`` when the velocity is not zero and the Jacobian at
-            ``q`` cannot be inverted.
-    """
+def boundary_twist(vp: ViaPoint, ypr: np.ndarray) -> np.ndarray:
+    """Via point ``vp``'s Cartesian velocity as a twist (linear [m/s], angular [rad/s],
+    base frame), shape (6,), at its orientation ``ypr`` [rad]."""
     linear = np.array(vp.velocity, dtype=float)
     rates = np.array(vp.angular_velocity, dtype=float)
     if not (linear.any() or rates.any()):
+        return np.zeros(6)
+    return np.concatenate([linear, ypr_rates_to_angular_velocity(ypr, rates)])
+
+
+def twist_joint_velocity(
+    twist: np.ndarray, q: np.ndarray, arm: ArmConfig, labels: KnotLabels, k: int
+) -> np.ndarray:
+    """Joint velocities [rad/s] giving ``twist`` (shape (6,), as :func:`boundary_twist`)
+    at knot ``k``'s configuration ``q`` [rad].
+
+    Raises:
+        PlanningError: ``singular`` when the twist is not zero and the Jacobian at ``q``
+            cannot be inverted.
+    """
+    if not twist.any():
         return np.zeros(len(q))
-    twist = np.concatenate([linear, ypr_rates_to_angular_velocity(ypr, rates)])
     J = jacobian(q, arm)
     cond = float(np.linalg.cond(J))
     if not cond < MAX_JACOBIAN_CONDITION:
         raise refuse(
             "singular",
-            f"{via_label(source, index, vp.line)}: its velocity cannot be turned into joint "
+            f"{labels.label(k)}: its velocity cannot be turned into joint "
             f"velocities: the Jacobian there is singular (condition number {cond:.3g}, "
             f"limit {MAX_JACOBIAN_CONDITION:.0e}); give this via point zero velocity",
-            via_point=index,
-            line=vp.line,
+            via_point=labels.via_indices[k],
+            line=labels.lines[k],
             value=cond,
             limit=MAX_JACOBIAN_CONDITION,
         )

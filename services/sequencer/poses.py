@@ -1,8 +1,9 @@
-"""Paths the sequencer writes itself: moves to named poses and the rest of a paused path.
+"""Paths the sequencer writes itself: moves to named poses.
 
-Both are ordinary :class:`schemas.planning.Path` messages for the planner: the sequencer
+They are ordinary :class:`schemas.planning.Path` messages for the planner: the sequencer
 only computes forward kinematics (the Cartesian pose of a joint configuration) and leaves
-inverse kinematics, interpolation and every limit check to the planner.
+inverse kinematics, interpolation and every limit check to the planner. (What is left of
+a paused plan is the planner's to make: :class:`schemas.planning.PlanResume`.)
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, ArmConfig
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
-from schemas.planning import Path, Trajectory, ViaPoint
+from schemas.planning import Path, ViaPoint
 
 POSES: dict[str, tuple[float, ...]] = {
     "home": UNFOLDED_Q_DEG,
@@ -28,10 +29,6 @@ does, with the arm's own motion)."""
 
 MAX_JOINT_STEP_DEG = 60.0
 """Largest joint move between two via points of a pose path [deg]."""
-
-RESUME_LEAD_S = 0.6
-"""Extra time given to reach the first remaining via point after a pause [s]: the arm
-starts from rest (the planner stretches more if the joint limits need it)."""
 
 
 def _via(q: Sequence[float], time: float, line: int, cfg: ArmConfig) -> ViaPoint:
@@ -87,26 +84,3 @@ def pose_path(
             vias.append(_via(q0 + f * (q - q0), f * duration, 0, cfg))
     vias.append(_via(q, duration, 0, cfg))
     return Path(via_points=vias, source=f"pose {name}")
-
-
-def remainder_path(
-    trajectory: Trajectory,
-    t: float,
-    *,
-    source: str,
-    lead: float = RESUME_LEAD_S,
-    cfg: ArmConfig,
-) -> Path | None:
-    """The via points of ``trajectory`` not yet reached at trajectory time ``t`` [s], as
-    absolute via points (the FK of each planned knot), timed as planned from ``t`` plus
-    ``lead`` [s]. None when every via point was reached (nothing is left to do).
-    """
-    times = trajectory.times
-    rest = [i for i, ti in enumerate(times) if ti > t + 1e-9]
-    if not rest:
-        return None
-    lines = trajectory.via_lines or [0] * len(times)
-    vias = [_start_placeholder()]
-    for i in rest:
-        vias.append(_via(trajectory.positions[i], times[i] - t + lead, lines[i], cfg))
-    return Path(via_points=vias, source=f"{source} (resumed at t={t:.2f} s)")

@@ -1,7 +1,7 @@
 """Whole-task validation before anything moves (deterministic; the core asks the planner).
 
 Every step is checked on its own (openings in range, known pose names, via points that
-obey the via-point rules: each kind's :meth:`~services.sequencer.steps.Step.problems`),
+obey the via-point rules: each kind's :meth:`~services.sequencer.step.Step.problems`),
 and every move is planned from where the previous steps leave the arm: the arm's current
 configuration at first, the fold poses after a fold, the last knot of the previous plan
 after a move. A fold is the arm's own motion (a straight line in joint space to the fold
@@ -29,7 +29,8 @@ from manus.validity import checker_for
 from schemas.collision import SceneState
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
-from services.sequencer.steps import FOLD_END, STEP_TYPES
+from services.sequencer.fold_step import FOLD_END
+from services.sequencer.steps import STEP_TYPES
 
 
 def step_label(step: TaskStep, index: int) -> str:

@@ -1,9 +1,9 @@
 """The sequencer's wiring: what it follows on the bus, the queries it answers.
 
 Drives the live shell (:mod:`.shell`) and the lock-step harness
-(``manus_stack.task_lockstep``). The core's outputs are :data:`~.core.Action` values:
-:class:`~.core.Publish` ones are its publications (task events, the deadman heartbeat);
-:class:`~.core.Query` ones are requests to other services, carried by the shell's worker
+(``manus_stack.task_lockstep``). The core's outputs are :data:`~.actions.Action` values:
+:class:`~.actions.Publish` ones are its publications (task events, the deadman heartbeat);
+:class:`~.actions.Query` ones are requests to other services, carried by the shell's worker
 (live) or answered by the owning core (lock-step); :class:`~.actions.Reply` ones (a
 ``Publish`` subclass) answer a submission, to its submitter only, not published.
 Liveliness changes come from the node's token watch.

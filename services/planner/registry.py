@@ -1,0 +1,21 @@
+"""Which planner serves each kind of motion: one line per kind.
+
+A new kind of motion is one message class in :mod:`schemas.planning` (a member of
+:data:`~schemas.planning.MOTIONS`), one planner module (a
+:class:`~services.planner.planner.Planner` subclass) and one line here. The schema
+declares only the kinds listed here (a test keeps the two equal): a request for any other
+kind does not decode.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from schemas.planning import Motion, ViaPointPath
+from services.planner.planner import Planner
+from services.planner.via_point_planner import ViaPointPlanner
+
+PLANNERS: dict[type[Motion], type[Planner[Any]]] = {
+    ViaPointPath: ViaPointPlanner,
+}
+"""The planner class of each kind of motion."""
