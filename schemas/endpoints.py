@@ -199,7 +199,8 @@ JOG_STATE = _pub(
     "controller/jog_state",
     _CTRL,
     jog.JogState,
-    "the jog as the controller runs it: level, slow-down and stop reasons, refusals, pose",
+    "the jog as the controller runs it: its state and stop cause, the limits holding it "
+    "back, level and caps, refusals, pose",
     _SUP,
 )
 

@@ -90,6 +90,11 @@ def test_the_jog_says_why_it_stopped() -> None:
     stopped = ("stopped: jog command seq 9 refused: the bridge is in phase 'stopped', not "
                "'running' (clear it or wait for it first); release the controls")
     assert jog_trouble(stopped, refused=True) is Trouble.HELD_STOPPED
+    # a stop keeps its words while it holds commands back (JogState, docs/jog.md)
+    phase = "stopped: bridge phase stopped: stop requested by t; release the controls"
+    assert jog_trouble(phase, refused=True) is Trouble.HELD_STOPPED
+    error = "stopped: arm error: motor 2 overload; release the controls"
+    assert jog_trouble(error, refused=True) is Trouble.ARM_ERROR
     assert jog_trouble("released", refused=False) is None
     assert jog_trouble("", refused=False) is None
 

@@ -123,9 +123,12 @@ _PHASES: tuple[tuple[str, Trouble], ...] = (
     ("estopped", Trouble.STOPPED),
     ("arm_error", Trouble.ARM_ERROR),
     ("the arm reports an error", Trouble.ARM_ERROR),
+    ("stopped: arm error", Trouble.ARM_ERROR),
     ("phase 'stopped'", Trouble.HELD_STOPPED),
+    ("bridge phase stopped", Trouble.HELD_STOPPED),
 )
-"""What the controller names when it refuses a jog that has a trouble of its own."""
+"""What the controller names when it stops or refuses a jog that has a trouble of its
+own (a stop keeps its words while the commands it holds back are counted)."""
 
 _PHRASES: tuple[tuple[str, Trouble], ...] = (
     ("the arm is folded there", Trouble.FOLDED),
