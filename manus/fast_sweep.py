@@ -82,7 +82,7 @@ def fast_sweep(
         tolerance: how far below the smallest margin the stretches may be [m].
     """
     fast = checker_for(model)
-    arm_bodies = len(model._moving)
+    arm_bodies = len(model.moving)
     peaks = np.abs(np.asarray(qd_peaks, dtype=float))
     speed = peaks @ fast.levers()  # (S, B): the fastest any point can move anywhere [m/s]
     T = _start(np.asarray(times, dtype=float), speed.max(axis=1))

@@ -32,7 +32,8 @@ import numpy as np
 from manus import motion_kernels
 from manus import validity_kernels as k
 from manus.clearance import Check
-from manus.collision import STATIC_BODIES, CollisionModel
+from manus.collision import CollisionModel
+from manus.collision_pairs import STATIC_BODIES
 from manus.config import ArmConfig
 from manus.validity_parts import (
     Piece,
@@ -198,7 +199,7 @@ class ValidityChecker:
         )
         o_kind, o_R, o_t, o_s = primitive_arrays(self._prims)
         req = np.array([r for _, _, r in self._others]) + SLACK_M
-        zones = self.model._keep_in_bodies
+        zones = self.model.keep_in_bodies
         zk, zR, zt, zs = primitive_arrays([z for _, z, _ in zones])
         holds = np.zeros((len(zones), len(cover_body)), dtype=np.bool_)
         arm_names = {s.name for s in self.model.shapes}

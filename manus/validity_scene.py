@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from manus.collision import STATIC_BODIES, CollisionModel
+from manus.collision import CollisionModel
+from manus.collision_pairs import STATIC_BODIES
 from manus.scene import Primitive
 
 

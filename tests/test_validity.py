@@ -66,7 +66,7 @@ def test_the_tightest_check_names_what_coal_names_when_it_is_clear_cut() -> None
 
 def test_per_body_margins_bound_coals_per_body_margins() -> None:
     Q = random_configurations(300, seed=5)
-    moving = [MODEL.shapes[i].name for i in MODEL._moving]
+    moving = [MODEL.shapes[i].name for i in MODEL.moving]
     assert FAST.bodies == moving
     for q in Q:
         free, tight, _ = MODEL.pair_margins(q)
