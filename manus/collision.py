@@ -17,6 +17,14 @@ shoulder that holds the body) are left out.
 A configuration's *margin* per check is distance minus clearance; negative means
 violated.
 
+Objects the arm holds (:class:`manus.held.HeldBody`) are bodies of the arm on joint 6,
+placed in the gripper frame (:meth:`CollisionModel.holding` gives the model with another
+set); their pairs are :mod:`manus.collision_pairs`'s. A held body and an arm body that
+moves both close a pair's gap: in the per-body margins (:meth:`CollisionModel.probe`,
+:meth:`CollisionModel.pair_margins`, what bounds each body's travel) such a pair counts
+half its margin for each of the two, and a pair with a body on the held body's own
+joint (the gripper's: their distance never changes) bounds neither.
+
 :func:`manus.sweep.sweep` checks a whole motion through
 :meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
 clear of) and :class:`manus.travel.BodyPoints` (the cover points over the motion, the
@@ -28,6 +36,7 @@ keep-in zones), with the pairs that cannot come near the motion set aside
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import coal
@@ -38,9 +47,13 @@ from manus.body_cover import BodyCover
 from manus.clearance import Check, Clearance, Probe
 from manus.collision_pairs import STATIC_BODIES, build_pairs
 from manus.config import ArmConfig
-from manus.scene import Scene, SceneError
-from manus.shapes import fresh_guesses, partner_boxes
-from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
+from manus.held import HeldBody, HeldError
+from manus.scene import Primitive, Scene, SceneError
+from manus.shapes import coal_shape, fresh_guesses, partner_boxes
+from manus.urdf import FINGER_THICKNESS, GRIPPER_FRAME, Shape, build_urdf, collision_shapes
+
+_GRIPPER_BOX = ("gripper", "gripper+self")
+"""The gripper box and its copy inflated by the self clearance (sized to the opening)."""
 
 
 class CollisionModel:
@@ -55,11 +68,23 @@ class CollisionModel:
         cfg: arm geometry (passed explicitly, as the kinematics take it).
         opening: gripper opening the gripper box is sized for [m] (default: fully open,
             the planner's choice: it does not know the opening a move will have).
+        held: the objects the arm holds.
+
+    Raises:
+        HeldError: a held object named like an arm body, or given twice.
     """
 
-    def __init__(self, scene: Scene | None, cfg: ArmConfig, opening: float | None = None) -> None:
+    def __init__(
+        self,
+        scene: Scene | None,
+        cfg: ArmConfig,
+        opening: float | None = None,
+        held: Sequence[HeldBody] = (),
+    ) -> None:
         self.cfg = cfg
         self.scene = scene
+        self.held = tuple(held)
+        """The objects the arm holds (their bodies follow the arm's in :attr:`shapes`)."""
         urdf = build_urdf(self.cfg)
         self.model = pin.buildModelFromXML(urdf)
         self.data = self.model.createData()
@@ -68,9 +93,11 @@ class CollisionModel:
         # Pinocchio names them <link>_<k>, in URDF order: give them the shapes' names.
         for obj, shape in zip(gm.geometryObjects, self.shapes, strict=True):
             obj.name = shape.name
+        self.shapes += [self._add_held(gm, body) for body in self.held]
         self.body_index = {s.name: i for i, s in enumerate(self.shapes)}
-        self._gripper_box = gm.geometryObjects[self.body_index["gripper"]].geometry
-        built = build_pairs(gm, self.shapes, scene)
+        built = build_pairs(gm, self.shapes, scene, self.held)
+        # The gripper box, and its inflated copy if a held body is checked against it.
+        self._gripper_boxes = [o.geometry for o in gm.geometryObjects if o.name in _GRIPPER_BOX]
         self.geom = gm
         self.moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
         """Bodies whose distances depend on the joint angles (indices into shapes)."""
@@ -91,6 +118,7 @@ class CollisionModel:
         self.geom_data = fresh_guesses(pin.GeometryData(gm))
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
+        self._held_rows = self._held_pairs(pairs, built.mutual)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
         self._no_margin = np.full(len(self.moving), math.inf)
         self._set_aside = self._no_margin
@@ -110,10 +138,11 @@ class CollisionModel:
     def set_opening(self, opening: float) -> None:
         """Size the gripper box for ``opening`` [m] (clamped to 0..gripper_max)."""
         opening = min(max(opening, 0.0), self.cfg.gripper_max)
-        half = self._gripper_box.halfSide.copy()
-        half[0] = opening / 2.0 + FINGER_THICKNESS
-        self._gripper_box.halfSide = half
-        self._gripper_box.computeLocalAABB()
+        for box in self._gripper_boxes:
+            half = box.halfSide.copy()
+            half[0] = opening / 2.0 + FINGER_THICKNESS
+            box.halfSide = half
+            box.computeLocalAABB()
         self.opening = opening
 
     def margins(self, q: np.ndarray) -> np.ndarray:
@@ -216,6 +245,8 @@ class CollisionModel:
             free[b] = margin
             if margin < tight:
                 tight, tight_row = margin, rows[k]
+        for b, held_rows in self._held_rows:
+            free[b] = self._held_free(b, held_rows, free)
         return np.minimum(free, self._set_aside, out=free), tight, tight_row
 
     def restrict(self, lo: np.ndarray, hi: np.ndarray, near: float) -> np.ndarray:
@@ -252,6 +283,24 @@ class CollisionModel:
         self._inactive.clear()
         self._set_aside = self._no_margin
 
+    def holding(self, held: Sequence[HeldBody]) -> CollisionModel:
+        """This model (scene, arm, gripper opening) with the arm holding ``held``."""
+        return CollisionModel(self.scene, self.cfg, self.opening, held)
+
+    def _add_held(self, gm: Any, body: HeldBody) -> Shape:
+        """Put ``body`` on joint 6 of ``gm``, where the gripper frame holds it."""
+        if any(o.name == body.name for o in gm.geometryObjects):
+            raise HeldError(f"held object {body.name!r}: an arm body (or held object) has its name")
+        if body.shape not in ("box", "sphere", "cylinder", "capsule"):
+            raise HeldError(f"held object {body.name!r}: no {body.shape!r} shape")
+        frame = self.model.frames[self.model.getFrameId(GRIPPER_FRAME)]
+        M = pin.SE3(frame.placement.homogeneous @ body.placement())
+        geometry, _ = coal_shape(Primitive(body.shape, body.size, np.eye(4)))
+        gm.addGeometryObject(pin.GeometryObject(body.name, frame.parentJoint, M, geometry))
+        rpy = pin.rpy.matrixToRpy(M.rotation)
+        return Shape(body.name, f"link{frame.parentJoint}", body.shape, body.size,
+                     tuple(M.translation), tuple(rpy))  # fmt: skip
+
     def _can_meet(self, body: int, other: int) -> bool:
         """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
         the shoulder that holds ``body`` in every configuration (the joint placements'
@@ -270,6 +319,38 @@ class CollisionModel:
             coal.DistanceResult(),
         )
         return bool(gap <= 0.0)
+
+    def _held_free(self, b: int, rows: list[tuple[int, int, bool]], free: np.ndarray) -> float:
+        """Held body ``b``'s margin for bounding its travel (:data:`_held_rows` ``rows``),
+        lowering its mutual partners' in ``free`` to their half."""
+        gd = self._per_body[b][1]
+        active = gd.activeCollisionPairs
+        low = math.inf
+        for k, c, rigid in rows:
+            if not active[k] or rigid:
+                continue  # set aside (:meth:`restrict`), or a distance that never changes
+            margin = gd.distanceResults[k].min_distance
+            if c >= 0:  # both move: each may close half the gap
+                margin = 0.5 * margin if margin > 0.0 else margin
+                free[c] = min(free[c], margin)
+            low = min(low, margin)
+        return min(low, float(self._set_aside[b]))
+
+    def _held_pairs(
+        self, pairs: list[tuple[int, int]], mutual: dict[tuple[int, int], tuple[int, bool]]
+    ) -> list[tuple[int, list[tuple[int, int, bool]]]]:
+        """Per held body (its position in :attr:`moving`): each of its pairs as (index in
+        its own geometry model, mutual partner's position in :attr:`moving` or -1, rigid)."""
+        position = {body: b for b, body in enumerate(self.moving)}
+        held = {self.body_index[h.name] for h in self.held}
+        out = []
+        for b, (_, _, rows) in enumerate(self._per_body):
+            if self.moving[b] in held:
+                found = [mutual.get(pairs[k], (-1, False)) for k in rows]
+                out.append(
+                    (b, [(j, -1 if c < 0 else position[c], r) for j, (c, r) in enumerate(found)])
+                )
+        return out
 
     def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
         """One geometry model per moving body with its pairs, for per-body margins: the

@@ -5,7 +5,11 @@ its joint's frame (a box of half sizes ``e`` along its axes, grown by a disk of 
 ``rc`` across its third axis and a ball of radius ``rs``): a cylinder is ``e = (0, 0, h)``
 with ``rc = r``, a sphere ``rs = r``, a box ``e`` alone. The obstacles are fixed convex
 primitives in the base frame (box, sphere, cylinder, capsule, half-space), each with the
-clearance its class requires.
+clearance its class requires, and the *movers*: arm bodies a held object keeps the
+``self`` clearance from, placed at each configuration (:func:`place_movers`). Both move,
+so a mover's pair counts half its margin in each body's margin (what bounds how far the
+body may travel), and none when the mover rides on the held body's own joint (their
+distance never changes); the tightest margin is the pair's whole margin.
 
 A piece's distance to an obstacle is bounded from below by a separating direction: for
 any unit ``u``, ``dist(A, O) >= min_{a in A} u.a - max_{b in O} u.b`` (``sep(u)``). The
@@ -258,12 +262,36 @@ def pose(q: np.ndarray, arm: Any, scratch: Any) -> None:
 
 
 @jit
+def place_movers(frames: np.ndarray, scene: Any) -> None:
+    """Place the movers (obstacles ``o`` with ``partner[o] >= 0``) at the joint frames
+    ``frames``: rotation and origin from their joint's frame and local placement."""
+    o_R, o_t = scene[1], scene[2]
+    partner, joint, local = scene[13], scene[15], scene[16]
+    for o in range(partner.shape[0]):
+        if partner[o] < 0:
+            continue
+        j = joint[o]
+        for r in range(3):
+            for c in range(4):
+                v = (
+                    frames[j, r, 0] * local[o, 0, c]
+                    + frames[j, r, 1] * local[o, 1, c]
+                    + frames[j, r, 2] * local[o, 2, c]
+                )
+                if c < 3:
+                    o_R[o, r, c] = v
+                else:
+                    o_t[o, r] = v + frames[j, r, 3]
+
+
+@jit
 def valid(q: np.ndarray, arm: Any, scene: Any, scratch: Any) -> bool:
     """Whether every check at ``q`` is proven to keep its clearance."""
     pose(q, arm, scratch)
+    place_movers(scratch[0], scene)
     _, _, _, _, _, p_e, p_rc, p_rs, p_rb, b_start, _, _, b_radius = arm[:13]
     c_radius = arm[16]
-    o_kind, o_R, o_t, o_s, o_req, applies, z_kind, z_R, z_t, z_s, z_req, z_holds, o_box = scene
+    o_kind, o_R, o_t, o_s, o_req, applies, z_kind, z_R, z_t, z_s, z_req, z_holds, o_box = scene[:13]
     _, centers, axes, bodies, covers = scratch[:5]
     for z in range(z_kind.shape[0]):
         for i in range(covers.shape[0]):
@@ -319,9 +347,10 @@ def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray,
     tightest margin of all, its body (-1: a static one) and what it is kept from (an
     obstacle, ``O + z`` for keep-in zone ``z``, -1 when it is the cap)."""
     pose(q, arm, scratch)
+    place_movers(scratch[0], scene)
     _, _, _, _, _, p_e, p_rc, p_rs, p_rb, b_start, _, _, b_radius = arm[:13]
     o_kind, o_R, o_t, o_s, o_req, applies = scene[:6]
-    o_box = scene[12]
+    o_box, partner = scene[12], scene[13]
     _, centers, axes, bodies, covers = scratch[:5]
     n_obstacles = o_kind.shape[0]
     tight, tight_body, tight_other = _keep_in(arm, scene, covers, free)
@@ -333,7 +362,7 @@ def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray,
         first = hint[b]
         for n in range(-1, n_obstacles):
             o = first if n < 0 else n
-            if o < 0 or not applies[b, o] or (n >= 0 and o == first):
+            if o < 0 or not applies[b, o] or (n >= 0 and o == first) or partner[o] >= 0:
                 continue
             need = o_req[o]
             if _apart(o_box, o, bodies, b, b_radius[b] + need + best):
@@ -357,7 +386,39 @@ def margins(q: np.ndarray, arm: Any, scene: Any, scratch: Any, free: np.ndarray,
             free[b] = best
             if best < tight:
                 tight, tight_body, tight_other = best, b, other
+        got, mover = _movers(b, arm, scene, scratch, free)
+        if got < tight:
+            tight, tight_body, tight_other = got, b, mover
     return tight, tight_body, tight_other
+
+
+@jit
+def _movers(b: int, arm: Any, scene: Any, scratch: Any, free: np.ndarray) -> Any:
+    """Body ``b``'s margins to the movers it is checked against (it is a held one),
+    lower bounds: half of each (none for a rigid pair) lowers both bodies' margins in
+    ``free``; returns the smallest [m] and its mover (-1: none)."""
+    _, _, _, _, _, p_e, p_rc, p_rs, p_rb, b_start = arm[:10]
+    o_kind, o_R, o_t, o_s, o_req, applies = scene[:6]
+    partner, rigid = scene[13], scene[14]
+    _, centers, axes = scratch[:3]
+    tight, which = math.inf, -1
+    for o in range(partner.shape[0]):
+        if partner[o] < 0 or not applies[b, o]:
+            continue
+        got = math.inf
+        for i in range(b_start[b], b_start[b + 1]):
+            bound = piece_bound(
+                i, centers, axes, p_e, p_rc, p_rs, p_rb, o_kind, o_R, o_t, o_s, o, math.inf
+            )
+            got = min(got, bound - o_req[o])
+        if got < tight:
+            tight, which = got, o
+        if not rigid[o]:
+            half = 0.5 * got if got > 0.0 else got
+            c = partner[o]
+            free[b] = min(free[b], half)
+            free[c] = min(free[c], half)
+    return tight, which
 
 
 @jit
