@@ -3,8 +3,8 @@
 A deterministic core (no clock, no threads): :meth:`WorldModel.observe` takes a
 :class:`~schemas.objects.Perception` (one frame of a perception source) and returns the
 :class:`~schemas.objects.WorldUpdate` messages to publish. Every change is a diff from
-the version before it, applied by :func:`manus.world_follower.apply_update`, the same function a follower
-uses, so the diffs rebuild the model's set exactly; the whole set goes out every
+the version before it, applied by :func:`manus.world_follower.apply_update`, the same
+function a follower uses, so the diffs rebuild the model's set exactly; the whole set goes out every
 ``full_every_ms`` (judged on the frames' stamps) for followers that start late or missed
 a diff (MoveIt's planning scene does the same with its diffs and full scenes).
 
