@@ -98,7 +98,7 @@ def test_attach_and_detach_are_versioned_diffs_every_follower_applies() -> None:
     assert (free.link, free.touch_links, free.touch_objects, free.stamp_ns) == ("", [], [], 5 * S)
     assert free.xyz == pytest.approx([0.8, -0.2, 0.79]) and free.ypr[0] == pytest.approx(0.3)
     assert follower.on_update(updates[0])
-    assert not follower.held
+    assert [h.name for h in follower.held] == []
     assert (follower.objects, follower.version) == (world.objects, world.version)
     # A follower that missed the attach learns it from the next whole set.
     late = WorldFollower()
