@@ -123,8 +123,7 @@ class WorldObject(Message):
         default=False,
     )
     link: str = field(
-        "the arm's link it is attached to (gripper_frame: held in the gripper; '': in the "
-        "world)",
+        "the arm's link it is attached to (gripper_frame: held in the gripper; '': in the world)",
         default="",
     )
     touch_links: list[str] = field(

@@ -190,6 +190,7 @@ def test_the_planner_attaches_centred_between_the_jaws_and_carries_the_cup() -> 
         ),
         (AttachRequest("cup", GRIPPER_FRAME, [0.0] * 6, 0, xyz=[0, 0, 0]), "both xyz and ypr"),
         (AttachRequest("cup", "", [0.0] * 6, 0), "'cup' is not attached to the arm"),
+        (AttachRequest("cup", GRIPPER_FRAME, [0.0] * 6, 0), r"is \d+ mm from the grasp point"),
     ],
 )
 def test_a_bad_attach_is_refused_naming_the_object_and_the_reason(

@@ -47,6 +47,7 @@ from manus.kinematics import Vec3, gripper_position
 from manus.quantize import COUNT_RAD_S, GRIPPER_COUNT_M_S
 from manus.scene import start_scene_state
 from manus.trajectory import TrajectoryError
+from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.collision import ClearanceReport, SceneState
 from schemas.control import (
@@ -61,6 +62,7 @@ from schemas.control import (
 )
 from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
 from schemas.liveliness import TokenGone
+from schemas.objects import WorldUpdate
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import MS, ControllerConfig
@@ -130,6 +132,9 @@ class ControllerCore:
         self.scene_seen = start_scene_state(cfg.scene)
         """The scene the guard keeps clear of, as the planner announces it (``cfg.scene``'s
         until the planner's differs; None: no scene)."""
+        self.world = WorldFollower()
+        """The world model as the planner publishes it: the objects the arm holds, which
+        the guard keeps clear like the arm's own bodies."""
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running goal started (the deadman's
         reference until a heartbeat newer than it arrives)."""
@@ -262,9 +267,17 @@ class ControllerCore:
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        guard = scene_guard(scene, self.config.arm)
+        guard = scene_guard(scene, self.config.arm, self.world.held)
         if guard is not None and self.guard is not None:
             self.guard = guard
+        return []
+
+    def on_objects(self, update: WorldUpdate) -> Output:
+        """The world model's updates (``planner/objects``): the guard keeps an object the
+        arm holds (attached to the gripper) clear like a link of the arm, from the next
+        command on. Never publishes."""
+        if self.world.on_update(update) and self.guard is not None:
+            self.guard.hold(self.world.held)
         return []
 
     def on_heartbeat(self, hb: Heartbeat) -> Output:

@@ -20,6 +20,7 @@ WIRING: Wiring[ControllerCore, Output] = Wiring(
         Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs)),
         Input(ep.HEARTBEAT, lambda core, hb, t: core.on_heartbeat(hb)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
+        Input(ep.OBJECTS, lambda core, update, t: core.on_objects(update)),
         Input(ep.JOG, lambda core, cmd, t: core.on_jog(cmd)),
     ),
     answers=(

@@ -10,7 +10,9 @@ fk(position)`` in the chair frame (the scene's mount; no scene: the identity). R
   the request's ``xyz``/``ypr`` if it gives them; else, attached already, where it is
   held (a new attach changes only what it may touch: the table it was lifted from, once
   it is clear); else its world pose seen from the gripper, centred between the jaws
-  (closing jaws centre what they hold along their axis, the gripper frame's x);
+  (closing jaws centre what they hold along their axis, the gripper frame's x), refused
+  when its centre is further than :data:`MAX_GRIP_OFFSET_M` from the grasp point (it
+  cannot be between the jaws: perception and the arm disagree);
 - **detach** (``link`` ''): back into the chair frame at the gripper frame times its
   pose in it, where it is now;
 - ``touch_links`` are arm bodies (:func:`manus.urdf.collision_shapes` names),
@@ -19,7 +21,8 @@ fk(position)`` in the chair frame (the scene's mount; no scene: the identity). R
 Refused, with nothing changed, naming the object and the reason: an unknown object (the
 known ones listed), an object named like an arm body, another link, a position that is
 not 6 finite angles, an unknown touch link or touch object, a pose given by half, an
-object attached elsewhere, detaching one that is not attached.
+object not between the jaws, an object attached elsewhere, detaching one that is not
+attached.
 """
 
 from __future__ import annotations
@@ -36,6 +39,10 @@ from manus.urdf import GRIPPER_FRAME, collision_shapes
 from manus.world import WorldModel
 from manus.world_follower import WorldError
 from schemas.objects import AttachReply, AttachRequest, WorldUpdate
+
+MAX_GRIP_OFFSET_M = 0.1
+"""Farthest an object's centre may be from the grasp point (the gripper frame's origin)
+to be attached where perception saw it [m]: the jaws reach 90 mm behind it (the palm)."""
 
 
 def answer(
@@ -112,5 +119,11 @@ def _grip(world: WorldModel, request: AttachRequest, gripper: np.ndarray) -> np.
     if world.objects[request.object_id].link:
         return pose  # held already: where it is held
     grip = np.linalg.solve(gripper, pose)
+    offset = float(np.linalg.norm(grip[:3, 3]))
+    if offset > MAX_GRIP_OFFSET_M:
+        raise WorldError(
+            f"object {request.object_id!r} is {offset * 1e3:.0f} mm from the grasp point, more "
+            f"than {MAX_GRIP_OFFSET_M * 1e3:.0f} mm: it is not between the jaws"
+        )
     grip[0, 3] = 0.0  # the jaws centre it along their axis
     return np.asarray(grip)
