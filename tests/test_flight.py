@@ -31,7 +31,7 @@ from services.recorder.flight import (
 from services.recorder.flight_shell import FlightShell, write_dump
 from services.recorder.reading import Recording
 from services.recorder.replay import Replayer, schedule
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 
 CYCLE_NS = 60_000_000
 S = 1_000_000_000
@@ -264,7 +264,10 @@ def test_the_live_queue_holds_its_share_of_the_cap_in_bytes(
         shell.core.on_sample = stalled  # type: ignore[method-assign]
         try:
             with Node("pub", zenoh_settings) as node:
-                pub = node.session.declare_publisher(f"{zenoh_settings.prefix}/flood")
+                # every sample to the shell, whose own queue is what drops them: once it
+                # subscribed, and waiting for room on the way (under load 5, 180 drops
+                # were not seen in 5 s: samples had been lost before the shell)
+                pub = matched_publisher(node.session, f"{zenoh_settings.prefix}/flood", block=True)
                 for k in range(200):  # 200 x (1000 + 200) B = 234 KiB offered, 16 KiB budget
                     pub.put(bytes(996) + k.to_bytes(4, "little"))
                 eventually(lambda: shell.dropped >= 180, 5.0, "drops")

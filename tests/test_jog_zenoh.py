@@ -15,7 +15,7 @@ from schemas import endpoints as ep
 from schemas.control import GoalAck
 from schemas.jog import JogCommand, JogLevel
 from services.controller.shell import ControllerShell
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 
 
 def _fields(**kw: object) -> dict[str, object]:
@@ -33,18 +33,22 @@ def _fields(**kw: object) -> dict[str, object]:
         msgpack.packb(_fields(linear=[math.inf, 0.0, 0.0])),
         b"\xc1 not msgpack at all",
     ],
+    ids=["unknown-frame", "unknown-kind", "nan", "inf", "not-msgpack"],
 )
 def test_bad_jog_payloads_are_counted_and_stop_the_jog(
     zenoh_settings: ZenohSettings, payload: bytes
 ) -> None:
     with ControllerShell(zenoh_settings) as controller, open_session(zenoh_settings) as session:
         key = controller.node.keys(ep.JOG)
-        session.put(key, payload)
+        # not before the router knows the controller's subscription: a sample that
+        # overtakes it is dropped (this test once waited 10 s for a refusal that never came)
+        pub = matched_publisher(session, key)
+        pub.put(payload)
         eventually(lambda: controller.core.jog.refused == 1, 10.0, "the refusal")
         assert controller.core.jog.reason.startswith("stopped: bad jog payload")
         assert controller.node.bad_payloads[key] == 1
         # a good command still gets through the decoder (refused here: no arm yet)
-        session.put(key, JogCommand(**_fields(seq=2)).encode())  # type: ignore[arg-type]
+        pub.put(JogCommand(**_fields(seq=2)).encode())  # type: ignore[arg-type]
         jog = controller.core.jog
         eventually(lambda: "no valid joint state" in jog.reason, 10.0, "the good one decoded")
 

@@ -100,10 +100,14 @@ def test_not_a_terminal_is_refused_with_a_reason() -> None:
     assert "must be a terminal" in proc.stderr
 
 
+TMUX = ["tmux", "-L", f"manus-test-{os.getpid()}"]
+"""tmux on a server of this test process's own: the default server is shared with every
+other tmux user of the machine, whose clients can resize its windows."""
+
+
 def _tmux(*args: str) -> str:
-    return subprocess.run(
-        ["tmux", *args], capture_output=True, text=True, timeout=10, check=True
-    ).stdout
+    return subprocess.run([*TMUX, *args], capture_output=True, text=True, timeout=10,
+                          check=True).stdout  # fmt: skip
 
 
 @pytest.mark.slow
@@ -114,15 +118,15 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
 ) -> None:
     session = f"manus-jog-test-{uuid.uuid4().hex[:8]}"
     stty = tmp_path / "stty.txt"
-    script = (
-        f"stty -a > {tmp_path / 'before.txt'}; "
+    script = (  # stty -g: the settings alone (-a lays them out to the window's width)
+        f"stty -g > {tmp_path / 'before.txt'}; "
         f"{MANUS} jog --connect {router_endpoint} --prefix test; "
-        f"stty -a > {stty}; sleep 30"
+        f"stty -a > {stty}; stty -g > {tmp_path / 'after.txt'}; sleep 30"
     )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with ControllerShell(zenoh_settings) as controller:
         subprocess.run(
-            ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
+            [*TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
              script],
             check=True, timeout=10, env=env,
         )  # fmt: skip
@@ -145,12 +149,13 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
                 child = found.stdout.split()
                 assert len(child) == 1, child
                 os.kill(int(child[0]), 15)
-            eventually(lambda: stty.exists() and stty.stat().st_size > 0, 20.0, "the exit")
+            after = tmp_path / "after.txt"
+            eventually(lambda: after.exists() and after.stat().st_size > 0, 20.0, "the exit")
         finally:
-            subprocess.run(["tmux", "kill-session", "-t", session], timeout=10, check=False)
-    after = stty.read_text()
-    assert " icanon" in after and " echo " in after, after  # the terminal is restored
-    assert after == (tmp_path / "before.txt").read_text()
+            subprocess.run([*TMUX, "kill-session", "-t", session], timeout=10, check=False)
+    settings = stty.read_text()
+    assert " icanon" in settings and " echo " in settings, settings  # the terminal restored
+    assert after.read_text() == (tmp_path / "before.txt").read_text()
 
 
 @pytest.mark.slow
@@ -167,7 +172,7 @@ def test_manus_jog_plays_a_recorded_joystick_session(
     )
     with ControllerShell(zenoh_settings) as controller:
         subprocess.run(
-            ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
+            [*TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
              script],
             check=True, timeout=10, env=dict(os.environ, PYTHONPATH=str(ROOT)),
         )  # fmt: skip
@@ -178,4 +183,4 @@ def test_manus_jog_plays_a_recorded_joystick_session(
             _tmux("send-keys", "-t", session, "q")
             eventually(lambda: done.exists() and done.read_text().strip() == "0", 20.0, "exit 0")
         finally:
-            subprocess.run(["tmux", "kill-session", "-t", session], timeout=10, check=False)
+            subprocess.run([*TMUX, "kill-session", "-t", session], timeout=10, check=False)

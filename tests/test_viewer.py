@@ -49,7 +49,7 @@ from services.viewer.model import (
 )
 from services.viewer.server import URDF_URI
 from services.viewer.shell import ViewerShell
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 from tests.foxglove_client import SUBPROTOCOL, Received, collect, protobuf_decoder
 
 DATA = Path(__file__).parent / "data"
@@ -611,7 +611,7 @@ def test_viewer_drops_and_counts_when_its_queue_is_full(zenoh_settings: ZenohSet
         viewer._stop.set()  # the worker stops taking: every sample past the first is dropped
         viewer._thread.join()
         with Node("pub", zenoh_settings) as node:
-            pub = node.session.declare_publisher(f"{zenoh_settings.prefix}/state/joints")
+            pub = matched_publisher(node.session, f"{zenoh_settings.prefix}/state/joints")
             for _ in range(50):
                 pub.put(b"x")
             eventually(lambda: viewer.received == 50, 5.0, "50 samples received")
