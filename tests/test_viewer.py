@@ -30,7 +30,7 @@ from manus.node import Node
 from manus.orientation import rot_z, ypr_to_matrix
 from manus.scene import Scene, default_scene, default_scene_path, parse_scene
 from manus.session import ZenohSettings
-from manus.urdf import build_urdf
+from manus.urdf import GRIPPER_FRAME, build_urdf
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
 from schemas.objects import WorldObject, WorldUpdate
@@ -40,7 +40,6 @@ from services.viewer.config import ViewerConfig
 from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerCore
 from services.viewer.layout import LAYOUT_FILE, layout_json
 from services.viewer.model import (
-    GRIPPER_FRAME,
     LINK_NAMES,
     ROOT_FRAME,
     build_visual_urdf,
