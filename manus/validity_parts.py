@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus import validity_kernels as k
+from manus import distance_bounds as k
 from manus.collision import CollisionModel
 from manus.scene import Primitive
 from manus.shapes import cover
