@@ -61,21 +61,15 @@ class WorldFollower:
         self.version = 0
         self.held: tuple[HeldBody, ...] = ()
         """The bodies the arm holds, by id."""
-        self.missed = 0
-        """Diffs that did not apply (a version missed): each waits for the next whole set."""
-        self.error = ""
-        """Why the last update was not taken ('': every one was)."""
 
     def on_update(self, update: WorldUpdate) -> bool:
         """Apply ``update``; returns whether the held bodies changed. A diff from another
-        version than the one held, or an object held where none can be (another link),
-        changes nothing (:attr:`error` says why)."""
+        version than the one held (one was missed: the next whole set brings it), or an
+        object held where none can be (another link), changes nothing."""
         try:
             objects = apply_update(self.objects, self.version, update)
             held = held_bodies(objects.values())
-        except (WorldError, HeldError) as exc:
-            self.missed += isinstance(exc, WorldError)
-            self.error = str(exc)
+        except (WorldError, HeldError):
             return False
         self.objects, self.version = objects, update.version
         changed = held != self.held
