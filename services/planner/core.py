@@ -92,6 +92,9 @@ class PlannerCore:
         except SceneError as exc:
             return SceneReply(accepted=False, version=version, error=str(exc))
         with self.checking:
+            if model.held != self.held:  # an attach while it was built
+                model = model.holding(self.held)
+                checker_for(model)
             self.collision = model
         self.scene_state = SceneState(version=scene.version, text=update.text, source=scene.source)
         return SceneReply(accepted=True, version=scene.version)
@@ -106,12 +109,11 @@ class PlannerCore:
         reply, updates = attach.answer(self.world, request, mount, self.config.arm, names)
         held = held_bodies(self.world.objects.values())
         if held != self.held:
-            self.held = held
-            if self.collision is not None:
-                model = self.collision.holding(held)
-                checker_for(model)
-                with self.checking:
-                    self.collision = model
+            with self.checking:  # a scene update (another thread, live) sees one or the other
+                self.held = held
+                if self.collision is not None:
+                    self.collision = self.collision.holding(held)
+                    checker_for(self.collision)
         return reply, updates
 
     def on_joint_state(self, js: JointState) -> SceneState | None:
