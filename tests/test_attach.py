@@ -241,3 +241,32 @@ def test_the_planner_refuses_a_move_that_brings_the_held_cup_to_the_head() -> No
         "cup" in refused.error.message
         and "from head (person: needs 50 mm)" in refused.error.message
     )
+
+
+def test_a_scene_update_keeps_what_the_arm_holds_in_every_model() -> None:
+    from manus.scene import default_scene_path
+    from schemas.collision import SceneUpdate
+    from services.controller.core import ControllerCore
+    from services.controller.wiring import WIRING as CONTROLLER
+    from services.sequencer.core import SequencerCore
+    from services.sequencer.wiring import WIRING as SEQUENCER
+
+    core = PlannerCore()
+    start = facing_head(0.2)
+    seen = gripper_in_chair(start) @ CUP.placement()
+    core.world.observe(frame(0, 1.0, cup_seen(tuple(seen[:3, 3]))))
+    _, updates = attach(core, AttachRequest("cup", GRIPPER_FRAME, list(start), 2 * S))
+    controller, sequencer = ControllerCore(), SequencerCore()
+    for update in updates:
+        CONTROLLER.feed(controller, ep.OBJECTS, update, 0)
+        SEQUENCER.feed(sequencer, ep.OBJECTS, update, 0)
+    moved = default_scene_path().read_text().replace("[1100, 0, 720]", "[1000, 100, 700]")
+    published = PLANNER.feed(core, ep.SCENE.trace("request"), SceneUpdate(moved), 0)
+    state = next(m for k, m in published if k == ep.SCENE_STATE)
+    CONTROLLER.feed(controller, ep.SCENE_STATE, state, 0)
+    SEQUENCER.feed(sequencer, ep.SCENE_STATE, state, 0)
+    assert core.collision is not None and core.collision.scene is not None
+    assert controller.guard is not None and sequencer.fold_check is not None
+    for model in (core.collision, controller.guard.guard.model, sequencer.fold_check.model):
+        assert model.scene is not None and model.scene.version == 1
+        assert [h.name for h in model.held] == ["cup"]
