@@ -102,8 +102,10 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     window = service_window(
         recording,
         PLANNER.service,
-        (ep.JOINTS,),
-        PLANNER.output_suffixes,  # its clock input
+        # What its first outputs answer: a joint state (the scene in use) or a
+        # perception frame (the world model), either maybe before its token.
+        (ep.JOINTS, ep.PERCEPTION),
+        PLANNER.output_suffixes,
     )
     outputs = PLANNER.output_suffixes
     recorded, last_ns = _recorded_outputs(recording, outputs, window)
