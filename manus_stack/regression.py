@@ -14,12 +14,13 @@ Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), 
 through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
 its queryables' mirrored requests in; its publications and mirrored replies out.
 
-- ``planner``: joint states, perception frames, plan requests and scene updates in, plan
-  and scene replies and the world model's updates out (``compute_ms`` is wall time and is
-  not compared).
+- ``planner``: joint states, perception frames, plan requests, scene updates and attach
+  requests in, plan, scene and attach replies and the world model's updates out
+  (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
   stream (a ``jog`` payload that does not decode goes to its input's ``bad`` handler, as
-  the live shell does), the scene, the liveliness tokens that vanished (as the controller
+  the live shell does), the scene, the world model's updates (what the arm holds), the
+  liveliness tokens that vanished (as the controller
   took them: its ``controller/token_gone`` records) and the controller's query requests
   in; commands, feedback, results, the jog's state and the query replies out.
 
@@ -101,8 +102,10 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     window = service_window(
         recording,
         PLANNER.service,
-        (ep.JOINTS,),
-        PLANNER.output_suffixes,  # its clock input
+        # What its first outputs answer: a joint state (the scene in use) or a
+        # perception frame (the world model), either maybe before its token.
+        (ep.JOINTS, ep.PERCEPTION),
+        PLANNER.output_suffixes,
     )
     outputs = PLANNER.output_suffixes
     recorded, last_ns = _recorded_outputs(recording, outputs, window)

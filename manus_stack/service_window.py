@@ -34,8 +34,9 @@ def service_window(
     lock-step recordings, or a recorder older than the liveliness channel).
 
     A service announces its token once it listens, so its first outputs can be recorded
-    before the token: then the window starts at the last of its ``inputs`` (its clock:
-    the joint states it answers) recorded before its first ``output``, not at the token.
+    before the token: then the window starts at the last of its ``inputs`` (what its
+    outputs answer: the joint states, for the planner also the perception frames)
+    recorded before its first ``output``, not at the token.
     """
     start, end = _token_window(recording, service)
     if start == EVERYTHING[0] or not inputs or not outputs:

@@ -337,7 +337,16 @@ OBJECTS = _pub(
     "the world model's objects as versioned diffs, and the whole set every second",
     _SUP,
 )
-OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS)
+ATTACH = _query(
+    "planner/attach",
+    Service.PLANNER,
+    objects.AttachRequest,
+    objects.AttachReply,
+    "attach a grasped object to the gripper (part of the arm from then on) or detach a "
+    "released one where it is: a diff on planner/objects",
+    clients=(_SEQ,),
+)
+OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS, ATTACH)
 """The objects' endpoints (a block of their own in :data:`TABLE`)."""
 
 

@@ -33,11 +33,13 @@ import numpy as np
 
 from manus.joint_map import dh_increments_to_encoder_list, dh_to_encoder_list
 from manus.scene import start_scene_state
+from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import ClearanceReport, SceneState
 from schemas.control import EndCause, Refusal, ResultStatus
 from schemas.liveliness import TokenGone
+from schemas.objects import WorldUpdate
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.command_source import (
@@ -105,6 +107,9 @@ class ControllerCore:
         self.scene_seen = start_scene_state(cfg.scene)
         """The scene the guard keeps clear of, as the planner announces it (``cfg.scene``'s
         until the planner's differs; None: no scene)."""
+        self.world = WorldFollower()
+        """The world model as the planner publishes it: the objects the arm holds, which
+        the guard keeps clear like the arm's own bodies."""
         self.sources = tuple(kind(self) for kind in SOURCES)
         """One of each registered command source."""
         self._ranked = sorted(self.sources, key=lambda s: -s.PRIORITY)
@@ -219,9 +224,17 @@ class ControllerCore:
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        guard = scene_guard(scene, self._config.arm)
+        guard = scene_guard(scene, self._config.arm, self.world.held)
         if guard is not None and self.guard is not None:
             self.guard = guard
+        return []
+
+    def on_objects(self, update: WorldUpdate) -> Output:
+        """The world model's updates (``planner/objects``): the guard keeps an object the
+        arm holds (attached to the gripper) clear like a link of the arm, from the next
+        command on. Never publishes."""
+        if self.world.on_update(update) and self.guard is not None:
+            self.guard.hold(self.world.held)
         return []
 
     def on_token_gone(self, service: str) -> Output:

@@ -36,6 +36,7 @@ from manus.advancement import Advancement
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
+from manus.held import HeldBody
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
 from manus.scene import SceneError, parse_scene, scene_from_setting
@@ -245,13 +246,23 @@ class RunGuard:
         """The smallest clearance of the goal (forgotten once read)."""
         return self.lowest.pop(goal_id, None)
 
+    def hold(self, held: Sequence[HeldBody]) -> None:
+        """Keep ``held`` (the objects the arm holds) clear too, from the next command on:
+        the same guard on the model that carries them (nothing it proved holds for it)."""
+        g = self.guard
+        model = g.model.holding(held)
+        self.guard = Guard(model, cycle_s=g.cycle_s, runout_s=g.runout_s, slow_zone_m=g.slow_zone_m)
 
-def scene_guard(state: SceneState, arm: ArmConfig) -> RunGuard | None:
-    """The guard for a scene published by the planner (None: it does not build)."""
+
+def scene_guard(
+    state: SceneState, arm: ArmConfig, held: Sequence[HeldBody] = ()
+) -> RunGuard | None:
+    """The guard for a scene published by the planner, the arm holding ``held`` (None: it
+    does not build)."""
     try:
         scene = parse_scene(state.text, state.source)
         scene = dataclasses.replace(scene, version=state.version)
-        return RunGuard(Guard(CollisionModel(scene, arm)))
+        return RunGuard(Guard(CollisionModel(scene, arm, held=held)))
     except SceneError:
         return None
 

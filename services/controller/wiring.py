@@ -43,6 +43,7 @@ WIRING: Wiring[ControllerCore, Output] = Wiring(
         Input(ep.STATUS, lambda core, st, t: core.on_status(st)),
         Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
+        Input(ep.OBJECTS, lambda core, update, t: core.on_objects(update)),
         *(_input(kind, row) for kind in SOURCES for row in kind.INPUTS),
     ),
     answers=tuple(_answer(kind, row) for kind in SOURCES for row in kind.ANSWERS),
