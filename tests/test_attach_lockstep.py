@@ -22,7 +22,7 @@ from manus_stack.regression import check_controller, check_planner
 from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
 from schemas.control import GoalAck, GripperGoal, TrajectoryGoal
-from schemas.jog import JogLevel
+from schemas.jog import JogLevel, LimitKind
 from schemas.objects import AttachReply, AttachRequest, WorldUpdate
 from schemas.planning import Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
@@ -155,8 +155,12 @@ def test_a_jog_stops_when_the_held_cup_reaches_the_persons_clearance_on_the_trut
     assert arm_to_head > truth.held_min_person + 0.02  # the arm itself stayed further
     assert all(s.at_rest for s in arm.samples[-20:])
     last = arm.states()[-1]
-    assert last.active and last.reason.startswith("collision guard stopped: cup "), last.reason
-    assert "from head (person: needs 50 mm)" in last.reason
+    # Typed fields (schemas.jog.JogLimit): the guard holds the jog at the cup, near the head.
+    held = [lim for lim in last.limits if lim.kind == LimitKind.COLLISION]
+    assert last.active and held, last
+    assert held[0].object == "head" and held[0].body == "cup" and held[0].scale == 0.0, held
+    assert PERSON_M - 0.002 <= held[0].distance < PERSON_M + 0.03, held
+    assert last.reason == "stopped by the collision guard: cup near head (person: keeps 50 mm)"
 
     # The run replays byte for byte: the controller's inputs include the world model's
     # updates (its wiring map), the planner's the attach request.
