@@ -47,7 +47,7 @@ import pinocchio as pin
 from manus.clearance import Check, Clearance, Probe
 from manus.config import ArmConfig
 from manus.scene import Primitive, Scene, SceneError
-from manus.shapes import coal_shape, cover, inner_distances, partner_boxes
+from manus.shapes import coal_shape, cover, inner_distances, moved_by, partner_boxes
 from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
 
 SELF_PAIRS: tuple[tuple[str, str], ...] = (
@@ -59,6 +59,10 @@ SELF_PAIRS: tuple[tuple[str, str], ...] = (
     ("forearm", "column"),
 )
 """Self-collision pairs (arm body, arm body), the only place they are declared."""
+
+MOVE_BOUND_M = 0.25
+"""How far a scene object may be moved from its scene pose (:meth:`CollisionModel.move_object`)
+while the pairs kept at construction stay right (checked by tests/test_collision.py) [m]."""
 
 GRIPPER_BODIES = ("gripper", "gripper_motor")
 """The bodies a zone with ``links: gripper`` applies to."""
@@ -122,6 +126,9 @@ class CollisionModel:
         self._set_aside = self._no_margin
         self._inactive: list[tuple[Any, int]] = []
         self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
+        self._boxes_stale = False
+        self._copies: dict[str, list[tuple[Any, int]]] = {}
+        self._to_base = np.linalg.inv(scene.mount) if scene is not None else np.eye(4)
         self._no_reach = np.zeros((6, len(self._moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
@@ -190,6 +197,40 @@ class CollisionModel:
                 check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
                 body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
                 self._keep_in_bodies.append((check, body, bodies))
+
+    def move_object(self, name: str, pose: np.ndarray) -> float:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame), in every check
+        against it (a person the tracker follows: docs/follow.md, The person moves). The
+        pairs kept at construction stay as they are: an object moved within
+        :data:`MOVE_BOUND_M` of its scene pose meets no body it could not meet there.
+
+        Returns:
+            how far any point of the object moved at most [m] (its translation plus its
+            turn times its radius).
+
+        Raises:
+            SceneError: no scene object of that name.
+        """
+        copies = self._copies.get(name)
+        if copies is None:
+            copies = self._copies[name] = [
+                (gm, k)
+                for gm in (self.geom, *(m for m, _, _ in self._per_body))
+                for k, obj in enumerate(gm.geometryObjects)
+                if obj.name == name and obj.parentJoint == 0
+            ]
+        if not copies or self.scene is None:
+            raise SceneError(f"no scene object {name!r} to move (objects: {self._object_names()})")
+        placement = pin.SE3(self._to_base @ pose)
+        first = copies[0][0].geometryObjects[copies[0][1]]
+        moved = moved_by(first.placement.homogeneous, placement.homogeneous, first.geometry)
+        for gm, k in copies:
+            gm.geometryObjects[k].placement = placement
+        self._boxes_stale = True  # :meth:`restrict` builds them again when it needs them
+        return moved
+
+    def _object_names(self) -> list[str]:
+        return [o.name for o in self.scene.objects] if self.scene is not None else []
 
     # --- configuration queries ----------------------------------------------------------
 
@@ -314,6 +355,9 @@ class CollisionModel:
         Returns:
             per moving body, the least margin of its set-aside pairs [m] (inf: none).
         """
+        if self._boxes_stale:
+            self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
+            self._boxes_stale = False
         aside = np.full(len(self._moving), math.inf)
         for (b, _, gd, _), (fixed, box_lo, box_hi) in zip(
             self._live, self._partner_boxes, strict=True

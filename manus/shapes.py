@@ -95,3 +95,21 @@ def partner_boxes(gm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         lows.append(world.min(axis=0) - grow)
         highs.append(world.max(axis=0) + grow)
     return np.array(fixed, dtype=bool), np.array(lows), np.array(highs)
+
+
+def moved_by(before: np.ndarray, after: np.ndarray, geometry: Any) -> float:
+    """How far any point of ``geometry`` moves at most [m] when its placement goes from
+    ``before`` to ``after`` (4x4 each): the translation of its frame plus the angle it
+    turns times its farthest point from that frame (a half-space: its translation alone)."""
+    shift = float(np.linalg.norm(after[:3, 3] - before[:3, 3]))
+    turn = before[:3, :3].T @ after[:3, :3]
+    trace = float(turn[0, 0] + turn[1, 1] + turn[2, 2])
+    angle = math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0)))
+    if angle == 0.0:
+        return shift
+    geometry.computeLocalAABB()
+    a, b = geometry.aabb_local.min_, geometry.aabb_local.max_
+    if not (np.all(np.abs(a) < 1e6) and np.all(np.abs(b) < 1e6)):
+        return shift
+    corner = np.maximum(np.abs(a), np.abs(b))
+    return shift + angle * float(np.linalg.norm(corner))

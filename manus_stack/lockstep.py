@@ -13,6 +13,8 @@ path takes a fraction of a second and gives the same result on every run:
 - a core attached with :meth:`LockStep.attach` gets what its service's wiring map
   subscribes, its queryables' requests as their ``trace/<q>/request`` mirrors (its
   answers go out on ``trace/<q>/reply``), as the live shells wire them;
+- the simulator's own publications (its moving target's tracker on ``target/pose``,
+  :meth:`services.simulator.core.SimCore.take_messages`) are published when it makes them;
 - the bridge's ``on_tick`` runs every 20 ms;
 - other PC-side nodes on the bus (:meth:`LockStep.attach_node`, e.g. the guardian) get
   every frame of the arm and of the bridge, and theirs reach the arm and the bridge, each
@@ -215,11 +217,7 @@ class LockStep:
                 break
             self._t = t
             if t == t_sim:
-                for frame in self.sim.advance(t):
-                    self.arm_frames.append(frame)
-                    for node in self.nodes:
-                        node.receive(frame)
-                    self._bridge_frame(frame)
+                self._sim_events(t)
             elif t == t_msg:
                 item = heapq.heappop(self._queue)[2]
                 if isinstance(item, _FrameTo):
@@ -259,6 +257,15 @@ class LockStep:
         return [m for _, s, m in self.messages if s == suffix]
 
     # -- plumbing -------------------------------------------------------------------------
+
+    def _sim_events(self, t: int) -> None:
+        for frame in self.sim.advance(t):
+            self.arm_frames.append(frame)
+            for node in self.nodes:
+                node.receive(frame)
+            self._bridge_frame(frame)
+        for at, suffix, msg in self.sim.take_messages():
+            self._publish(suffix, msg, at)
 
     def _bridge_frame(self, frame: Frame) -> None:
         if self._bridge_killed:

@@ -52,6 +52,7 @@ from schemas import (
     sequencing,
     simfault,
     state,
+    target,
 )
 from schemas.base import Message
 
@@ -463,6 +464,19 @@ PLAYBACK_CONTROL = _query(
     _SUP,
 )
 
+# -- following a moving target (docs/follow.md) -----------------------------------------------
+TARGET = _pub(
+    "target/pose",
+    Service.SIMULATOR,
+    target.TargetPose,
+    "a tracker's target at 5-30 Hz (the user's mouth; the pose of the head it moves with): "
+    "the simulated tracker's, until a tracker node of its own takes this key (and its "
+    "ownership)",
+    _SUP,
+)
+FOLLOW_ENDPOINTS = (TARGET,)
+"""The endpoints of following a target (a block of their own in :data:`TABLE`)."""
+
 
 class Table:
     """The endpoints, by suffix, in declaration order (:data:`TABLE`)."""
@@ -575,6 +589,7 @@ TABLE = Table(
         LIVELINESS,
         FLIGHT_TRIGGER,
         PLAYBACK_CONTROL,
+        *FOLLOW_ENDPOINTS,
     )
 )
 """Every endpoint of the stack."""

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.target import TargetTruth
 
 
 class ArmMode(StrEnum):
@@ -238,3 +239,19 @@ class SimTruth(Message):
         minimum=0,
     )
     contact: str = field("body/object of the last contact ('': none yet)", default="")
+    person_clearance: float | None = field(
+        "smallest true distance now between the arm and a person object (no clearance; "
+        "None: no person in the scene)",
+        unit="m",
+        default=None,
+    )
+    person_pair: str = field("body/object of `person_clearance`", default="")
+    min_person_clearance: float | None = field(
+        "smallest `person_clearance` at any tick since power-up (None: no person)",
+        unit="m",
+        default=None,
+    )
+    target: TargetTruth | None = field(
+        "the moving target and the body it moves with, truly (None: no moving target)",
+        default=None,
+    )

@@ -4,15 +4,16 @@ check does on seeded random paths."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path as FilePath
 
 import numpy as np
 import pytest
 
-from manus.collision import SELF_PAIRS, CollisionModel
+from manus.collision import MOVE_BOUND_M, SELF_PAIRS, CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
-from manus.scene import default_scene
+from manus.scene import SceneError, default_scene
 from manus.sweep import TOLERANCE_M, sweep
 from manus.viapoints import load_path, parse_viapoints
 from schemas.planning import PlanReply, PlanRequest
@@ -273,3 +274,41 @@ def test_pairs_set_aside_for_a_motion_only_lower_the_margins() -> None:
         if tight < aside.min():
             assert r_row == row and r_tight == pytest.approx(tight, abs=1e-6)
     assert [MODEL.pair_margins(q)[2] for q in qs] == [f[2] for f in full]
+
+
+@pytest.mark.parametrize("axis", range(6))
+def test_a_person_moved_within_the_bound_meets_no_body_its_pairs_left_out(axis: int) -> None:
+    scene = default_scene()
+    shift = np.zeros(3)
+    shift[axis % 3] = MOVE_BOUND_M if axis < 3 else -MOVE_BOUND_M
+    objects = []
+    for obj in scene.objects:
+        moved = obj
+        if obj.name == "head":
+            pose = obj.body.pose.copy()
+            pose[:3, 3] += shift
+            moved = dataclasses.replace(obj, body=dataclasses.replace(obj.body, pose=pose))
+        objects.append(moved)
+    built_there = CollisionModel(dataclasses.replace(scene, objects=tuple(objects)), DEFAULT_ARM)
+    there = {c for c in built_there.checks if c.other == "head"}
+    assert there <= {c for c in MODEL.checks if c.other == "head"}
+
+
+def test_moving_an_object_moves_it_in_every_check() -> None:
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    head = next(o for o in model.scene.objects if o.name == "head")  # type: ignore[union-attr]
+    q = np.array(UNFOLDED)
+
+    def to_head() -> float:
+        pairs = zip(model.margins(q), model.checks, strict=True)
+        return min(float(m) for m, c in pairs if c.other == "head")
+
+    before = to_head()
+    pose = head.body.pose.copy()
+    pose[:3, 3] += [0.1, -0.1, 0.0]
+    assert model.move_object("head", pose) == pytest.approx(math.hypot(0.1, 0.1))
+    probe = model.probe(q)
+    assert to_head() < before - 0.05
+    assert probe.best.margin <= to_head()
+    with pytest.raises(SceneError, match="no scene object 'mouth'"):
+        model.move_object("mouth", pose)

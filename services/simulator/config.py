@@ -28,6 +28,7 @@ from manus.config import (
 )
 from manus.errors import ConfigError
 from services.simulator.faults import FaultConfig
+from services.simulator.target_config import NO_TARGET, TargetConfig
 
 TICK_MS = 20.0
 """Motion integration step and frame spacing [ms] (:data:`manus.protocol.TICK_S`)."""
@@ -90,6 +91,8 @@ class SimConfig:
             ``$MANUS_SCENE`` or the shipped wheelchair scene, ``default``, ``none`` or a
             scene file), the same as the planner's by default. A body
             that meets an object stops there (warning 3); the truth reports distances.
+        target: a moving target and its tracker (the user's mouth; off by default:
+            :class:`~services.simulator.target_config.TargetConfig`).
     """
 
     seed: int = 0
@@ -114,6 +117,7 @@ class SimConfig:
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
     scene: str = ""
+    target: TargetConfig = NO_TARGET
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:
@@ -200,6 +204,10 @@ class SimConfig:
                 if not isinstance(value, dict):
                     raise ConfigError(f"{source}: `arm` must be an object")
                 kwargs[key] = ArmConfig.from_mapping(value, source=f"{source}: arm")
+            elif key == "target":
+                if not isinstance(value, dict):
+                    raise ConfigError(f"{source}: `target` must be an object")
+                kwargs[key] = TargetConfig.from_mapping(value, source=source)
             elif key == "faults":
                 if not isinstance(value, dict):
                     raise ConfigError(f"{source}: `faults` must be an object")

@@ -11,7 +11,10 @@ another reply replaces it (a late or missing reply repeats the last command); a 
 Every 20 ms tick integrates the active command over the tick that ends there
 (:mod:`services.simulator.arm`). Events at the same instant run in this order: the
 tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
-or sync), frames leaving, then frames from the PC.
+or sync), frames leaving, frames from the PC, then the moving target's tracker
+(:mod:`.target`: its captures and frames on ``target/pose``; :meth:`SimCore.take_messages`
+hands them out). The target's body (the user's head) is placed where it is at each tick
+before the tick's integration, so the true distances see the person move.
 
 The core never reads a clock and draws every random number from generators seeded by
 ``config.seed``: same configuration and inputs, same frames, bit for bit.
@@ -35,6 +38,9 @@ from manus.protocol import (
     MoveCommand,
     sync_frame,
 )
+from manus.scene import scene_from_setting
+from schemas import endpoints as ep
+from schemas.base import Message
 from schemas.state import SimTruth
 from services.simulator.arm import ArmModel, ArmState, Intent
 from services.simulator.arm_faults import ArmFaults
@@ -56,6 +62,7 @@ from services.simulator.report import (
     gripper_field,
     joint_fields,
 )
+from services.simulator.target import MovingTarget
 from services.simulator.truth import ContactRecord, make_truth
 
 TICK_NS = 20 * MS
@@ -80,7 +87,8 @@ class SimCore:
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
-        model_rng, fault_rng, self._garbage_rng = np.random.default_rng(cfg.seed).spawn(3)
+        rngs = np.random.default_rng(cfg.seed).spawn(4)
+        model_rng, fault_rng, self._garbage_rng, target_rng = rngs
         gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
         self.model = ArmModel(cfg, gains)
         self.counters = SimCounters()
@@ -107,6 +115,11 @@ class SimCore:
         self._arm_faults = ArmFaults()
         for fault in cfg.faults.all:
             self.add_fault(fault)
+        self.target: MovingTarget | None = None
+        """The moving target and its tracker (None: switched off)."""
+        if cfg.target.enabled:
+            self.target = MovingTarget(cfg.target, target_rng, scene_from_setting(cfg.scene))
+        self._messages: list[tuple[int, str, Message]] = []
 
     # -- the harness interface -----------------------------------------------------------
 
@@ -116,10 +129,16 @@ class SimCore:
         return self._now
 
     def next_event_ns(self) -> int:
-        """Time of the next thing the core does: a tick or a frame leaving [ns]."""
+        """Time of the next thing the core does: a tick, a frame leaving, or a capture or
+        frame of the target's tracker [ns]."""
+        t = (
+            self._next_tick
+            if self.target is None
+            else min(self._next_tick, self.target.next_event_ns())
+        )
         if self._outbox:
-            return min(self._next_tick, self._outbox[0][0])
-        return self._next_tick
+            return min(t, self._outbox[0][0])
+        return t
 
     def advance(self, t_ns: int) -> list[Frame]:
         """Run every tick and frame up to and including ``t_ns``.
@@ -136,7 +155,8 @@ class SimCore:
         while True:
             t_out = self._outbox[0][0] if self._outbox else None
             t_in = self._inbox[0][0] if self._inbox else None
-            t = min(x for x in (self._next_tick, t_out, t_in) if x is not None)
+            t_tgt = None if self.target is None else self.target.next_event_ns()
+            t = min(x for x in (self._next_tick, t_out, t_in, t_tgt) if x is not None)
             if t > t_ns:
                 break
             self._now = t
@@ -145,8 +165,11 @@ class SimCore:
                 self._next_tick += TICK_NS
             elif t == t_out:
                 sent.append(heapq.heappop(self._outbox)[2])
-            else:
+            elif t == t_in:
                 self._handle(heapq.heappop(self._inbox)[2])
+            else:
+                assert self.target is not None
+                self._messages += [(at, ep.TARGET, msg) for at, msg in self.target.due(t)]
         self._now = t_ns
         self.counters.frames_sent += len(sent)
         return sent
@@ -174,7 +197,16 @@ class SimCore:
             SimError: ``t_ns`` is outside [last tick, next tick].
         """
         t = self._now if t_ns is None else t_ns
-        return make_truth(self.model, self.state_at(t), t, t // TICK_NS, self.contact_record)
+        state = self.state_at(t)
+        self._place_body(t)
+        target = None if self.target is None else self.target.truth(t)
+        return make_truth(self.model, state, t, t // TICK_NS, self.contact_record, target)
+
+    def take_messages(self) -> list[tuple[int, str, Message]]:
+        """The bus messages published since the last call (the target's tracker's frames
+        on ``target/pose``): (publication time [ns], key suffix, message), in order."""
+        out, self._messages = self._messages, []
+        return out
 
     def state_at(self, t_ns: int) -> ArmState:
         """The mechanical state at ``t_ns`` in [last tick, next tick] (exact, not stored)."""
@@ -183,6 +215,7 @@ class SimCore:
             raise SimError(f"state at {t_ns} ns: only [{last}, {self._next_tick}] ns is known now")
         if t_ns == last:
             return self._state
+        self._place_body(t_ns)
         return self.model.step(self._state, self._intent(last), (t_ns - last) / 1e9).state
 
     # -- run-time controls and readings -----------------------------------------------------
@@ -233,7 +266,16 @@ class SimCore:
 
     # -- the timeline --------------------------------------------------------------------
 
+    def _place_body(self, t: int) -> None:
+        """The target's body (the user's head) where it is at ``t`` (the true distances)."""
+        target = self.target
+        if target is not None and target.body_rest is not None:
+            pose = target.body_pose(t)
+            assert pose is not None
+            self.model.contacts.move(target.config.body, pose)
+
     def _tick(self, t: int) -> None:
+        self._place_body(t)
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
         self.contact_record.update(result)
