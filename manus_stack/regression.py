@@ -14,7 +14,7 @@ its queryables' mirrored requests in; its publications and mirrored replies out.
 - ``planner``: joint states, plan requests and scene updates in, plan and scene replies
   out (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
-  stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
+  stream (a ``jog`` payload that does not decode goes to its input's ``bad`` handler, as
   the live shell does), the scene, the liveliness tokens that vanished (as the controller
   took them: its ``controller/token_gone`` records) and the controller's query requests
   in; commands, feedback, results, the jog's state and the query replies out.
@@ -43,6 +43,7 @@ from typing import Any
 
 import msgpack
 
+from manus.wiring import BAD_PAYLOAD
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.endpoints import LIVELINESS
@@ -52,7 +53,6 @@ from schemas.planning import PlanReply
 from schemas.state import JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
-from services.controller.jog import BAD_JOG_PAYLOAD
 from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
@@ -340,16 +340,20 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     inputs = 0
     for rec, msg in _controller_inputs(recording, window):
         inputs += 1
+        t = rec.log_ns
         if isinstance(msg, JogTaken):  # where the controller took it (see below)
             taken = msg.command
-            out = core.on_jog(taken) if taken is not None else core.on_bad_jog(msg.error)
-            outputs = CONTROLLER.published(out)
+            outputs = (
+                CONTROLLER.feed(core, ep.JOG, taken, t)
+                if taken is not None
+                else CONTROLLER.feed_bad(core, ep.JOG, msg.error, t)
+            )
         elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
-            outputs = CONTROLLER.published(core.on_token_gone(msg.service))
+            outputs = CONTROLLER.feed_token_gone(core, msg.service, t)
         elif msg is None:
-            outputs = CONTROLLER.published(core.on_bad_jog(BAD_JOG_PAYLOAD))
+            outputs = CONTROLLER.feed_bad(core, rec.suffix, BAD_PAYLOAD, t)
         else:
-            outputs = CONTROLLER.feed(core, rec.suffix, msg, rec.log_ns)
+            outputs = CONTROLLER.feed(core, rec.suffix, msg, t)
         for suffix, out_msg in outputs:
             cmp.add(suffix, out_msg.encode(), rec.log_ns)
     return cmp.result(CONTROLLER.service, inputs)

@@ -9,6 +9,7 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
+from manus.quantize import step_rates
 from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
@@ -74,7 +75,7 @@ def test_clear_paths_pass_unchanged_and_mostly_without_distances() -> None:
     q = list(UNFOLDED)
     counts = np.array([2, -1, 0, 3, 0, 0])
     for _ in range(50):
-        verdict = guard.filter(q, [2.0, -1.0, 0.0, 3.0, 0.0, 0.0], counts, 0.0)
+        verdict = guard.filter(q, step_rates(counts.tolist()), counts, 0.0)
         assert verdict.scale == 1.0 and verdict.reason == ""
         assert (verdict.counts == counts).all()
         q = list(np.asarray(q) + np.radians([0.6, 0.3, 0.0, 0.9, 0.0, 0.0]) * 0.1)

@@ -193,9 +193,15 @@ def test_a_core_output_the_map_does_not_know_is_an_error_in_every_shell() -> Non
     [
         (
             lambda: GoalResult(
-                stamp_ns=0, seq=0, goal_id="g", kind="trajectory", status="preemted", reason=""
+                stamp_ns=0,
+                seq=0,
+                goal_id="g",
+                kind="trajectory",
+                status="preemted",
+                cause="new_goal",
+                reason="",
             ),
-            "GoalResult/1.status: 'preemted' is not one of ['aborted', 'cancelled', "
+            "GoalResult/2.status: 'preemted' is not one of ['aborted', 'cancelled', "
             "'preempted', 'succeeded']",
         ),
         (

@@ -40,7 +40,8 @@ S = 1_000_000_000
 def _joints(seq: int, t_ns: int) -> bytes:
     return JointState(
         stamp_ns=t_ns, seq=seq, position=[0.1 * seq % 1, 0.5, -0.5, 0.0, -1.0, 0.0],
-        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied=[0] * 8,
+        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+        applied_gripper_velocity=0.0,
         applied_kind="joint", applied_seq=seq - 1,
     ).encode()  # fmt: skip
 
@@ -96,7 +97,7 @@ def test_warning_codes_goal_aborts_and_requests_trigger_only_when_chosen() -> No
     assert dump.triggers[0].kind == "arm_warning"
     core = FlightCore(FlightConfig(ring_s=2.0, after_s=0.0))
     aborted = GoalResult(stamp_ns=1, seq=0, goal_id="g1", kind="trajectory", status="aborted",
-                         reason="path tolerance")  # fmt: skip
+                         cause="tolerance", reason="path tolerance")  # fmt: skip
     [d1] = core.on_sample("manus/controller/result", aborted.encode(), 1 * S)
     request = FlightTrigger(stamp_ns=2, seq=0, source="operator", reason="odd noise")
     [d2] = core.on_sample(f"manus/{FLIGHT_TRIGGER}", request.encode(), 2 * S)

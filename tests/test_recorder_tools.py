@@ -37,6 +37,7 @@ from services.recorder.export import export_candump
 from services.recorder.reading import Recording, decode
 from services.recorder.replay import schedule
 from services.recorder.writer import RecordingWriter
+from tests.controller_plant import steps
 
 DATA = Path(__file__).resolve().parent / "data"
 SQUARE = DATA / "thesis_square.mcap"
@@ -91,7 +92,7 @@ def test_export_info_describes_the_recording(capsys: pytest.CaptureFixture[str])
     assert main(["export", str(SQUARE), "--info"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["prefix"] == "manus" and info["source"].startswith("lockstep thesis_square")
-    assert info["channels"]["state/joints"]["type"] == "manus/JointState/1"
+    assert info["channels"]["state/joints"]["type"] == "manus/JointState/2"
     assert info["messages"] == sum(c["messages"] for c in info["channels"].values())
     assert 20.0 < info["duration_s"] < 30.0
 
@@ -168,7 +169,7 @@ def test_replay_as_bridge_drives_a_controller_core_to_the_same_commands() -> Non
     ]
     recorded = [r.payload for r in rec.messages(["cmd/joint_velocity"])]
     assert commands == recorded
-    moving = [c for c in map(JointVelocityCommand.decode, commands) if any(c.counts or [])]
+    moving = [c for c in map(JointVelocityCommand.decode, commands) if any(steps(c))]
     assert len(moving) > 100
 
 

@@ -15,7 +15,8 @@ import pytest
 
 from manus.session import ZenohSettings
 from manus_stack.teleop import Teleop, screen
-from schemas.jog import JogCommand, JogState
+from schemas.jog import JogCaps, JogCommand, JogState
+from services.controller.jog import JogSource
 from services.controller.shell import ControllerShell
 from tests.conftest import eventually
 
@@ -25,10 +26,11 @@ MANUS = Path(sys.executable).with_name("manus")
 
 def _state(**kw: object) -> JogState:
     base: dict[str, object] = {
-        "stamp_ns": 0, "seq": 0, "active": True, "kind": "twist", "frame": "base",
-        "drink": False, "level": 3, "levels": 5, "scale": 1.0, "reason": "", "command_seq": 1,
-        "refused": 0, "deadman_stops": 0, "actual_xyz": [0.2, 0.1, 0.3],
-        "actual_ypr": [0.0, -math.pi / 3, 0.0],
+        "stamp_ns": 0, "seq": 0, "state": "running", "active": True, "cause": "",
+        "kind": "twist", "frame": "base", "drink": False, "level": 3, "levels": 5,
+        "caps": JogCaps(linear=0.09, angular=0.3, joints=0.5, gripper=0.018), "scale": 1.0,
+        "limits": [], "reason": "", "command_seq": 1, "refused": 0, "deadman_stops": 0,
+        "folded": False, "actual_xyz": [0.2, 0.1, 0.3], "actual_ypr": [0.0, -math.pi / 3, 0.0],
     }  # fmt: skip
     return JogState(**(base | kw))  # type: ignore[arg-type]
 
@@ -130,11 +132,13 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
             eventually(lambda: "manus jog" in _tmux("capture-pane", "-p", "-t", session), 20.0,
                        "the teleop's screen")  # fmt: skip
             _tmux("send-keys", "-t", session, "4")
-            eventually(lambda: controller.core.jog.level == 4, 10.0, "level 4 set")
+            eventually(lambda: controller.core.source(JogSource).level == 4, 10.0, "level 4 set")
             _tmux("send-keys", "-t", session, "w")
             # no arm: the controller refuses the jog (no joint state) and counts it
-            eventually(lambda: controller.core.jog.refused >= 1, 10.0, "the jog refused")
-            assert "no valid joint state" in controller.core.jog.reason
+            eventually(
+                lambda: controller.core.source(JogSource).refused >= 1, 10.0, "the jog refused"
+            )
+            assert "no valid joint state" in controller.core.source(JogSource).reason
             if ending == "q":
                 _tmux("send-keys", "-t", session, "q")
             else:  # the pane's shell runs the teleop as its one child
@@ -172,9 +176,13 @@ def test_manus_jog_plays_a_recorded_joystick_session(
             check=True, timeout=10, env=dict(os.environ, PYTHONPATH=str(ROOT)),
         )  # fmt: skip
         try:
-            eventually(lambda: controller.core.jog.level == 4, 20.0, "level 4 from BTN_TR")
+            eventually(
+                lambda: controller.core.source(JogSource).level == 4, 20.0, "level 4 from BTN_TR"
+            )
             # the stick pushed forward: a jog (refused here: no arm, no joint state)
-            eventually(lambda: controller.core.jog.refused >= 1, 10.0, "the stick's jog")
+            eventually(
+                lambda: controller.core.source(JogSource).refused >= 1, 10.0, "the stick's jog"
+            )
             _tmux("send-keys", "-t", session, "q")
             eventually(lambda: done.exists() and done.read_text().strip() == "0", 20.0, "exit 0")
         finally:

@@ -530,7 +530,7 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
     assert got.channels[tf_topic]["schemaName"] == FrameTransforms.get_schema().name
     assert got.channels[tf_topic]["encoding"] == "protobuf"
     assert got.channels[planned_topic]["schemaName"] == SceneUpdate.get_schema().name
-    assert got.channels[joints_topic]["schemaName"] == "manus/JointState/1"
+    assert got.channels[joints_topic]["schemaName"] == "manus/JointState/2"
     assert got.channels[joints_topic]["schemaEncoding"] == "jsonschema"
     # the links follow the forward kinematics of the recorded joint states, in order
     tfs = got.messages[tf_topic]

@@ -3,7 +3,7 @@
 Every command passes through :meth:`Guard.filter` where the controller forms it, so
 trajectories, spliced (replaced) trajectories and jogs are all guarded. It predicts where
 the arm will be: the joint state's snapshot at s, plus what the arm executes during
-[s, s+60) ms (``JointState.applied``, already sent), plus this command during
+[s, s+60) ms (``JointState.applied_velocity``, already sent), plus this command during
 [s+60, s+120) ms, plus the drives' run-out after it (``runout_s``, the lag). If the
 clearances (the scene's, per class, and the zones) would be violated there, the
 command is scaled down, or stopped; near an obstacle (margin under ``slow_zone_m``) a
@@ -36,8 +36,8 @@ from manus.scene import SceneError, parse_scene, scene_from_setting
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
-_NOTHING = (0,) * 6
-"""``JointState.applied`` when the command in flight is not a joint move."""
+_NOTHING = (0.0,) * 6
+"""The DH velocities in flight when the frame in flight is not a joint move [rad/s]."""
 
 
 class Verdict(NamedTuple):
@@ -48,12 +48,15 @@ class Verdict(NamedTuple):
         scale: the factor applied (1: unchanged, 0: stopped).
         reason: why it scaled or stopped ("" when unchanged).
         clearance: the tightest clearance computed this cycle (None: none computed).
+        near: when it scaled or stopped: the clearance, where the arm is now (the
+            snapshot), of the check that decided it (None: unchanged).
     """
 
     counts: np.ndarray
     scale: float
     reason: str
     clearance: Clearance | None
+    near: Clearance | None = None
 
 
 class _Anchor(NamedTuple):
@@ -94,8 +97,9 @@ class Guard:
     def filter(
         self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
     ) -> Verdict:
-        """Guard ``counts`` (motor increments, (6,)) for the snapshot angles ``q`` [rad]
-        and the motor counts in flight ``applied`` (6 values), gripper ``opening`` [m]."""
+        """Guard ``counts`` (motor speed steps, (6,)) for the snapshot angles ``q`` [rad]
+        and the DH joint velocities in flight ``applied`` [rad/s] (6 values), gripper
+        ``opening`` [m]."""
         counts = np.asarray(counts, dtype=np.int64)
         motor = counts.tolist()
         if not any(motor) and not any(applied):
@@ -106,9 +110,8 @@ class Guard:
             self._anchor = None
         # Plain floats on the common path (proven clear): a cycle costs microseconds.
         ahead = self.cycle_s + self.runout_s
-        now_dh = encoder_increments_to_dh_list(applied)
         cmd_dh = encoder_increments_to_dh_list(motor)
-        nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
+        nxt = [a + v * self.cycle_s for a, v in zip(q, applied, strict=True)]
         end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
         if self._proven_clear(list(q), nxt, end):
             return Verdict(counts, 1.0, "", None)
@@ -131,7 +134,7 @@ class Guard:
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
         if m_next.margin < floor:
-            return self._stopped(counts, m_next, "already in flight")
+            return self._stopped(counts, m_next, "already in flight", self._now(now, m_next, q_s))
         m_end = self._margin(q_end)
         scale = 1.0
         if m_end.margin < floor:
@@ -154,13 +157,30 @@ class Guard:
                     scale,
                     f"slowed to {scale:.2f}: {check.describe()} ahead",
                     now.clearance,
+                    now.clearance,
                 )
-        return self._stopped(counts, m_end, "ahead at the commanded speed")
+        near = self._now(now, m_end, q_s)
+        return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _stopped(self, counts: np.ndarray, found: Clearance, when: str) -> Verdict:
-        return Verdict(np.zeros_like(counts), 0.0, f"stopped: {found.describe()} {when}", found)
+    def _stopped(self, counts: np.ndarray, found: Clearance, when: str, near: Clearance) -> Verdict:
+        reason = f"stopped: {found.describe()} {when}"
+        return Verdict(np.zeros_like(counts), 0.0, reason, found, near)
+
+    def _now(self, now: _AnchorResult, found: Clearance, q: np.ndarray) -> Clearance:
+        """The clearance at ``q`` (where the arm is) of ``found``'s check: the tightest
+        one there if it is the same (most cycles), else computed."""
+        if found.check == now.clearance.check:
+            return now.clearance
+        model = self.model
+        self.computed += 1
+        margins = model.margins(q)
+        pairs = [(float(m), c) for m, c in zip(margins, model.checks, strict=True)]
+        for margin, check in pairs + model.keep_in_margins():
+            if check == found.check:
+                return Clearance(margin, margin + check.required, check, 0.0, q)
+        return now.clearance
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
@@ -225,7 +245,7 @@ class RunGuard:
 
     def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
         """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
-        applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
+        applied = js.applied_velocity if js.applied_kind == "joint" else _NOTHING
         verdict = self.guard.filter(js.position, applied, counts, js.gripper)
         found = verdict.clearance
         if goal_id and found is not None:

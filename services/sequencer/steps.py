@@ -40,16 +40,19 @@ from schemas.base import Message
 from schemas.commands import ArmAction, ArmCommand, ArmCommandReply
 from schemas.control import (
     CancelGoal,
+    CommandSourceKind,
     ControllerFeedback,
+    EndCause,
     GoalAck,
     GoalResult,
     GripperGoal,
+    Refusal,
     ResultStatus,
     TrajectoryGoal,
 )
-from schemas.jog import JOGGING, USER_TOOK_OVER
+from schemas.jog import USER_TOOK_OVER
 from schemas.planning import Path, PlanReply, PlanRequest, Trajectory
-from schemas.sequencing import StepKind, Task, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
 from schemas.state import BridgePhase, BridgeState
 from services.sequencer.actions import Action, Query
 from services.sequencer.config import SequencerConfig
@@ -227,7 +230,7 @@ class GoalStep(Step):
             return self.ctx.fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self.goal_id = ""
-            return self._refused(reply.reason)
+            return self._refused(reply)
         self.phase = Phase.ACTIVE
         if self.ctx.cancel_requested:
             return self.cancel()
@@ -236,10 +239,10 @@ class GoalStep(Step):
             return self._stop_goal(Phase.PAUSING)
         return []
 
-    def _refused(self, reason: str) -> list[Action]:
-        if reason.startswith(JOGGING):  # the user jogs: pause, not fail
-            return self.ctx.paused(USER_TOOK_OVER)
-        return self.ctx.fail(f"controller refused the goal: {reason}")
+    def _refused(self, reply: GoalAck) -> list[Action]:
+        if reply.refusal == Refusal.BUSY and reply.held_by == CommandSourceKind.JOG:
+            return self.ctx.paused(USER_TOOK_OVER)  # the user jogs: pause, not fail
+        return self.ctx.fail(f"controller refused the goal: {reply.reason}")
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
@@ -257,7 +260,7 @@ class GoalStep(Step):
         if res.status == ResultStatus.CANCELLED and self.phase == Phase.PAUSING:
             self._remember_pause()
             return self.ctx.paused()
-        if res.status == ResultStatus.PREEMPTED and res.reason.startswith(USER_TOOK_OVER):
+        if res.status == ResultStatus.PREEMPTED and res.cause == EndCause.USER_TOOK_OVER:
             self._remember_pause()  # a jog took the arm: pause where it stopped
             return self.ctx.paused(USER_TOOK_OVER)
         return self.ctx.fail(f"controller: goal {res.status}: {res.reason}")
@@ -327,9 +330,9 @@ class MoveStep(GoalStep):
             problems = []
             if spec.pose not in POSES:
                 problems.append(f"unknown pose {spec.pose!r} (known: {', '.join(POSES)})")
-            if not 0.0 < spec.duration <= MAX_WAIT_S:
+            if not 0.0 <= spec.duration <= MAX_WAIT_S:  # 0: the default
                 problems.append(
-                    f"pose duration {spec.duration:g} s is outside (0, {MAX_WAIT_S:g}] s"
+                    f"pose duration {spec.duration:g} s is outside [0, {MAX_WAIT_S:g}] s"
                 )
             return problems
         if spec.path is None:
@@ -594,6 +597,6 @@ def step_path(step: TaskStep, start: list[float] | None, arm: ArmConfig) -> Path
     other kinds or a bad pose name)."""
     if step.kind == StepKind.MOVE:
         return step.path
-    if step.kind == StepKind.POSE and step.pose in POSES and step.duration > 0.0:
-        return pose_path(step.pose, step.duration, arm, start=start)
+    if step.kind == StepKind.POSE and step.pose in POSES and step.duration >= 0.0:
+        return pose_path(step.pose, step.duration or DEFAULT_POSE_DURATION_S, arm, start=start)
     return None

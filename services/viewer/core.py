@@ -26,7 +26,7 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
 - ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
   errors, bridge phases, goals and results, task events, e-stops, services appearing and
   vanishing;
-- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/1`` ...]: each message of
+- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/2`` ...]: each message of
   :data:`JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
 
 A payload that does not decode is counted (:attr:`ViewerStats.bad_payloads`), never
