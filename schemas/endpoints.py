@@ -43,6 +43,7 @@ from schemas import (
     commands,
     control,
     flight,
+    follow,
     guardian,
     health,
     jog,
@@ -474,7 +475,29 @@ TARGET = _pub(
     "ownership)",
     _SUP,
 )
-FOLLOW_ENDPOINTS = (TARGET,)
+FOLLOW = _query(
+    "controller/follow",
+    _CTRL,
+    follow.FollowGoal,
+    control.GoalAck,
+    "follow a tracker's target to a standoff and hold it there, or stop following",
+    _SUP,
+)
+FOLLOW_STATE = _pub(
+    "controller/follow_state",
+    _CTRL,
+    follow.FollowState,
+    "the follow goal every cycle while it runs (target, predicted target, standoff point, "
+    "tracked point), once when it ends",
+    _SUP,
+)
+TARGET_TAKEN = _pub(
+    "controller/target_taken",
+    _CTRL,
+    target.TargetTaken,
+    "each target frame as the controller took it: after which joint state (exact replays)",
+)
+FOLLOW_ENDPOINTS = (TARGET, FOLLOW, FOLLOW_STATE, TARGET_TAKEN)
 """The endpoints of following a target (a block of their own in :data:`TABLE`)."""
 
 

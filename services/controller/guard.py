@@ -162,6 +162,14 @@ class Guard:
         near = self._now(now, m_end, q_s)
         return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
+    def object_moved(self, by: float) -> None:
+        """A scene object moved by at most ``by`` [m]: every margin of the anchor shrinks
+        by that much, so its proof stays conservative without a new distance."""
+        a = self._anchor
+        if a is not None and by > 0.0:
+            bodies = [(free - by, reach) for free, reach in a.bodies]
+            self._anchor = a._replace(bodies=bodies, margin=a.margin - by)
+
     # --- internals ---------------------------------------------------------------------------
 
     def _stopped(self, counts: np.ndarray, found: Clearance, when: str, near: Clearance) -> Verdict:
@@ -253,6 +261,14 @@ class RunGuard:
             if low is None or found.distance - found.check.required < low.distance - low.required:
                 self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
+
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame).
+
+        Raises:
+            SceneError: no such object.
+        """
+        self.guard.object_moved(self.guard.model.move_object(name, pose))
 
     def result(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance of the goal (forgotten once read)."""
