@@ -62,10 +62,10 @@ from manus.kinematics.inverse import (
 
 __all__ = [
     "BRANCHES",
-    "Rot",
     "TWO_PI",
     "IkBatch",
     "IkSolutions",
+    "Rot",
     "Vec3",
     "branch_of",
     "dh_matrix",

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from manus.collision import MOVE_BOUND_M
 from manus.errors import ConfigError
 
-PREDICTIONS = ("velocity", "acceleration")
-"""How the target's motion is extrapolated over the delays: a line or a parabola fitted to
-its newest frames."""
+ORDERS = {"acceleration": 3, "jerk": 4}
+"""The prediction's models: constant acceleration (white jerk) or constant jerk (white
+snap), and the number of states each keeps per coordinate."""
 
 
 def _check(name: str, value: float, lo: float, hi: float) -> None:
@@ -38,6 +38,9 @@ class FollowConfig:
             the target slows in proportion ... [m]
         person_floor: ... down to this share [-].
         hold_tolerance_m: the tracked point within this of the standoff point is holding [m].
+        lock_m: a reference within this of where the target takes the standoff point
+            goes there in one cycle (dead-beat); further, it closes in on the speed
+            profile [m].
         lost_periods: the target is lost when no newer frame came for this many frame
             periods beyond its latency (a goal's ``lost_after`` overrides it) [-].
         max_target_speed: a target that moves faster than this between two frames jumped
@@ -45,9 +48,12 @@ class FollowConfig:
         jump_tolerance_m: the tracker's noise allowed on top of that between two frames [m].
         max_body_shift_m: the farthest a person's body may be reported from its place in
             the scene [m] (further: a jump; at most the collision model's bound).
-        prediction: ``velocity`` (a line through the newest frames) or ``acceleration``
-            (a parabola).
-        window_s: frames up to this much older than the newest one make the fit [s].
+        model: the prediction's model of the target's motion: ``acceleration``
+            (constant acceleration) or ``jerk`` (constant jerk).
+        process_noise: how freely the target leaves that model: the spectral density of
+            the white noise on its highest derivative [m^2/s^5, m^2/s^7]; larger follows
+            faster motion and passes more of the tracker's noise.
+        noise_m: the tracker's noise, a standard deviation per coordinate [m].
         max_prediction_s: the target's motion is predicted over at most this [s] ...
         max_prediction_m: ... and by at most this far [m].
         reach_margin_deg: the standoff point is out of reach when the elbow would be
@@ -63,12 +69,14 @@ class FollowConfig:
     person_slow_m: float = 0.150
     person_floor: float = 0.25
     hold_tolerance_m: float = 0.005
+    lock_m: float = 0.010
     lost_periods: float = 2.0
     max_target_speed: float = 1.0
     jump_tolerance_m: float = 0.010
     max_body_shift_m: float = MOVE_BOUND_M
-    prediction: str = "velocity"
-    window_s: float = 0.150
+    model: str = "acceleration"
+    process_noise: float = 0.1
+    noise_m: float = 0.001
     max_prediction_s: float = 0.300
     max_prediction_m: float = 0.050
     reach_margin_deg: float = 8.0
@@ -83,15 +91,15 @@ class FollowConfig:
         _check("person_slow_m", self.person_slow_m, 0.0, 1.0)
         _check("person_floor", self.person_floor, 0.01, 1.0)
         _check("hold_tolerance_m", self.hold_tolerance_m, 0.0001, 0.1)
+        _check("lock_m", self.lock_m, 0.0, 0.1)
         _check("lost_periods", self.lost_periods, 1.0, 100.0)
         _check("max_target_speed", self.max_target_speed, 0.01, 10.0)
         _check("jump_tolerance_m", self.jump_tolerance_m, 0.0, 0.5)
         _check("max_body_shift_m", self.max_body_shift_m, 0.0, MOVE_BOUND_M)
-        if self.prediction not in PREDICTIONS:
-            raise ConfigError(
-                f"follow: `prediction` {self.prediction!r} must be one of {PREDICTIONS}"
-            )
-        _check("window_s", self.window_s, 0.0, 2.0)
+        if self.model not in ORDERS:
+            raise ConfigError(f"follow: `model` {self.model!r} must be one of {list(ORDERS)}")
+        _check("process_noise", self.process_noise, 1e-6, 1e8)
+        _check("noise_m", self.noise_m, 0.0, 0.1)
         _check("max_prediction_s", self.max_prediction_s, 0.0, 2.0)
         _check("max_prediction_m", self.max_prediction_m, 0.0, 0.5)
         _check("reach_margin_deg", self.reach_margin_deg, 0.0, 45.0)

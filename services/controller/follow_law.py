@@ -9,19 +9,18 @@ predicted to the end of that cycle (:mod:`.target_track`), ``standoff`` out alon
 approach axis, and pushed further out until it keeps the person's clearance (a goal's
 ``close_clearance`` in the closer approach). The joint angles come from one damped
 Gauss-Newton step of the closed-form kinematics from the reference's own angles (exact to
-the second order of a cycle's motion, without drift), and the counts from the jog's own
-machinery (:func:`~.jog_law.jog_counts`: the default mode's delay compensation, dead-beat
-speed and Cartesian rounding).
+the second order of a cycle's motion, without drift).
 
-The velocity of the reference: the target's predicted velocity plus the error to the
-standoff point over one cycle (dead-beat: it lands there when it can), the error part
-capped by the **speed profile**: ``approach_speed``, slowing inside ``slow_radius_m`` of
-the standoff point and on the braking curve sqrt(2 accel d), and near a person (inside
-``person_slow_m`` of the clearance), the least of the three; the whole by ``max_speed`` and by
-``accel`` per cycle; in the closer approach, inside 100 mm of the target, by 25 mm/s
-but for motion away from it. Then, as for a jog, the step is scaled down whole if a motor
-would exceed the joint cap, and shortened near the wrist and elbow singularities and
-the joint limits (:mod:`.jog_limits`).
+The velocity of the reference: the target's predicted velocity plus what is left of the
+error to the standoff point over one cycle (dead-beat: it lands there), that part, while
+it is more than ``lock_m``, capped by the **speed profile**: ``approach_speed``, slowing
+inside ``slow_radius_m`` of the standoff point and on the braking curve sqrt(2 accel d),
+and near a person (inside ``person_slow_m`` of the clearance), the least of the three;
+the whole by ``max_speed`` and by ``accel`` per cycle; in the closer approach, inside
+100 mm of the target, by 25 mm/s but for motion away from it. Then, as for a jog, the
+step is scaled down whole if a motor would exceed the joint cap, and shortened near the
+wrist and elbow singularities and the joint limits (:mod:`.jog_limits`). The counts:
+:func:`follow_counts` (the jog's, with the belts' play compensated when it is set).
 
 Faults (the source stops and ends the goal): the standoff point out of reach or in a
 keep-out zone; the way to it stopped at the wrist singularity (``singularity``), at the
@@ -38,14 +37,18 @@ import numpy as np
 
 from manus.joint_map import dh_to_encoder_list
 from manus.kinematics import Rot, Vec3, gripper_pose, jacobian_columns
+from manus.quantize import COUNT_RAD_S, JOINT_COUNT_MAX, saturate_values
 from schemas.control import EndCause
 from schemas.follow import CLOSE_SPEED_CAP, CLOSE_ZONE
 from schemas.jog import LimitKind
+from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
+from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.follow_config import FollowConfig
 from services.controller.follow_space import FollowSpace
 from services.controller.jog_law import dh_increments
 from services.controller.jog_limits import FREE, Slowdown, slowdown
+from services.controller.laws import cartesian_rounding, hold_pulses
 
 
 class Settings(NamedTuple):
@@ -147,6 +150,19 @@ def _capped(v: Vec3, cap: float) -> Vec3:
     )
 
 
+def standoff_point(settings: Settings, aim: Aim, space: FollowSpace) -> Vec3:
+    """The target, ``standoff`` out along the approach axis, pushed further out until it
+    keeps the clearance from every person [m]."""
+    point = _add(aim.target, aim.normal, settings.standoff)
+    for _ in range(3):  # a sphere needs one push; a corner of a box a second
+        distance, _name = space.person_distance(point)
+        short = settings.clearance - distance
+        if short <= 0.0:
+            break
+        point = _add(point, aim.normal, short + 1e-4)
+    return point
+
+
 @dataclass
 class FollowRun:
     """The reference of one follow goal (see the module docstring).
@@ -186,19 +202,6 @@ class FollowRun:
         self.velocity = (0.0, 0.0, 0.0)
         return True
 
-    def standoff_point(self, aim: Aim, space: FollowSpace) -> Vec3:
-        """The target, ``standoff`` out along the approach axis, pushed further out until
-        it keeps the clearance from every person [m]."""
-        s = self.settings
-        point = _add(aim.target, aim.normal, s.standoff)
-        for _ in range(3):  # a sphere needs one push; a corner of a box a second
-            distance, _name = space.person_distance(point)
-            short = s.clearance - distance
-            if short <= 0.0:
-                break
-            point = _add(point, aim.normal, short + 1e-4)
-        return point
-
     def check(self, standoff: Vec3, space: FollowSpace, config: ControllerConfig) -> Fault | None:
         """Whether the standoff point can be reached at all (zones, reach)."""
         zone = space.zone_breach(standoff)
@@ -214,14 +217,18 @@ class FollowRun:
     def step(self, aim: Aim, space: FollowSpace, config: ControllerConfig) -> FollowStep:
         """Advance the reference by one cycle toward the standoff point of ``aim``."""
         s, cfg, dt = self.settings, config.follow, config.cycle_s
-        goal = self.standoff_point(aim, space)
+        goal = standoff_point(s, aim, space)
         fault = self.check(goal, space, config)
         error = _sub(goal, self.point)
         d = _norm(error)
         if fault is not None:
             return FollowStep(list(self.q_ref), self.point, goal, d, 0.0, (), fault)
         cap, limits = self._profile(d, space, cfg)
-        v = _add(aim.velocity, _capped((error[0] / dt, error[1] / dt, error[2] / dt), cap))
+        # the error at the end of the cycle if the reference moved with the target
+        rel = _sub((error[0] / dt, error[1] / dt, error[2] / dt), aim.velocity)
+        if _norm(rel) * dt > cfg.lock_m:  # closing in: the profile; locked on: dead-beat
+            rel = _capped(rel, cap)
+        v = _add(aim.velocity, rel)
         v = _capped(v, s.max_speed)
         if s.close:
             v = self._close_cap(v, aim.target)
@@ -329,3 +336,35 @@ def _zone_fault(zone: Slowdown) -> Fault:
     if zone.object == "wrist":
         return Fault(EndCause.SINGULARITY, f"the way to the standoff point is behind {zone.words}")
     return Fault(EndCause.OUT_OF_REACH, f"the standoff point is beyond {zone.words}")
+
+
+def follow_counts(
+    q_target: list[float],
+    est: DriveEstimator,
+    play: PlayModel,
+    config: ControllerConfig,
+    holding: bool = False,
+) -> np.ndarray:
+    """Counts that bring the joints onto ``q_target`` [rad] one cycle after the command
+    starts acting, shape (6,) int64: :func:`~.jog_law.jog_counts` (the default mode's
+    delay compensation, dead-beat speed, Cartesian rounding; ``holding``: its pulses
+    between rests), with the belts' play compensated as the default mode does when
+    ``backlash_deg`` is set (the motors aim past the joints' target by the play).
+
+    Raises:
+        RuntimeError: the estimator has no reading.
+    """
+    period = config.cycle_s
+    tau = config.drive_tau_ms / 1000.0
+    x1, v1 = est.predict(config.command_delay_ms / 1000.0)
+    target = dh_to_encoder_list(q_target)
+    if play.active:
+        target = play.motor_target(np.array(target), np.array(x1)).tolist()
+    if holding:
+        return hold_pulses(config, x1, v1, target, q_target)
+    u = deadbeat_speed(x1, v1, target, period, tau)
+    wanted = saturate_values([v / COUNT_RAD_S for v in u], float(JOINT_COUNT_MAX))
+    lag = lag_factor(tau, period)
+    gain = (period - lag) * COUNT_RAD_S
+    miss = [x + v * lag - t for x, v, t in zip(x1, v1, target, strict=True)]
+    return cartesian_rounding(wanted, miss, gain, q_target, config)

@@ -49,11 +49,11 @@ from services.controller.command_source import (
     SourceAnswer,
     SourceInput,
 )
-from services.controller.follow_law import Aim, FollowRun, Settings
+from services.controller.follow_law import Aim, FollowRun, Settings, follow_counts
 from services.controller.follow_report import FollowReport
 from services.controller.follow_space import FollowSpace
 from services.controller.guard import Verdict
-from services.controller.jog_law import jog_counts, predicted_dh
+from services.controller.jog_law import predicted_dh
 from services.controller.jog_state import guard_limit
 from services.controller.outbox import GoalOutcome, Output
 from services.controller.target_track import Frame, TargetTrack
@@ -227,7 +227,7 @@ class FollowSource(CommandSource):
         if step.fault is not None:
             self._end(End(ResultStatus.ABORTED, step.fault.cause, step.fault.reason))
             return Command(_ZERO, 0, goal.goal_id)
-        counts = jog_counts(step.q_target, est, cfg, holding=step.still)
+        counts = follow_counts(step.q_target, est, cycle.play, cfg, holding=step.still)
         return Command(counts, 0, goal.goal_id)
 
     def guarded(self, command: Command, verdict: Verdict) -> None:
@@ -275,7 +275,9 @@ class FollowSource(CommandSource):
         standoff = goal.standoff or cfg.standoff_m
         person = self.space.person_clearance
         clearance = goal.close_clearance if goal.close else person
-        if not goal.close and standoff < person:
+        newest = self.frames_of.get(goal.source)
+        free = newest is not None and not newest.body  # a target on no person
+        if not goal.close and not free and standoff < person:
             raise FollowError(
                 f"`standoff` {standoff * 1e3:.0f} mm is inside the person's clearance "
                 f"{person * 1e3:.0f} mm (a closer approach is `close`, explicitly)"

@@ -13,10 +13,13 @@ give the same answers.
   period; the smallest age of the newest 32 joint states estimates the latency.
 - **Lost**: at a joint state the newest frame is older than that latency plus
   ``lost_after`` (default two periods): no newer frame came for that long.
-- **Prediction**: a line (``velocity``) or a parabola (``acceleration``) fitted by least
-  squares to the frames of the newest ``window_s``, evaluated at the newest capture,
-  extrapolated over the delays to the moment asked, by at most ``max_prediction_s`` and
-  ``max_prediction_m``; its speed is at most ``max_speed``.
+- **Prediction**: per coordinate, a Kalman filter of the target's motion (``model``:
+  constant acceleration or constant jerk, driven by white noise of density
+  ``process_noise``; the tracker's noise ``noise_m``) estimates the motion at the newest
+  capture, extrapolated on that model over the delays to the moment asked,
+  by at most ``max_prediction_s`` and ``max_prediction_m``; its speed is at most
+  ``max_speed``. With a noiseless tracker it follows the motion closely; a noisy one is
+  smoothed as much as a person's motion allows.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from collections import deque
 from typing import NamedTuple
 
 from manus.kinematics import Vec3
-from services.controller.follow_config import FollowConfig
+from services.controller.follow_config import ORDERS, FollowConfig
 
 _KEEP = 16
 """Frames kept (more than a window at 30 Hz)."""
@@ -75,6 +78,7 @@ class TargetTrack:
         self.max_speed = config.max_target_speed if max_speed is None else max_speed
         self.frames: deque[Frame] = deque(maxlen=_KEEP)
         self._ages: deque[int] = deque(maxlen=_AGES)
+        self._axes: list[Axis] = []
 
     @property
     def newest(self) -> Frame | None:
@@ -89,8 +93,13 @@ class TargetTrack:
             return None
         self.frames.append(frame)
         if last is None:
+            cfg = self.config
+            order = ORDERS[cfg.model]
+            self._axes = [Axis(x, order, cfg.process_noise, cfg.noise_m) for x in frame.xyz]
             return None
         dt = (frame.stamp_ns - last.stamp_ns) / 1e9
+        for axis, x in zip(self._axes, frame.xyz, strict=True):
+            axis.update(x, dt)
         distance = math.dist(frame.xyz, last.xyz)
         allowed = self.max_speed * dt + self.config.jump_tolerance_m
         return Jump(distance, allowed, dt) if distance > allowed else None
@@ -135,75 +144,101 @@ class TargetTrack:
         )
 
     def predict(self, t_ns: int) -> tuple[Vec3, Vec3] | None:
-        """Where the target will be at ``t_ns`` [m], and its velocity [m/s] (None: no
-        frame yet); see the module docstring."""
+        """Where the target will be at ``t_ns`` [m], and its velocity then [m/s] (None:
+        no frame yet); see the module docstring."""
         last = self.newest
         if last is None:
             return None
         cfg = self.config
-        used = [f for f in self.frames if last.stamp_ns - f.stamp_ns <= cfg.window_s * 1e9]
-        p, v, a = _fit(used, last.stamp_ns, cfg.prediction == "acceleration")
-        speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        if speed > self.max_speed:
-            k = self.max_speed / speed
-            v, a = (v[0] * k, v[1] * k, v[2] * k), (0.0, 0.0, 0.0)
         h = min(max((t_ns - last.stamp_ns) / 1e9, 0.0), cfg.max_prediction_s)
-        d = [v[i] * h + 0.5 * a[i] * h * h for i in range(3)]
+        d, ahead = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        speed = math.sqrt(sum(k.v * k.v for k in self._axes))
+        slow = min(1.0, self.max_speed / speed) if speed > 0.0 else 1.0
+        for i, k in enumerate(self._axes):
+            pos, vel = k.ahead(h)
+            d[i] = (pos - k.p) * slow
+            ahead[i] = vel * slow
         size = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         if size > cfg.max_prediction_m:
             d = [x * cfg.max_prediction_m / size for x in d]
-        return (p[0] + d[0], p[1] + d[1], p[2] + d[2]), v
-
-
-def _fit(frames: list[Frame], t0_ns: int, quadratic: bool) -> tuple[Vec3, Vec3, Vec3]:
-    """Position, velocity and acceleration at ``t0_ns`` of the least-squares line (or
-    parabola) through ``frames``: (p, v, a) [m, m/s, m/s^2]; a parabola needs 3 frames, a
-    line 2 (fewer: the newest point, at rest)."""
-    n = len(frames)
-    last = frames[-1].xyz
-    if n < 2 or (quadratic and n < 3):
-        if n >= 2:
-            quadratic = False
-        else:
-            return last, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
-    ts = [(f.stamp_ns - t0_ns) / 1e9 for f in frames]
-    if not quadratic:
-        tm = sum(ts) / n
-        stt = sum((t - tm) ** 2 for t in ts)
-        out_p, out_v = [], []
-        for i in range(3):
-            xs = [f.xyz[i] for f in frames]
-            xm = sum(xs) / n
-            slope = sum((t - tm) * (x - xm) for t, x in zip(ts, xs, strict=True)) / stt
-            out_v.append(slope)
-            out_p.append(xm + slope * (0.0 - tm))
-        return (out_p[0], out_p[1], out_p[2]), (out_v[0], out_v[1], out_v[2]), (0.0, 0.0, 0.0)
-    # normal equations of x = c0 + c1 t + c2 t^2 (t about the newest capture: small)
-    s = [sum(t**k for t in ts) for k in range(5)]
-    m = ((s[0], s[1], s[2]), (s[1], s[2], s[3]), (s[2], s[3], s[4]))
-    coefs = []
-    for i in range(3):
-        b = [sum(f.xyz[i] * t**k for f, t in zip(frames, ts, strict=True)) for k in range(3)]
-        coefs.append(_solve3(m, b))
-    p = (coefs[0][0], coefs[1][0], coefs[2][0])
-    v = (coefs[0][1], coefs[1][1], coefs[2][1])
-    a = (2.0 * coefs[0][2], 2.0 * coefs[1][2], 2.0 * coefs[2][2])
-    return p, v, a
-
-
-def _solve3(m: tuple[Vec3, Vec3, Vec3], b: list[float]) -> Vec3:
-    """``m x = b`` for a symmetric 3x3 ``m`` (Cramer's rule)."""
-    (a, bb, c), (d, e, f), (g, h, i) = m
-
-    def det(r0: Vec3, r1: Vec3, r2: Vec3) -> float:
-        return (
-            r0[0] * (r1[1] * r2[2] - r1[2] * r2[1])
-            - r0[1] * (r1[0] * r2[2] - r1[2] * r2[0])
-            + r0[2] * (r1[0] * r2[1] - r1[1] * r2[0])
+        p = (self._axes[0].p, self._axes[1].p, self._axes[2].p)
+        return (p[0] + d[0], p[1] + d[1], p[2] + d[2]), _capped(
+            (ahead[0], ahead[1], ahead[2]), self.max_speed
         )
 
-    full = det((a, bb, c), (d, e, f), (g, h, i))
-    x0 = det((b[0], bb, c), (b[1], e, f), (b[2], h, i)) / full
-    x1 = det((a, b[0], c), (d, b[1], f), (g, b[2], i)) / full
-    x2 = det((a, bb, b[0]), (d, e, b[1]), (g, h, b[2])) / full
-    return x0, x1, x2
+
+def _capped(v: Vec3, cap: float) -> Vec3:
+    size = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v if size <= cap else (v[0] * cap / size, v[1] * cap / size, v[2] * cap / size)
+
+
+class Axis:
+    """A Kalman filter of one coordinate and its first ``order - 1`` derivatives (3:
+    constant acceleration, white jerk; 4: constant jerk, white snap) of process noise
+    density ``process`` and measurement noise ``noise`` [m], on plain floats (a 4x4 at
+    most: lists beat NumPy's per-call cost here).
+
+    Attributes:
+        x: position, velocity, acceleration (, jerk) at the newest frame [m, m/s, ...].
+    """
+
+    def __init__(self, x: float, order: int, process: float, noise: float) -> None:
+        self.m = order
+        self.x = [x] + [0.0] * (order - 1)
+        self.q, self.r = process, max(noise * noise, 1e-12)
+        # the first frame tells nothing of the derivatives: a wide prior
+        self.P = [[(self.r if i == 0 else 10.0 ** (2 * i)) if i == j else 0.0 for j in range(order)]
+                  for i in range(order)]  # fmt: skip
+        self._dt = -1.0
+        self._F: list[list[float]] = []
+        self._Q: list[list[float]] = []
+
+    @property
+    def p(self) -> float:
+        """Position [m]."""
+        return self.x[0]
+
+    @property
+    def v(self) -> float:
+        """Velocity [m/s]."""
+        return self.x[1]
+
+    @property
+    def a(self) -> float:
+        """Acceleration [m/s^2]."""
+        return self.x[2]
+
+    def ahead(self, h: float) -> tuple[float, float]:
+        """Position [m] and velocity [m/s] extrapolated by ``h`` [s] on the model."""
+        x = self.x
+        pos = sum(x[k] * h**k / math.factorial(k) for k in range(self.m))
+        vel = sum(x[k] * h ** (k - 1) / math.factorial(k - 1) for k in range(1, self.m))
+        return pos, vel
+
+    def _model(self, dt: float) -> None:
+        m, q = self.m, self.q
+        fact = math.factorial
+        self._F = [[dt ** (j - i) / fact(j - i) if j >= i else 0.0 for j in range(m)]
+                   for i in range(m)]  # fmt: skip
+        n = 2 * m - 1
+        self._Q = [
+            [q * dt ** (n - i - j) / (fact(m - 1 - i) * fact(m - 1 - j) * (n - i - j))
+             for j in range(m)]
+            for i in range(m)
+        ]  # fmt: skip
+        self._dt = dt
+
+    def update(self, z: float, dt: float) -> None:
+        """Predict over ``dt`` [s], then take the measurement ``z`` [m]."""
+        if dt != self._dt:
+            self._model(dt)
+        m, F, Q, P = self.m, self._F, self._Q, self.P
+        x = [sum(F[i][k] * self.x[k] for k in range(i, m)) for i in range(m)]
+        FP = [[sum(F[i][k] * P[k][j] for k in range(i, m)) for j in range(m)] for i in range(m)]
+        N = [[sum(FP[i][k] * F[j][k] for k in range(j, m)) + Q[i][j] for j in range(m)]
+             for i in range(m)]  # fmt: skip
+        s = N[0][0] + self.r
+        K = [N[i][0] / s for i in range(m)]
+        y = z - x[0]
+        self.x = [x[i] + K[i] * y for i in range(m)]
+        self.P = [[N[i][j] - K[i] * N[0][j] for j in range(m)] for i in range(m)]
