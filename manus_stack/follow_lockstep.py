@@ -44,6 +44,8 @@ class FollowSample(NamedTuple):
         person: the arm's bodies' true distance to the nearest person [m] (None: none).
         pair: ``body/object`` of ``person``.
         rim: the tracked point's true distance to the nearest person [m].
+        closing: the arm's own motion since the last sample brought the tracked point
+            closer to the person (judged with the person where it is now).
         visible: the tracker sees the target.
     """
 
@@ -56,6 +58,7 @@ class FollowSample(NamedTuple):
     person: float | None
     pair: str
     rim: float
+    closing: bool
     visible: bool
 
     @property
@@ -149,9 +152,13 @@ class FollowArm(ControlledArm):
             aim = standoff_point(settings, Aim(tx, (0.0, 0.0, 0.0), normal), space)
         last = self.samples[-1] if self.samples else None
         speed = 0.0
-        if last is not None and t > last.t_ns:
+        if last is not None and t > last.t_ns and (last.aim is None) == (aim is None):
             speed = math.dist(point, last.point) / ((t - last.t_ns) / 1e9)
         rim, _ = space.person_distance(point)
+        closing = False
+        if last is not None and last.aim is not None and aim is not None:
+            before, _ = space.person_distance(last.point)  # the same person, where it is now
+            closing = rim < before
         return FollowSample(
             t,
             point,
@@ -162,6 +169,7 @@ class FollowArm(ControlledArm):
             truth.person_clearance,
             truth.person_pair,
             rim,
+            closing,
             target.visible,
         )
 

@@ -63,7 +63,7 @@ class FollowConfig:
     standoff_m: float = 0.060
     max_speed: float = 0.200
     approach_speed: float = 0.100
-    accel: float = 1.0
+    accel: float = 2.0
     slow_radius_m: float = 0.100
     slow_floor: float = 0.25
     person_slow_m: float = 0.150

@@ -13,13 +13,16 @@ the second order of a cycle's motion, without drift).
 
 The velocity of the reference: the target's predicted velocity plus what is left of the
 error to the standoff point over one cycle (dead-beat: it lands there), that part, while
-it is more than ``lock_m``, capped by the **speed profile**: ``approach_speed``, slowing
+it is more than ``lock_m``, capped by the **speed profile** (but for backing away from
+the target along the approach axis, never slowed): ``approach_speed``, slowing
 inside ``slow_radius_m`` of the standoff point and on the braking curve sqrt(2 accel d),
 and near a person (inside ``person_slow_m`` of the clearance), the least of the three;
 the whole by ``max_speed`` and by ``accel`` per cycle; in the closer approach, inside
 100 mm of the target, by 25 mm/s but for motion away from it. Then, as for a jog, the
 step is scaled down whole if a motor would exceed the joint cap, and shortened near the
-wrist and elbow singularities and the joint limits (:mod:`.jog_limits`). The counts:
+wrist and elbow singularities and the joint limits (:mod:`.jog_limits`). A reference
+inside the person's clearance (the person leaned in faster than the arm backed off) only
+backs away along the approach axis, never closer. The counts:
 :func:`follow_counts` (the jog's, with the belts' play compensated when it is set).
 
 Faults (the source stops and ends the goal): the standoff point out of reach or in a
@@ -227,7 +230,9 @@ class FollowRun:
         # the error at the end of the cycle if the reference moved with the target
         rel = _sub((error[0] / dt, error[1] / dt, error[2] / dt), aim.velocity)
         if _norm(rel) * dt > cfg.lock_m:  # closing in: the profile; locked on: dead-beat
-            rel = _capped(rel, cap)
+            n = aim.normal  # backing away from the target is never slowed
+            out = max(0.0, rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2])
+            rel = _add(_capped(_sub(rel, (n[0] * out, n[1] * out, n[2] * out)), cap), n, out)
         v = _add(aim.velocity, rel)
         v = _capped(v, s.max_speed)
         if s.close:
@@ -236,6 +241,13 @@ class FollowRun:
         v = _add(self.velocity, change)
         q0 = self.q_ref
         point1 = _add(self.point, v, dt)
+        near, _ = space.person_distance(point1)
+        if near < s.clearance and near < space.person_distance(self.point)[0]:
+            # inside the person's clearance (the person came in): only backing away
+            n = aim.normal
+            out = max(0.0, v[0] * n[0] + v[1] * n[1] + v[2] * n[2])
+            v = (n[0] * out, n[1] * out, n[2] * out)
+            point1 = _add(self.point, v, dt)
         q1 = self._solve(q0, point1, config)
         step = [b - a for a, b in zip(q0, q1, strict=True)]
         share, limit = 1.0, FREE

@@ -20,9 +20,10 @@ new goal moves the arm again.
 
 **The person moves**: a frame that carries the pose of the body its target moves with
 (``TargetPose.body``: the user's ``head``) places that scene object there in the
-collision guard (:meth:`~.command_source.Host.move_object`), whether a goal runs or not,
-within ``max_body_shift_m`` of its place in the scene; the guard keeps that pose until a
-newer frame moves it (in every scene that replaces this one too).
+collision guard (:meth:`~.command_source.Host.move_object`) at the next joint state,
+before its command is guarded, whether a goal runs or not, within ``max_body_shift_m`` of
+its place in the scene; the guard keeps that pose until a newer frame moves it (in every
+scene that replaces this one too).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from manus.orientation import ypr_to_matrix
 from schemas import endpoints as ep
 from schemas.control import CommandSourceKind, EndCause, GoalAck, GoalKind, Refusal, ResultStatus
 from schemas.follow import FollowGoal
+from schemas.state import JointState
 from schemas.target import TargetPose, TargetTaken
 from services.controller.command_source import (
     Command,
@@ -104,6 +106,10 @@ class FollowSource(CommandSource):
         self._space: tuple[object, FollowSpace] | None = None
         self.refused: dict[str, int] = {}
         """Frames refused per tracker (not decodable: under '')."""
+        self._bodies_due: dict[str, np.ndarray] = {}
+        """Body poses the newest frames reported (chair frame), placed at the next joint
+        state (:meth:`observe`)."""
+        self._rests: dict[tuple[int, str], tuple[float, float, float] | None] = {}
 
     @property
     def engaged(self) -> bool:
@@ -342,29 +348,56 @@ class FollowSource(CommandSource):
         )
 
     def _place_body(self, msg: TargetPose, space: FollowSpace) -> str | None:
-        """Place the frame's body in the guard (within the bound); why not (None: placed
-        or nothing to place)."""
+        """Keep the frame's body pose to place at the next joint state (within the bound);
+        why not (None: kept, or nothing to place)."""
         if not msg.body or len(msg.body_xyz) != 3 or len(msg.body_ypr) != 3:
             return None
-        scene = self.host.scene
-        rest = next((o for o in scene.objects if o.name == msg.body), None) if scene else None
-        if rest is None or rest.cls != "person":
+        rest = self._rest_of(msg.body)
+        if rest is None:
             return f"the target's body {msg.body!r} is not a person of the scene"
+        rotation = ypr_to_matrix(*msg.body_ypr)
         pose = np.eye(4)
-        pose[:3, :3] = space.rotation_to_base(ypr_to_matrix(*msg.body_ypr), msg.frame)
-        pose[:3, 3] = space.point_to_base(msg.body_xyz, msg.frame)
-        chair = space.pose_to_chair(pose)
-        shift = float(np.linalg.norm(chair[:3, 3] - rest.body.pose[:3, 3]))
+        if msg.frame == "chair":
+            pose[:3, :3], pose[:3, 3] = rotation, msg.body_xyz
+        else:  # the guard places scene objects in the chair frame
+            base = np.eye(4)
+            base[:3, :3], base[:3, 3] = rotation, msg.body_xyz
+            pose = space.pose_to_chair(base)
+        shift = math.dist(pose[:3, 3], rest)
         bound = self.config.follow.max_body_shift_m
         if shift > bound:
             return (
                 f"the target's body {msg.body!r} reported {shift * 1e3:.0f} mm from its place "
                 f"in the scene, more than max_body_shift_m {bound * 1e3:.0f} mm"
             )
-        self.host.move_object(msg.body, chair)
-        space.move_person(msg.body, pose)
-        self.report.bodies[msg.body] = pose
+        self._bodies_due[msg.body] = pose
         return None
+
+    def _rest_of(self, name: str) -> tuple[float, float, float] | None:
+        """Where the person object ``name`` is in the scene (chair frame; None: no such
+        person)."""
+        scene = self.host.scene
+        key = (id(scene), name)
+        if key not in self._rests:
+            found = next((o for o in scene.objects if o.name == name), None) if scene else None
+            xyz = found.body.pose[:3, 3] if found is not None and found.cls == "person" else None
+            self._rests[key] = (
+                None if xyz is None else (float(xyz[0]), float(xyz[1]), float(xyz[2]))
+            )
+        return self._rests[key]
+
+    def observe(self, js: JointState, last: JointState | None) -> None:
+        """Place the bodies the newest frames reported, once per joint state, before any
+        command is guarded."""
+        if not self._bodies_due:
+            return
+        space = self.space
+        for name, pose in self._bodies_due.items():
+            self.host.move_object(name, pose)
+            base = space.to_base @ pose
+            space.move_person(name, base)
+            self.report.bodies[name] = base
+        self._bodies_due.clear()
 
     def _stop_request(self, goal_id: str) -> GoalAck:
         current = self.goal or self.pending

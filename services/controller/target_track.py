@@ -78,7 +78,7 @@ class TargetTrack:
         self.max_speed = config.max_target_speed if max_speed is None else max_speed
         self.frames: deque[Frame] = deque(maxlen=_KEEP)
         self._ages: deque[int] = deque(maxlen=_AGES)
-        self._axes: list[Axis] = []
+        self._axes: Axes | None = None
 
     @property
     def newest(self) -> Frame | None:
@@ -94,12 +94,11 @@ class TargetTrack:
         self.frames.append(frame)
         if last is None:
             cfg = self.config
-            order = ORDERS[cfg.model]
-            self._axes = [Axis(x, order, cfg.process_noise, cfg.noise_m) for x in frame.xyz]
+            self._axes = Axes(frame.xyz, ORDERS[cfg.model], cfg.process_noise, cfg.noise_m)
             return None
         dt = (frame.stamp_ns - last.stamp_ns) / 1e9
-        for axis, x in zip(self._axes, frame.xyz, strict=True):
-            axis.update(x, dt)
+        assert self._axes is not None
+        self._axes.update(frame.xyz, dt)
         distance = math.dist(frame.xyz, last.xyz)
         allowed = self.max_speed * dt + self.config.jump_tolerance_m
         return Jump(distance, allowed, dt) if distance > allowed else None
@@ -151,20 +150,19 @@ class TargetTrack:
             return None
         cfg = self.config
         h = min(max((t_ns - last.stamp_ns) / 1e9, 0.0), cfg.max_prediction_s)
-        d, ahead = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-        speed = math.sqrt(sum(k.v * k.v for k in self._axes))
+        axes = self._axes
+        assert axes is not None
+        p = axes.position()
+        (x, y, z), (vx, vy, vz) = axes.ahead(h)
+        now = axes.ahead(0.0)[1]
+        speed = math.sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2])
         slow = min(1.0, self.max_speed / speed) if speed > 0.0 else 1.0
-        for i, k in enumerate(self._axes):
-            pos, vel = k.ahead(h)
-            d[i] = (pos - k.p) * slow
-            ahead[i] = vel * slow
+        d = [(x - p[0]) * slow, (y - p[1]) * slow, (z - p[2]) * slow]
         size = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         if size > cfg.max_prediction_m:
-            d = [x * cfg.max_prediction_m / size for x in d]
-        p = (self._axes[0].p, self._axes[1].p, self._axes[2].p)
-        return (p[0] + d[0], p[1] + d[1], p[2] + d[2]), _capped(
-            (ahead[0], ahead[1], ahead[2]), self.max_speed
-        )
+            d = [c * cfg.max_prediction_m / size for c in d]
+        ahead = (vx * slow, vy * slow, vz * slow)
+        return (p[0] + d[0], p[1] + d[1], p[2] + d[2]), _capped(ahead, self.max_speed)
 
 
 def _capped(v: Vec3, cap: float) -> Vec3:
@@ -172,19 +170,21 @@ def _capped(v: Vec3, cap: float) -> Vec3:
     return v if size <= cap else (v[0] * cap / size, v[1] * cap / size, v[2] * cap / size)
 
 
-class Axis:
-    """A Kalman filter of one coordinate and its first ``order - 1`` derivatives (3:
+class Axes:
+    """A Kalman filter of each coordinate and its first ``order - 1`` derivatives (3:
     constant acceleration, white jerk; 4: constant jerk, white snap) of process noise
     density ``process`` and measurement noise ``noise`` [m], on plain floats (a 4x4 at
-    most: lists beat NumPy's per-call cost here).
+    most: lists beat NumPy's per-call cost here). The three coordinates share their
+    model, their noises and their frames' times, hence one covariance and one gain.
 
     Attributes:
-        x: position, velocity, acceleration (, jerk) at the newest frame [m, m/s, ...].
+        x: per coordinate: position, velocity, acceleration (, jerk) at the newest frame
+            [m, m/s, ...].
     """
 
-    def __init__(self, x: float, order: int, process: float, noise: float) -> None:
+    def __init__(self, xyz: Vec3, order: int, process: float, noise: float) -> None:
         self.m = order
-        self.x = [x] + [0.0] * (order - 1)
+        self.x = [[v] + [0.0] * (order - 1) for v in xyz]
         self.q, self.r = process, max(noise * noise, 1e-12)
         # the first frame tells nothing of the derivatives: a wide prior
         self.P = [[(self.r if i == 0 else 10.0 ** (2 * i)) if i == j else 0.0 for j in range(order)]
@@ -193,27 +193,18 @@ class Axis:
         self._F: list[list[float]] = []
         self._Q: list[list[float]] = []
 
-    @property
-    def p(self) -> float:
-        """Position [m]."""
-        return self.x[0]
+    def position(self) -> Vec3:
+        """The estimated position [m]."""
+        return self.x[0][0], self.x[1][0], self.x[2][0]
 
-    @property
-    def v(self) -> float:
-        """Velocity [m/s]."""
-        return self.x[1]
-
-    @property
-    def a(self) -> float:
-        """Acceleration [m/s^2]."""
-        return self.x[2]
-
-    def ahead(self, h: float) -> tuple[float, float]:
+    def ahead(self, h: float) -> tuple[Vec3, Vec3]:
         """Position [m] and velocity [m/s] extrapolated by ``h`` [s] on the model."""
-        x = self.x
-        pos = sum(x[k] * h**k / math.factorial(k) for k in range(self.m))
-        vel = sum(x[k] * h ** (k - 1) / math.factorial(k - 1) for k in range(1, self.m))
-        return pos, vel
+        m = self.m
+        kp = [h**k / math.factorial(k) for k in range(m)]
+        kv = [0.0] + [h ** (k - 1) / math.factorial(k - 1) for k in range(1, m)]
+        p = [sum(c * x for c, x in zip(kp, row, strict=True)) for row in self.x]
+        v = [sum(c * x for c, x in zip(kv, row, strict=True)) for row in self.x]
+        return (p[0], p[1], p[2]), (v[0], v[1], v[2])
 
     def _model(self, dt: float) -> None:
         m, q = self.m, self.q
@@ -228,17 +219,18 @@ class Axis:
         ]  # fmt: skip
         self._dt = dt
 
-    def update(self, z: float, dt: float) -> None:
+    def update(self, z: Vec3, dt: float) -> None:
         """Predict over ``dt`` [s], then take the measurement ``z`` [m]."""
         if dt != self._dt:
             self._model(dt)
         m, F, Q, P = self.m, self._F, self._Q, self.P
-        x = [sum(F[i][k] * self.x[k] for k in range(i, m)) for i in range(m)]
         FP = [[sum(F[i][k] * P[k][j] for k in range(i, m)) for j in range(m)] for i in range(m)]
         N = [[sum(FP[i][k] * F[j][k] for k in range(j, m)) + Q[i][j] for j in range(m)]
              for i in range(m)]  # fmt: skip
         s = N[0][0] + self.r
         K = [N[i][0] / s for i in range(m)]
-        y = z - x[0]
-        self.x = [x[i] + K[i] * y for i in range(m)]
         self.P = [[N[i][j] - K[i] * N[0][j] for j in range(m)] for i in range(m)]
+        for row, zc in zip(self.x, z, strict=True):
+            x = [sum(F[i][k] * row[k] for k in range(i, m)) for i in range(m)]
+            y = zc - x[0]
+            row[:] = [x[i] + K[i] * y for i in range(m)]
