@@ -157,13 +157,23 @@ def standoff_point(settings: Settings, aim: Aim, space: FollowSpace) -> Vec3:
     """The target, ``standoff`` out along the approach axis, pushed further out until it
     keeps the clearance from every person [m]."""
     point = _add(aim.target, aim.normal, settings.standoff)
-    for _ in range(3):  # a sphere needs one push; a corner of a box a second
+    for _ in range(10):  # one push along the normal; more along an axis near the tangent
         distance, _name = space.person_distance(point)
         short = settings.clearance - distance
         if short <= 0.0:
             break
         point = _add(point, aim.normal, short + 1e-4)
     return point
+
+
+CLOSE_SHARE = 0.7
+"""The reference's share of the closer approach's speed cap: a joint's speeds come in
+5 deg/s steps, so the arm's speed over one cycle dithers about the command by up to
+10 mm/s here, and it catches up with the reference after a sway; at 70 % its speed over
+0.3 s stays below the cap."""
+CLOSE_LEAD = 0.030
+"""The reference slows this much before the closer approach's zone [m]: it leads the arm
+by up to two cycles, so the arm itself is at the capped speed when it enters."""
 
 
 @dataclass
@@ -293,17 +303,17 @@ class FollowRun:
         return cap, tuple(limits)
 
     def _close_cap(self, v: Vec3, target: Vec3) -> Vec3:
-        """The closer approach inside 100 mm of the target: at most 25 mm/s but for motion
-        away from it."""
+        """The closer approach inside 100 mm of the target (the reference from
+        :data:`CLOSE_LEAD` before): at most 25 mm/s but for motion away from it."""
         away = _sub(self.point, target)
         size = _norm(away)
-        if size >= CLOSE_ZONE or size == 0.0:
+        if size >= CLOSE_ZONE + CLOSE_LEAD or size == 0.0:
             return v
         u = (away[0] / size, away[1] / size, away[2] / size)
         along = v[0] * u[0] + v[1] * u[1] + v[2] * u[2]
         out = max(along, 0.0)
         rest = _sub(v, (u[0] * out, u[1] * out, u[2] * out))
-        return _add(_capped(rest, CLOSE_SPEED_CAP), u, out)
+        return _add(_capped(rest, CLOSE_SPEED_CAP * CLOSE_SHARE), u, out)
 
     def _solve(self, q0: list[float], point: Vec3, config: ControllerConfig) -> list[float]:
         """DH angles near ``q0`` [rad] whose tracked point is ``point`` with the held
