@@ -51,6 +51,7 @@ from schemas.jog import JogTaken
 from schemas.liveliness import LivelinessChange, TokenGone, TokenKind
 from schemas.planning import PlanReply
 from schemas.state import JointState
+from schemas.target import TargetTaken
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER
@@ -348,6 +349,13 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
                 if taken is not None
                 else CONTROLLER.feed_bad(core, ep.JOG, msg.error, t)
             )
+        elif isinstance(msg, TargetTaken):  # the same for a tracker's frames
+            frame = msg.target
+            outputs = (
+                CONTROLLER.feed(core, ep.TARGET, frame, t)
+                if frame is not None
+                else CONTROLLER.feed_bad(core, ep.TARGET, msg.error, t)
+            )
         elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
             outputs = CONTROLLER.feed_token_gone(core, msg.service, t)
         elif msg is None:
@@ -369,15 +377,17 @@ def _controller_inputs(
     saw them. The controller publishes each command it takes as a
     :class:`~schemas.jog.JogTaken` saying after which joint state it came: when the
     recording holds those, each is fed (as the command it carries) after that joint state
-    and before the next, at its log time within that span, instead of the raw stream.
+    and before the next, at its log time within that span, instead of the raw stream; a
+    tracker's frames likewise (:class:`~schemas.target.TargetTaken`).
     A vanished liveliness token is no sample at all: the controller's
     :class:`~schemas.liveliness.TokenGone` records are placed the same way.
     """
     have = {c.suffix for c in recording.info.channels.values()}
-    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE) if s in have)
+    records = tuple(s for s in (ep.JOG_TAKEN, ep.TARGET_TAKEN, ep.TOKEN_GONE) if s in have)
     suffixes = CONTROLLER.input_suffixes
-    if ep.JOG_TAKEN in have:
-        suffixes = tuple(s for s in suffixes if s != ep.JOG)
+    for record, raw in ((ep.JOG_TAKEN, ep.JOG), (ep.TARGET_TAKEN, ep.TARGET)):
+        if record in have:
+            suffixes = tuple(s for s in suffixes if s != raw)
     base = list(_inputs(recording, suffixes, window))
     if not records:
         return base
@@ -386,7 +396,7 @@ def _controller_inputs(
     at_seq = {m.seq: i for i, (_, m) in enumerate(base) if isinstance(m, JointState)}
     placed: list[tuple[int, int, Recorded, Message | None]] = []
     for order, (rec, taken) in enumerate(_inputs(recording, records, window)):
-        assert isinstance(taken, JogTaken | TokenGone)
+        assert isinstance(taken, JogTaken | TargetTaken | TokenGone)
         pos = bisect.bisect_right(times, rec.log_ns)
         after = at_seq.get(taken.after_seq)
         if after is not None:  # within (that joint state, the next one]

@@ -6,6 +6,7 @@ the closer approach, and the guard's person moving with the tracker."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 
 from manus.protocol import FrameId
 from manus_stack.follow_lockstep import FollowArm
+from manus_stack.regression import check_controller
 from schemas import endpoints as ep
 from schemas.control import EndCause, Refusal, ResultStatus
 from schemas.follow import CLOSE_SPEED_CAP, FollowGoal, FollowPhase
@@ -20,6 +22,7 @@ from schemas.jog import JogCommand
 from schemas.target import TargetPose, TargetTaken
 from services.controller.config import ControllerConfig
 from services.controller.follow_config import FollowConfig
+from services.recorder.writer import RecordingWriter
 from services.simulator.config import SimConfig
 from services.simulator.target_config import LostWindow, TargetConfig, TargetMove
 
@@ -217,3 +220,25 @@ def test_the_standoff_is_measured_along_the_approach_axis(standoff: float) -> No
     s = arm.samples[-1]
     assert s.error < 0.003
     assert s.point[0] - s.target[0] == pytest.approx(standoff, abs=0.003)  # the face's x
+
+
+def test_a_follow_session_replays_byte_for_byte(tmp_path: Path) -> None:
+    arm = _arm(lost=(LostWindow(at_s=3.0, for_s=0.5),), noise_mm=0.5)
+    assert arm.follow(offset=RIM).accepted
+    arm.run(3.7 - arm.ls.t_ns / 1e9)
+    assert arm.follow(goal_id="f2", offset=RIM).accepted
+    arm.run(1.0)
+    assert arm.stop().accepted
+    arm.run(0.3)
+    path = tmp_path / "follow.mcap"
+    with RecordingWriter(path) as writer:
+        for t_ns, suffix, msg in arm.ls.messages:
+            # the tracker's frames logged 3 ms late: after the next joint state sometimes
+            writer.write(suffix, msg, t_ns + (3_000_000 if suffix == ep.TARGET else 0))
+    result = check_controller(path)
+    assert result.ok, result.difference
+    assert result.compared > 100
+    assert [r.cause for r in arm.follow_results()] == [
+        EndCause.TARGET_LOST,
+        EndCause.CANCEL_REQUEST,
+    ]
