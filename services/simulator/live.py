@@ -18,6 +18,7 @@ import can
 
 from manus.canbus import from_can, to_can
 from manus.protocol import Frame
+from schemas.base import Message
 from schemas.state import SimTruth
 from services.simulator.core import SimCore, SimError
 
@@ -60,7 +61,10 @@ class LiveSim:
         core: the simulator core (sim time 0 = :meth:`start`).
         bus: any python-can bus (``virtual``, :class:`~services.simulator.slcan.SlcanPtyBus`...).
         on_snapshot: called in the loop with the truth at each cycle's snapshot instant.
+        on_message: called in the loop with each bus message the core publishes (key
+            suffix, message; the moving target's tracker), in order.
         clock: monotonic clock [ns].
+        wall_clock: the clock of the stack's stamps [ns] (:attr:`wall_t0_ns`).
     """
 
     def __init__(
@@ -69,12 +73,19 @@ class LiveSim:
         bus: can.BusABC,
         *,
         on_snapshot: Callable[[SimTruth], None] | None = None,
+        on_message: Callable[[str, Message], None] | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
+        wall_clock: Callable[[], int] = time.time_ns,
     ) -> None:
         self.core = core
         self.bus = bus
         self.on_snapshot = on_snapshot
+        self.on_message = on_message
         self.clock = clock
+        self.wall_clock = wall_clock
+        self.wall_t0_ns = 0
+        """The stack's clock at simulated time 0 [ns]: a simulated stamp ``s`` is
+        ``wall_t0_ns + s`` on the stack's clock (set by :meth:`start`)."""
         self.lock = threading.Lock()
         self.stats = LiveStats()
         self._stop = threading.Event()
@@ -87,6 +98,7 @@ class LiveSim:
         if self._thread is not None:
             raise SimError("this LiveSim was already started")
         self._t0 = self.clock()
+        self.wall_t0_ns = self.wall_clock()
         self._thread = threading.Thread(target=self._loop, name="manus-sim", daemon=True)
         self._thread.start()
 
@@ -118,6 +130,14 @@ class LiveSim:
             frames = self.core.advance(self.sim_time_ns())
         for frame in frames:
             self._send(frame)
+        with self.lock:
+            messages = self.core.take_messages()
+        for _, suffix, message in messages:
+            if self.on_message is not None:
+                try:
+                    self.on_message(suffix, message)
+                except Exception:
+                    log.exception("message callback failed")
         if self.on_snapshot is not None:
             with self.lock:
                 truth = self._snapshot_truth()

@@ -9,8 +9,10 @@
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
-answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle and answers
-``<prefix>/sim/fault`` (switch a fault on at run time, ``services/simulator/fault_desk.py``).
+answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle, its moving
+target's tracker on ``<prefix>/target/pose`` (when the config's ``target`` is enabled)
+and answers ``<prefix>/sim/fault`` (switch a fault on at run time,
+``services/simulator/fault_desk.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from services.simulator.core import SimCore
 from services.simulator.fault_desk import FaultDesk
 from services.simulator.live import LiveSim
 from services.simulator.nodes import NodeHub
-from services.simulator.shell import TruthPublisher, open_node
+from services.simulator.shell import MessagePublisher, TruthPublisher, open_node
 from services.simulator.slcan import SlcanPtyBus
 from services.simulator.truth_log import TruthLog
 
@@ -169,7 +171,18 @@ def run(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink(truth)
 
-        live = LiveSim(SimCore(config), bus, on_snapshot=on_snapshot if sinks else None)
+        live: LiveSim | None = None
+
+        def wall_t0() -> int:
+            return live.wall_t0_ns if live is not None else 0
+
+        publish = MessagePublisher(node, wall_t0) if node is not None else None
+        live = LiveSim(
+            SimCore(config),
+            bus,
+            on_snapshot=on_snapshot if sinks else None,
+            on_message=publish,
+        )
         if node is not None:
             node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
             node.announce()

@@ -1,20 +1,26 @@
-"""The simulator's Zenoh shell: publish the truth once per cycle (optional).
+"""The simulator's Zenoh shell: publish the truth once per cycle, and the moving target's
+tracker (optional).
 
-The arm itself has no Zenoh; this only exposes what a real arm never reports, the true
-state (``<prefix>/sim/truth``, :class:`schemas.state.SimTruth`), so recordings and tests
-can judge accuracy. The simulator runs the same without it.
+The arm itself has no Zenoh; this exposes what a real arm never reports, the true state
+(``<prefix>/sim/truth``, :class:`schemas.state.SimTruth`), so recordings and tests can
+judge accuracy, and what the simulated tracker sees (``<prefix>/target/pose``, stamped on
+the stack's clock), as a face tracker would publish it. The simulator runs the same
+without it.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Callable
 
 from manus.errors import ConfigError
 from manus.node import Node
 from manus.session import ZenohSettings
 from schemas import endpoints as ep
+from schemas.base import Message
 from schemas.state import SimTruth
+from schemas.target import TargetPose
 
 log = logging.getLogger("manus.sim")
 
@@ -38,6 +44,27 @@ class TruthPublisher:
         """Publish ``truth`` (its ``seq`` replaced by this stream's counter)."""
         self._pub.put(dataclasses.replace(truth, seq=self._seq))
         self._seq += 1
+
+
+class MessagePublisher:
+    """Publishes the core's bus messages (the tracker's frames), their simulated stamps
+    moved onto the stack's clock (``wall_t0_ns``: the stack's clock at simulated time 0,
+    :attr:`~services.simulator.live.LiveSim.wall_t0_ns`, read as each one goes out).
+
+    Args:
+        node: the simulator's node.
+        wall_t0_ns: returns the stack's clock at simulated time 0 [ns].
+    """
+
+    def __init__(self, node: Node, wall_t0_ns: Callable[[], int]) -> None:
+        self.wall_t0_ns = wall_t0_ns
+        self._pubs = {e.suffix: node.publisher(node.keys(e)) for e in (ep.TARGET,)}
+
+    def __call__(self, suffix: str, msg: Message) -> None:
+        """Publish ``msg`` on ``suffix``."""
+        if isinstance(msg, TargetPose):
+            msg = dataclasses.replace(msg, stamp_ns=self.wall_t0_ns() + msg.stamp_ns)
+        self._pubs[suffix].put(msg)
 
 
 def open_node(settings: ZenohSettings) -> Node | None:
