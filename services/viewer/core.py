@@ -23,6 +23,8 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
   the scene's version in each entity's metadata): :meth:`ViewerCore.describe` gives the
   one in use (the ``scene`` setting at start), and each ``planner/scene_state`` (a scene
   replaced at run time) replaces every entity;
+- ``P/viz/follow`` [``foxglove.SceneUpdate``] (:mod:`services.viewer.follow`): a follow
+  goal's target, predicted target, standoff point, tracked point and the person's body;
 - ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
   errors, bridge phases, goals and results, task events, e-stops, services appearing and
   vanishing;
@@ -51,12 +53,14 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
+from schemas.follow import FollowState
 from schemas.keys import Keys, channel_type
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
 from services.viewer import scene
 from services.viewer.config import ViewerConfig, ViewerStats
 from services.viewer.events import EventLog, LogLine
+from services.viewer.follow import follow_update
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
 from services.viewer.path import GripperPath
 from services.viewer.planned import planned_path
@@ -75,6 +79,7 @@ JSON_SUFFIXES: tuple[str, ...] = (
     ep.ESTOP,
     ep.SIM_TRUTH,
     ep.LIVELINESS,
+    ep.FOLLOW_STATE,
 )
 """Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
 
@@ -163,6 +168,7 @@ class ViewerCore:
             ep.SIM_TRUTH: self._truth,
             ep.LIVELINESS: self._logging(self.events.liveliness),
             ep.SCENE_STATE: self._scene_state,
+            ep.FOLLOW_STATE: self._follow,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
@@ -187,6 +193,7 @@ class ViewerCore:
             (self.topics.executed, SceneUpdate),
             (self.topics.true, SceneUpdate),
             (self.topics.scene, SceneUpdate),
+            (self.topics.follow, SceneUpdate),
             (self.topics.log, Log),
         ]
         out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
@@ -349,6 +356,10 @@ class ViewerCore:
             return self._logged(self.events.plan_refused(msg), t_ns)
         ent, _ = self._trajectory_scene("plan", msg.trajectory, PLAN_RGBA, t_ns)
         return [self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns)]
+
+    def _follow(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, FollowState)
+        return [self._proto(self.topics.follow, follow_update(msg, t_ns), t_ns)]
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)

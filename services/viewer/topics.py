@@ -20,6 +20,7 @@ class Topics:
         self.executed = f"{viz}/executed"
         self.true = f"{viz}/true"
         self.scene = f"{viz}/scene"
+        self.follow = f"{viz}/follow"
         self.log = f"{viz}/log"
         self._json: dict[type[Message], SchemaInfo] = {}
 
