@@ -187,6 +187,13 @@ class TrajectoryGoal(Message):
         "splice into the running trajectory at the next cycle instead of preempting it",
         default=False,
     )
+    splice_at: float = field(
+        "with replace: the running trajectory's time that this one's time 0 stands for, so "
+        "that its knots keep the running one's clock (a continuation planned from the running "
+        "reference at that time: streamed via points); -1: the moment of the splice",
+        unit="s",
+        default=-1.0,
+    )
     speed_scale: float = field(
         "initial speed scaling (1: as planned)", default=1.0, minimum=0.05, maximum=1.0
     )

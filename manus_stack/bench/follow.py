@@ -30,6 +30,8 @@ bridge and controller cores; the simulator's tracker at 30 Hz, 40 ms latency):
   entries the arm's own motion made (the person leaning into the arm is the rest).
 - ``cpu_ms_per_cycle``: the controller core's CPU time per joint state while following,
   the target frames taken since the last joint state included.
+- ``streamed_via_points``: 10 via points appended one by one while the arm moves, against
+  the same path planned whole (:mod:`.follow_stream`).
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import fk
 from manus.protocol import FrameId
 from manus.scene import default_scene
+from manus_stack.bench import follow_stream
 from manus_stack.bench.follow_floor import floor_errors, pose_ik
 from manus_stack.follow_lockstep import FollowArm, FollowSample
 from schemas import endpoints as ep
@@ -343,6 +346,7 @@ def run(quick: bool = False) -> dict[str, Any]:
     person = safety()
     out["close"] = close()
     out["safety"] = {"default_clearance": person, "close_approach": safety(0.02)}
+    out["streamed_via_points"] = follow_stream.figures()
     a = np.asarray(CPU) * 1e3
     out["cpu_ms_per_cycle"] = {
         "p50": round(float(np.median(a)), 3),
