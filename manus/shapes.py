@@ -101,7 +101,7 @@ def moved_by(before: np.ndarray, after: np.ndarray, geometry: Any) -> float:
     """How far any point of ``geometry`` moves at most [m] when its placement goes from
     ``before`` to ``after`` (4x4 each): the translation of its frame plus the angle it
     turns times its farthest point from that frame (a half-space: its translation alone)."""
-    shift = float(np.linalg.norm(after[:3, 3] - before[:3, 3]))
+    shift = math.dist(after[:3, 3].tolist(), before[:3, 3].tolist())
     turn = before[:3, :3].T @ after[:3, :3]
     trace = float(turn[0, 0] + turn[1, 1] + turn[2, 2])
     angle = math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0)))

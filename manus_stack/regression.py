@@ -330,12 +330,7 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
     recording = Recording(path)
     core = ControllerCore(config)
-    window = service_window(
-        recording,
-        CONTROLLER.service,
-        (ep.JOINTS,),
-        CONTROLLER.output_suffixes,  # its clock
-    )
+    window = _controller_window(recording)
     cmp = _Comparer(recording, CONTROLLER.output_suffixes, window)
     window = (window[0], cmp.last_ns)
     inputs = 0
@@ -365,6 +360,24 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         for suffix, out_msg in outputs:
             cmp.add(suffix, out_msg.encode(), rec.log_ns)
     return cmp.result(CONTROLLER.service, inputs)
+
+
+def _controller_window(recording: Recording) -> Window:
+    """The controller's window (:func:`service_window`): from the joint state its first
+    command answers; and from its first record of a taken input (a tracker's frame, a jog
+    command) before any joint state, when that comes first: a tracker publishing before the
+    controller listens is taken at once, and every frame taken shapes its prediction."""
+    start, end = service_window(recording, CONTROLLER.service, (ep.JOINTS,), (ep.JOINT_VELOCITY,))
+    if start == EVERYTHING[0]:
+        return start, end
+    taken = (ep.TARGET_TAKEN, ep.JOG_TAKEN)
+    for rec in recording.messages(taken):
+        if rec.log_ns >= start:
+            break
+        msg = decode(rec)
+        if rec.log_ns >= start - EARLY_OUTPUT_NS and getattr(msg, "after_seq", 0) < 0:
+            return rec.log_ns, end
+    return start, end
 
 
 def _controller_inputs(

@@ -62,6 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--close-clearance-mm", type=float, default=20.0, help="with --close: the rim's clearance"
     )
+    parser.add_argument(
+        "--lost-after-ms",
+        type=float,
+        default=0.0,
+        help="the target is lost after this long without a frame (default: two periods)",
+    )
     parser.add_argument("--seconds", type=float, help="stop after this long (default: Ctrl-C)")
     parser.add_argument("--goal-id", help="the goal's id (default: track-<time>)")
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
@@ -79,6 +85,7 @@ def goal_of(args: argparse.Namespace) -> FollowGoal:
         max_speed=args.max_speed_mm_s / 1000.0,
         close=args.close,
         close_clearance=args.close_clearance_mm / 1000.0,
+        lost_after=args.lost_after_ms / 1000.0,
     )
 
 

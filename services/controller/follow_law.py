@@ -166,6 +166,7 @@ def standoff_point(settings: Settings, aim: Aim, space: FollowSpace) -> Vec3:
     return point
 
 
+_DIAG = np.diag_indices(6)
 CLOSE_SHARE = 0.7
 """The reference's share of the closer approach's speed cap: a joint's speeds come in
 5 deg/s steps, so the arm's speed over one cycle dithers about the command by up to
@@ -336,8 +337,9 @@ class FollowRun:
                 y * w,
                 z * w,
             )
-        damping = config.jog.damping_m**2
-        dq = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), np.array(e))
+        damped = J @ J.T
+        damped[_DIAG] += config.jog.damping_m**2
+        dq = J.T @ np.linalg.solve(damped, np.array(e))
         return [a + float(b) for a, b in zip(q0, dq, strict=True)]
 
 

@@ -28,6 +28,7 @@ scene that replaces this one too).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -67,6 +68,18 @@ _SOURCES_KEPT = 8
 
 class FollowError(ManusError, ValueError):
     """A follow goal that cannot run (the message names the field, value and limit)."""
+
+
+@functools.lru_cache(maxsize=64)
+def _ypr_matrix(yaw: float, pitch: float, roll: float) -> np.ndarray:
+    R = ypr_to_matrix(yaw, pitch, roll)
+    R.flags.writeable = False
+    return R
+
+
+def _rotation(ypr: list[float]) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (a tracker's orientations repeat: cached)."""
+    return _ypr_matrix(ypr[0], ypr[1], ypr[2])
 
 
 def _ack(goal_id: str, refused: Refused | None = None) -> GoalAck:
@@ -331,7 +344,7 @@ class FollowSource(CommandSource):
         predicted = track.predict(t_end_ns)
         assert predicted is not None  # a goal starts only with a frame
         frame = self.frames_of[goal.source]
-        R = self.space.rotation_to_base(ypr_to_matrix(*frame.ypr), frame.frame)
+        R = self.space.rotation_to_base(_rotation(frame.ypr), frame.frame)
         assert self.run is not None
         a = self.run.settings.approach
         n = R @ np.array(a)
@@ -355,7 +368,7 @@ class FollowSource(CommandSource):
         rest = self._rest_of(msg.body)
         if rest is None:
             return f"the target's body {msg.body!r} is not a person of the scene"
-        rotation = ypr_to_matrix(*msg.body_ypr)
+        rotation = _rotation(msg.body_ypr)
         pose = np.eye(4)
         if msg.frame == "chair":
             pose[:3, :3], pose[:3, 3] = rotation, msg.body_xyz

@@ -10,7 +10,8 @@ give the same answers.
   noise), jumped (a person does not move that fast: a tracker that found another face).
 - **Period**: the median of the newest capture intervals.
 - **Latency**: the age of the newest frame at a joint state is its latency plus up to a
-  period; the smallest age of the newest 32 joint states estimates the latency.
+  period; the tenth percentile of the ages at the newest 32 joint states estimates the
+  latency (the least would take a joint state handled late for a fast tracker).
 - **Lost**: at a joint state the newest frame is older than that latency plus
   ``lost_after`` (default two periods): no newer frame came for that long.
 - **Prediction**: per coordinate, a Kalman filter of the target's motion (``model``:
@@ -79,6 +80,7 @@ class TargetTrack:
         self.frames: deque[Frame] = deque(maxlen=_KEEP)
         self._ages: deque[int] = deque(maxlen=_AGES)
         self._axes: Axes | None = None
+        self._period: float | None = None
 
     @property
     def newest(self) -> Frame | None:
@@ -92,6 +94,7 @@ class TargetTrack:
         if last is not None and frame.stamp_ns <= last.stamp_ns:
             return None
         self.frames.append(frame)
+        self._period = None
         if last is None:
             cfg = self.config
             self._axes = Axes(frame.xyz, ORDERS[cfg.model], cfg.process_noise, cfg.noise_m)
@@ -105,10 +108,13 @@ class TargetTrack:
 
     def period_s(self) -> float | None:
         """The median interval of the newest captures [s] (None: fewer than two frames)."""
+        if self._period is not None:
+            return self._period
         stamps = [f.stamp_ns for f in self.frames]
         if len(stamps) < 2:
             return None
-        return statistics.median(b - a for a, b in itertools.pairwise(stamps)) / 1e9
+        self._period = statistics.median(b - a for a, b in itertools.pairwise(stamps)) / 1e9
+        return self._period
 
     def observe(self, stamp_ns: int) -> int | None:
         """A joint state stamped ``stamp_ns``: the newest frame's age then [ns] (None: no
@@ -121,8 +127,13 @@ class TargetTrack:
         return age
 
     def latency_s(self) -> float:
-        """The tracker's latency estimated from the newest ages [s] (0: none yet)."""
-        return max(0.0, min(self._ages) / 1e9) if self._ages else 0.0
+        """The tracker's latency estimated from the newest ages [s] (0: none yet): their
+        tenth percentile, not their least, so that a joint state handled late (its frame
+        newer than its stamp) does not make every age look long."""
+        if not self._ages:
+            return 0.0
+        ages = sorted(self._ages)
+        return max(0.0, ages[len(ages) // 10] / 1e9)
 
     def lost(self, age_ns: int, lost_after_s: float) -> str | None:
         """Why the target counts as lost at a joint state where the newest frame is
