@@ -6,6 +6,7 @@ so the same code drives socketcan, pcan, kvaser, slcan or the in-process ``virtu
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import can
@@ -26,6 +27,27 @@ def open_bus(interface: str, channel: str, bitrate: int = BITRATE, **kwargs: Any
         raise ConfigError(
             f"cannot open CAN interface {interface!r} channel {channel!r} at {bitrate} bit/s: {exc}"
         ) from exc
+
+
+LINE_ERRORS = (ValueError, IndexError)
+"""What python-can's serial-line backends (slcan, serial) raise from ``recv`` for a line
+they cannot parse (``int('F')`` of a split line, a short line): noise on the line, an
+adapter's reset, or bytes another reader of the same line took (``manus.can_sharing``).
+The line is consumed before it is parsed, so the next ``recv`` reads the next one."""
+
+
+def recv(
+    bus: can.BusABC, timeout: float | None, on_garbled: Callable[[Exception], None]
+) -> can.Message | None:
+    """``bus.recv(timeout)``, with a line the backend cannot parse passed to
+    ``on_garbled`` (and None returned) instead of raised: one bad line must not end a
+    receive loop (the cycle it belonged to is then incomplete, which the bridge handles
+    as any lost frame)."""
+    try:
+        return bus.recv(timeout=timeout)
+    except LINE_ERRORS as exc:
+        on_garbled(exc)
+        return None
 
 
 def to_can(frame: Frame) -> can.Message:

@@ -25,20 +25,18 @@ with its request (the recorder stores it as the MCAP publish time).
 
 from __future__ import annotations
 
-import gc
 import logging
 import os
-import signal
 import socket
 import threading
 import time
 from collections import Counter
 from collections.abc import Callable
-from types import FrameType
 from typing import Any, TypeVar
 
 import zenoh
 
+from manus import presence
 from manus.errors import ManusError, SchemaError
 from manus.session import ZenohSettings, open_session
 from schemas.base import Message
@@ -132,6 +130,12 @@ class Node:
             self._where = live.declare_token(
                 self.keys.where(self.name, socket.gethostname(), self.pid)
             )
+
+    def declare_disabled(self, why: str) -> None:
+        """Declare ``disabled/<name>/<why>`` (a word): this service is off on purpose, instead
+        of :meth:`announce` (``manus status`` shows it; :mod:`manus.presence`)."""
+        token = self.session.liveliness().declare_token(self.keys.disabled(self.name, why))
+        self._entities.append(token)
 
     def health(self) -> NodeHealth:
         """The bad input counted so far (``schemas.health``)."""
@@ -307,22 +311,11 @@ class Node:
 
     def alive_services(self, timeout: float = 1.0) -> set[str]:
         """Names of the services whose liveliness tokens are up now."""
-        names = set()
-        for reply in self.session.liveliness().get(self.keys.alive_all, timeout=timeout):
-            if reply.ok is not None:
-                names.add(self.keys.suffix(str(reply.ok.key_expr)).removeprefix(f"{ALIVE}/"))
-        return names
+        return presence.alive_services(self.session, self.keys, timeout)
 
     def service_hosts(self, timeout: float = 1.0) -> dict[str, list[tuple[str, int]]]:
         """Service name -> [(host name, pid), ...] of every node alive now (``where``)."""
-        found: dict[str, list[tuple[str, int]]] = {}
-        for reply in self.session.liveliness().get(self.keys.where_all, timeout=timeout):
-            if reply.ok is None:
-                continue
-            parts = self.keys.suffix(str(reply.ok.key_expr)).split("/")
-            if len(parts) == 4 and parts[3].isdigit():
-                found.setdefault(parts[1], []).append((parts[2], int(parts[3])))
-        return found
+        return presence.service_hosts(self.session, self.keys, timeout)
 
     def watch_liveliness(self, callback: Callable[[str, bool], None]) -> None:
         """Call ``callback(service, alive)`` when a service's token appears or vanishes."""
@@ -389,30 +382,3 @@ class Node:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def freeze_startup_heap() -> None:
-    """Collect once, then put every object alive now out of the cyclic collector's reach.
-
-    Call it when a long-running service has finished starting. Imports (NumPy, Pinocchio,
-    Zenoh, the schemas) leave tens of thousands of long-lived objects, and each full
-    collection walks them all: measured here, a full collection in a planner client took
-    5-15 ms, often enough to set the 99th percentile of a plan round trip and to eat
-    most of the bridge's 20 ms reply window. Frozen objects (``gc.freeze``) are skipped by
-    every later collection; they are still freed by reference counting, and garbage made
-    after this call is collected as before.
-    """
-    gc.collect()
-    gc.freeze()
-
-
-def wait_for_signal(stop: threading.Event | None = None) -> threading.Event:
-    """Install SIGINT/SIGTERM handlers that set and return ``stop`` (main thread only)."""
-    event = stop or threading.Event()
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        event.set()
-
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    return event

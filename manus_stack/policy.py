@@ -9,8 +9,8 @@ computer's router by its certificate and user name) gets exactly what it owns:
 - ``declare_queryable`` and ``reply`` on its own queryables only: a rogue client cannot
   answer ``planner/plan`` in the planner's place (of a per-service root such as
   ``health``: on ``health/<itself>`` only);
-- ``liveliness_token`` on ``alive/<itself>`` and ``where/<itself>/**`` only: it cannot
-  make the sequencer believe a dead controller lives;
+- ``liveliness_token`` on ``alive/<itself>``, ``where/<itself>/**`` and
+  ``disabled/<itself>/**`` only: it cannot make the sequencer believe a dead controller lives;
 - ``query`` on the queryables open to it (``Endpoint.clients``; by default every
   identity);
 - everybody may subscribe, watch tokens and receive (``egress``).
@@ -38,6 +38,7 @@ from manus.certs import ARM_USERS, BASE_USERS
 from schemas.endpoints import (
     ALIVE,
     ANYONE,
+    DISABLED,
     EACH_SERVICE,
     TABLE,
     TRACE_PARTS,
@@ -80,6 +81,7 @@ def permissions(identity: str) -> dict[str, list[str]]:
             if _may_query(e, identity):
                 query.append(_key(e) if e.owner != EACH_SERVICE else _key(f"{e}/**"))
     tokens = [_key(f"{ALIVE}/{identity}"), _key(f"{WHERE}/{identity}/**")]
+    tokens.append(_key(f"{DISABLED}/{identity}/**"))
     return {
         "put": put,
         "declare_queryable": declare,

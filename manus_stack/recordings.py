@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,15 +94,17 @@ def record_thesis_runs(
     arm = ControlledArm(SimConfig(start_pose="unfolded", seed=seed))
     planner = PlannerCore()
 
-    def follow(msg: Message, t_ns: int) -> list[tuple[str, Message]]:
-        """Joint states in, the scene state out (the plans are asked below)."""
-        return list(PLANNER.feed(planner, ep.JOINTS, msg, t_ns))
+    def follow(suffix: str) -> Callable[[Message, int], list[tuple[str, Message]]]:
+        """The planner's subscriptions (joint states, perception) in, its scene states and
+        world updates out (the plans are asked below)."""
+        return lambda msg, t_ns: list(PLANNER.feed(planner, suffix, msg, t_ns))
 
     def cycle() -> None:
         arm.ls.run_for(CYCLE_S)
         arm.ls.publish(ep.SIM_TRUTH, arm.ls.sim.truth())
 
-    arm.ls.subscribe(ep.JOINTS, follow)
+    for inp in PLANNER.inputs:
+        arm.ls.subscribe(inp.endpoint, follow(inp.endpoint))
     arm.start()
     result = None
     for i, shape in enumerate(shapes):

@@ -11,8 +11,9 @@ Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), 
 through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
 its queryables' mirrored requests in; its publications and mirrored replies out.
 
-- ``planner``: joint states, plan requests and scene updates in, plan and scene replies
-  out (``compute_ms`` is wall time and is not compared).
+- ``planner``: joint states, perception frames, plan requests and scene updates in, plan
+  and scene replies and the world model's updates out (``compute_ms`` is wall time and is
+  not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
   stream (a ``jog`` payload that does not decode goes to its input's ``bad`` handler, as
   the live shell does), the scene, the liveliness tokens that vanished (as the controller
@@ -44,6 +45,7 @@ from typing import Any
 import msgpack
 
 from manus.wiring import BAD_PAYLOAD
+from manus_stack.difference import Difference, first_difference
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.endpoints import LIVELINESS
@@ -60,39 +62,6 @@ from services.planner.core import PlannerCore
 from services.planner.wiring import WIRING as PLANNER
 from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording, decode
-
-
-@dataclass(frozen=True)
-class Difference:
-    """The first output that differs.
-
-    Attributes:
-        suffix: output channel.
-        rank: index of the output on that channel (0-based).
-        input_ns: log time of the input that produced it (or of the recorded output when
-            the replay produced none) [ns].
-        path: field path (``velocity[2]``); empty when one side has no message.
-        recorded: the recorded value (None: no recorded message).
-        replayed: the replayed value (None: no replayed message).
-    """
-
-    suffix: str
-    rank: int
-    input_ns: int
-    path: str
-    recorded: Any
-    replayed: Any
-
-    def __str__(self) -> str:
-        where = f"{self.suffix} #{self.rank} (input at {self.input_ns / 1e9:.6f} s)"
-        if self.recorded is None:
-            return f"{where}: the replay produced an extra message: {self.replayed!r:.200}"
-        if self.replayed is None:
-            return f"{where}: the replay produced nothing; recorded: {self.recorded!r:.200}"
-        field = self.path or "(whole message)"
-        return (
-            f"{where}: {field}: recorded {self.recorded!r:.120} != replayed {self.replayed!r:.120}"
-        )
 
 
 @dataclass(frozen=True)
@@ -119,42 +88,6 @@ class CheckResult:
     def ok(self) -> bool:
         """Every output identical."""
         return self.difference is None
-
-
-def first_difference(recorded: Any, replayed: Any, path: str = "") -> tuple[str, Any, Any] | None:
-    """The first (depth-first) field where two plain values differ: (path, a, b)."""
-    if isinstance(recorded, dict) and isinstance(replayed, dict):
-        return _first_in_maps(recorded, replayed, path)
-    if isinstance(recorded, list) and isinstance(replayed, list):
-        return _first_in_lists(recorded, replayed, path)
-    if type(recorded) is not type(replayed) or recorded != replayed:
-        return path, recorded, replayed
-    return None
-
-
-def _first_in_maps(
-    recorded: dict[Any, Any], replayed: dict[Any, Any], path: str
-) -> tuple[str, Any, Any] | None:
-    for key in sorted(set(recorded) | set(replayed), key=str):
-        sub = f"{path}.{key}" if path else str(key)
-        if key not in recorded or key not in replayed:
-            return sub, recorded.get(key), replayed.get(key)
-        found = first_difference(recorded[key], replayed[key], sub)
-        if found:
-            return found
-    return None
-
-
-def _first_in_lists(
-    recorded: list[Any], replayed: list[Any], path: str
-) -> tuple[str, Any, Any] | None:
-    for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
-        found = first_difference(a, b, f"{path}[{i}]")
-        if found:
-            return found
-    if len(recorded) != len(replayed):
-        return f"{path} (length)", len(recorded), len(replayed)
-    return None
 
 
 Window = tuple[int, int]

@@ -2,7 +2,8 @@
 
 :func:`collect` asks the bus once: the liveliness tokens ``alive/<service>`` (which
 services are up), ``where/<service>/<host>/<pid>`` (on which computer and process each
-runs), ``health/<service>`` (each service's bad input: payloads that did not decode, per
+runs), ``disabled/<service>/<why>`` (which are off on purpose, and why: shown ``OFF``),
+``health/<service>`` (each service's bad input: payloads that did not decode, per
 key, and handler errors), and listens up to ``wait_s`` for the newest ``state/bridge``
 (BridgeState) and ``state/status`` (ArmStatus). :func:`format_status` makes one screen
 of text of it; the same dictionary is the ``--json`` output.
@@ -16,8 +17,10 @@ from typing import Any
 
 import zenoh
 
+from manus.can_sharing import DISABLED_TEXT
 from manus.errors import SchemaError
 from manus.node import Node
+from manus.presence import disabled_services
 from schemas import endpoints as ep
 from schemas.health import NodeHealth
 from schemas.keys import SERVICES
@@ -53,7 +56,8 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
         wait_s: how long to wait for the bridge's and the arm's messages [s].
 
     Returns:
-        ``{"prefix", "services": {name: {"alive", "hosts": [{"host", "pid"}]}},
+        ``{"prefix", "services": {name: {"alive", "hosts": [{"host", "pid"}], "disabled":
+        why it is off on purpose | None}},
         "bridge": BridgeState dict | None, "arm": ArmStatus dict | None}``.
     """
     latest: dict[str, Any] = {}
@@ -75,13 +79,15 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
     start = time.monotonic()
     alive = node.alive_services(timeout=min(1.0, wait_s))
     hosts = node.service_hosts(timeout=min(1.0, wait_s))
+    disabled = disabled_services(node.session, keys, timeout=min(1.0, wait_s))
     health = node_health(node, timeout=min(1.0, wait_s))
     got.wait(max(0.0, wait_s - (time.monotonic() - start)))
-    names = sorted(set(SERVICES) | alive | set(hosts), key=_order)
+    names = sorted(set(SERVICES) | alive | set(hosts) | set(disabled), key=_order)
     services = {
         name: {
             "alive": name in alive,
             "hosts": [{"host": h, "pid": p} for h, p in sorted(hosts.get(name, []))],
+            "disabled": disabled.get(name),
         }
         for name in names
     }
@@ -132,6 +138,11 @@ def format_status(status: dict[str, Any]) -> str:
     lines = [f"manus status (prefix {status['prefix']})", "", "services:"]
     for name, info in status["services"].items():
         where = ", ".join(f"{h['host']} pid {h['pid']}" for h in info["hosts"]) or "-"
+        why = info["disabled"]
+        if why is not None and not info["alive"]:
+            text = DISABLED_TEXT.get(why, "off on purpose")
+            lines.append(f"  {name:<11} {'OFF':<6} {why}: {text}")
+            continue
         state = "alive" if info["alive"] else "DOWN"
         lines.append(f"  {name:<11} {state:<6} {where}")
     lines += ["", "bridge:"]

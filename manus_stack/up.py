@@ -4,10 +4,12 @@ Order: a Zenoh router on loopback (``manus router``, a Python session in router 
 ``manus record`` (waited for: its token is up once it listens, so the recording holds
 every service's whole life, from the simulator's power-up and the bridge's first cycle
 to their shutdown, and ``manus replay --check`` can replay it through a core), the
-simulator on a new slcan pseudo-terminal (``manus sim``; skipped with a real arm),
+simulator on a new slcan pseudo-terminal (``manus sim``, with its objects and its camera;
+skipped with a real arm),
 ``manus bridge`` on that device (or the real CAN interface), ``manus guardian`` beside it
-(the simulator's second node, or the same CAN interface; its reporter declares
-``alive/guardian``), ``manus planner``, ``manus controller`` and ``manus sequencer``, then
+(the simulator's second node; on a real arm its own channel, else the bridge's if it may
+be shared, else it stays off: ``manus_stack.guardian_can``), ``manus planner``,
+``manus controller`` and ``manus sequencer``, then
 the flight recorder (``manus record --ring``, files under ``<run dir>/flight``; last, so
 that it is stopped first and the orderly shutdown of the others is no fault) and, with
 ``view``, ``manus view``. Every child is a client of the router (``MANUS_ZENOH_CONNECT``),
@@ -16,7 +18,8 @@ Ctrl-C reaches only this process, which then stops the children in reverse order
 recorder last but the router), each by its pid (SIGINT, then SIGKILL after a grace
 period).
 
-:class:`LocalStack` waits until every started service's liveliness token is up.
+:class:`LocalStack` waits until every started service's liveliness token is up (or its
+``disabled`` token), and :meth:`LocalStack.wait_running` until the bridge runs.
 """
 
 from __future__ import annotations
@@ -34,7 +37,10 @@ from typing import IO
 
 from manus.errors import ManusError
 from manus.node import Node
+from manus.presence import disabled_services
 from manus.session import client_settings
+from manus_stack.bridge_ready import not_running, wait_running
+from manus_stack.guardian_can import GuardianCan, guardian_can
 
 LIVELINESS = {
     "sim": "simulator",
@@ -80,13 +86,19 @@ class StackOptions:
         prefix: key prefix of the arm.
         can_interface: python-can interface of a real arm (empty: the simulator).
         can_channel: its channel.
+        guardian_interface: python-can interface of the guardian's own channel (default:
+            the bridge's).
+        guardian_channel: the guardian's own channel (a second adapter on the arm's bus;
+            default: the bridge's, when the interface lets several processes share it).
         record: start the recorder (``manus record``) first.
         guardian: start ``manus guardian`` beside the bridge (on the simulator's second
-            node, or on the same CAN interface as the bridge).
+            node, or see ``guardian_channel``).
         sim_args: extra arguments of ``manus sim``.
         flight_ring_s: seconds the flight recorder keeps (0, or ``record`` off: none).
         view: start ``manus view`` (the Foxglove WebSocket server).
         view_port: its port.
+        objects: the simulator's objects (``manus sim --objects``: ``default``, ``none``
+            or a file), which its camera reports on ``perception/objects``.
     """
 
     run_dir: Path
@@ -94,12 +106,15 @@ class StackOptions:
     prefix: str = "manus"
     can_interface: str = ""
     can_channel: str = ""
+    guardian_interface: str = ""
+    guardian_channel: str = ""
     record: bool = True
     guardian: bool = True
     sim_args: list[str] = field(default_factory=list)
     flight_ring_s: float = 30.0
     view: bool = False
     view_port: int = 8765
+    objects: str = "default"
 
     @property
     def flight_dir(self) -> Path:
@@ -149,6 +164,10 @@ class LocalStack:
         self.options = options
         self.children: list[Child] = []
         self.device = ""
+        self.disabled: dict[str, str] = {}
+        """Liveliness name -> why that service is off on purpose (its ``disabled`` token)."""
+        self.notes: list[str] = []
+        """What :meth:`describe` says besides the processes (the guardian's channel)."""
 
     def _env(self) -> dict[str, str]:
         env = dict(os.environ)
@@ -207,8 +226,16 @@ class LocalStack:
         Raises:
             StackError: the port is taken, a process exited, or a service did not come up
                 within ``timeout`` [s].
+            ConfigError: the guardian's channel given is the bridge's single-reader one.
         """
         opts = self.options
+        beside = GuardianCan()
+        if opts.can_interface and opts.guardian:  # refused before anything starts
+            beside = guardian_can(opts.can_interface, opts.can_channel,
+                                  opts.guardian_interface, opts.guardian_channel)  # fmt: skip
+            self.notes.append(beside.note)
+            if beside.disabled:
+                self.disabled[LIVELINESS["guardian"]] = beside.disabled
         opts.run_dir.mkdir(parents=True, exist_ok=True)
         if port_in_use(opts.endpoint):
             raise StackError(
@@ -228,20 +255,9 @@ class LocalStack:
         guardian = opts.guardian
         if opts.can_interface:
             bridge_args = ["--can-interface", opts.can_interface, "--can-channel", opts.can_channel]
-            guardian_args = bridge_args  # socketcan and the like: several sockets, one bus
+            guardian_args = beside.args
         else:
-            nodes = ["--nodes", "2"] if guardian else []
-            sim_args = ["--device-file", str(opts.device_file), *nodes, *opts.sim_args]
-            sim = self._spawn("sim", sim_args)
-            files = [opts.device_file, Path(f"{opts.device_file}.1")][: 2 if guardian else 1]
-            while not all(f.exists() for f in files):
-                self._check(sim)
-                if time.monotonic() > deadline:
-                    raise StackError(f"the simulator wrote no device file (log {sim.log})")
-                time.sleep(0.05)
-            self.device = opts.device_file.read_text().strip()
-            bridge_args = ["--can-interface", "slcan", "--can-channel", self.device]
-            guardian_args = ["--can-interface", "slcan", "--can-channel", files[-1].read_text()]
+            bridge_args, guardian_args = self._start_sim(deadline)
         plan: list[tuple[str, list[str]]] = [
             ("bridge", bridge_args),
             *([("guardian", guardian_args)] if guardian else []),
@@ -262,18 +278,41 @@ class LocalStack:
                 raise StackError(f"manus view did not listen in time (log {viewer.log})")
             time.sleep(0.05)
 
+    def _start_sim(self, deadline: float) -> tuple[list[str], list[str]]:
+        """Start the simulator (a second node for the guardian): the bridge's and the
+        guardian's CAN arguments."""
+        opts = self.options
+        nodes = ["--nodes", "2"] if opts.guardian else []
+        sim_args = ["--device-file", str(opts.device_file), "--objects", opts.objects]
+        sim = self._spawn("sim", [*sim_args, *nodes, *opts.sim_args])
+        files = [opts.device_file, Path(f"{opts.device_file}.1")][: 2 if opts.guardian else 1]
+        while not all(f.exists() for f in files):
+            self._check(sim)
+            if time.monotonic() > deadline:
+                raise StackError(f"the simulator wrote no device file (log {sim.log})")
+            time.sleep(0.05)
+        self.device = opts.device_file.read_text().strip()
+        bridge_args = ["--can-interface", "slcan", "--can-channel", self.device]
+        guardian_args = ["--can-interface", "slcan", "--can-channel", files[-1].read_text()]
+        return bridge_args, [*guardian_args, "--bridge-channel", self.device]
+
     def expected(self) -> set[str]:
-        """Liveliness names of the started services."""
-        return {LIVELINESS[c.name] for c in self.children if c.name in LIVELINESS}
+        """Liveliness names of the started services (but those off on purpose)."""
+        names = {LIVELINESS[c.name] for c in self.children if c.name in LIVELINESS}
+        return names - set(self.disabled)
 
     def wait_alive(self, deadline: float) -> None:
-        """Wait (until the monotonic ``deadline``) for every started service's token."""
+        """Wait (until the monotonic ``deadline``) for every started service's token (a
+        ``disabled`` one for a service off on purpose)."""
         settings = client_settings(self.options.endpoint, prefix=self.options.prefix)
         with Node("up", settings, liveliness=False) as node:
             while True:
-                for child in self.children:
-                    self._check(child)
+                self._check_all()
                 missing = self.expected() - node.alive_services(timeout=0.5)
+                if self.disabled:
+                    missing |= set(self.disabled) - set(
+                        disabled_services(node.session, node.keys, 0.5)
+                    )
                 if not missing:
                     return
                 if time.monotonic() > deadline:
@@ -283,6 +322,26 @@ class LocalStack:
                     )
                 time.sleep(0.1)
 
+    def wait_running(self, timeout: float) -> None:
+        """Wait up to ``timeout`` [s] for the bridge's phase ``running``.
+
+        Raises:
+            StackError: a process exited, the bridge reached a phase it does not leave by
+                itself (stopped, estopped, arm_error, shutdown), or ``timeout`` passed;
+                it names the phase and its detail.
+        """
+        start, since_ns = time.monotonic(), time.time_ns()  # not a restarted one's last
+        settings = client_settings(self.options.endpoint, prefix=self.options.prefix)
+        with Node("up", settings, liveliness=False) as node:
+            state = wait_running(node, start + timeout, self._check_all, since_ns)
+        why = not_running(state, time.monotonic() - start)
+        if why:
+            raise StackError(f"{why} (logs in {self.options.run_dir / 'logs'})")
+
+    def _check_all(self) -> None:
+        for child in self.children:
+            self._check(child)
+
     def describe(self) -> list[str]:
         """Where things are, one line each."""
         opts = self.options
@@ -291,6 +350,7 @@ class LocalStack:
             lines.append(f"simulator: slcan on {self.device}")
         elif opts.can_interface:
             lines.append(f"arm: {opts.can_interface} {opts.can_channel}")
+        lines += self.notes
         for c in self.children:
             lines.append(f"{c.name:<10} pid {c.proc.pid:<7} log {c.log}")
         if any(c.name == "record" for c in self.children):

@@ -311,9 +311,10 @@ class GoalResult(Message):
     TYPE_NAME = "manus/GoalResult/2"
 
     stamp_ns: int = field(
-        "the bridge's clock (a JointState, ArmStatus or BridgeState stamp): the message "
-        "the controller answered when the result left, the joint state at which the goal "
-        "ended, or, for an end caused by a request, the next joint state",
+        "the bridge's clock, not a wall clock: the stamp of the ArmStatus or BridgeState "
+        "that ended the goal, else of the newest JointState when the result left (a result "
+        "leaves with the controller's next publication: at the joint state where the goal "
+        "ended; for a goal ended by a query, at the next joint state)",
         unit="ns",
     )
     seq: int = field("sequence number", minimum=0)

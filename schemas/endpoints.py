@@ -17,8 +17,9 @@ Kinds (:class:`Kind`):
 - ``queryable``: request -> reply, answered by its owner. Queries are invisible to
   subscribers, so every answer is mirrored on ``trace/<suffix>/request`` and
   ``trace/<suffix>/reply`` (:meth:`Endpoint.trace`; ``manus.node.Node.queryable``).
-- ``liveliness``: a token root: ``alive/<service>`` (the service runs) and
-  ``where/<service>/<host>/<pid>`` (where each of its processes runs); no payload.
+- ``liveliness``: a token root: ``alive/<service>`` (the service runs),
+  ``where/<service>/<host>/<pid>`` (where each of its processes runs) and
+  ``disabled/<service>/<why>`` (it is off on purpose, and why); no payload.
 - ``recording``: a channel of recordings only, never published on the bus
   (``liveliness``: the recorder's log of token changes).
 
@@ -48,6 +49,7 @@ from schemas import (
     health,
     jog,
     liveliness,
+    objects,
     planning,
     playback,
     sequencing,
@@ -367,7 +369,9 @@ SUBMIT = _query(
     _SEQ,
     sequencing.Task,
     sequencing.SubmitReply,
-    "validate a whole task and start it; reply: id or every error",
+    "validate a whole task and start it; reply: id or every error. Held while the bridge "
+    "is still starting (at most the sequencer's bridge_wait_s, 30 s by default); refused "
+    "at once when it is stopped (stopped, estopped, arm_error: phase and detail)",
     _SUP,
     clients=(SUPERVISOR,),
 )
@@ -430,6 +434,15 @@ WHERE = Endpoint(
     doc="on which computer (host name) and process each service runs",
     params="<service>/<host>/<pid>",
 )
+DISABLED = Endpoint(
+    "disabled",
+    Kind.LIVELINESS,
+    EACH_SERVICE,
+    audience=_SUP,
+    doc="a service deliberately not running in this deployment, and why (a word: "
+    "disabled/guardian/single_reader_channel)",
+    params="<service>/<why>",
+)
 HEALTH = Endpoint(
     "health",
     Kind.QUERYABLE,
@@ -465,6 +478,23 @@ PLAYBACK_CONTROL = _query(
     _SUP,
 )
 
+# -- objects: perception and the world model (docs/objects.md) -------------------------------
+PERCEPTION = _pub(
+    "perception/objects",
+    Service.SIMULATOR,
+    objects.Perception,
+    "one camera frame's objects (added or moved) and the ones known gone; the simulated "
+    "camera's, until a perception node of its own takes this key (and its ownership)",
+)
+OBJECTS = _pub(
+    "planner/objects",
+    Service.PLANNER,
+    objects.WorldUpdate,
+    "the world model's objects as versioned diffs, and the whole set every second",
+    _SUP,
+)
+OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS)
+"""The objects' endpoints (a block of their own in :data:`TABLE`)."""
 # -- following a moving target (docs/follow.md) -----------------------------------------------
 TARGET = _pub(
     "target/pose",
@@ -608,10 +638,12 @@ TABLE = Table(
         GUARDIAN_REPORT,
         ALIVE,
         WHERE,
+        DISABLED,
         HEALTH,
         LIVELINESS,
         FLIGHT_TRIGGER,
         PLAYBACK_CONTROL,
+        *OBJECT_ENDPOINTS,
         *FOLLOW_ENDPOINTS,
     )
 )

@@ -84,7 +84,10 @@ def supervisor_document() -> dict[str, Any]:
         "description": (
             "Zenoh keys under a prefix (default 'manus'), MessagePack payloads (maps with "
             "exactly the fields below; SI units). Submit a Task to <prefix>/sequencer/submit "
-            "(a Zenoh get with the payload); the reply is a SubmitReply. Follow "
+            "(a Zenoh get with the payload); the reply is a SubmitReply. A task submitted "
+            "while the bridge is still starting is held until it runs, at most the "
+            "sequencer's bridge_wait_s (30 s by default): give the get a timeout longer "
+            "than that plus 5 s per step. Follow "
             "<prefix>/sequencer/events. Control with TaskControl on <prefix>/sequencer/control."
         ),
         "keys": supervisor_keys(),

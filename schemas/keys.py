@@ -27,6 +27,7 @@ from manus.session import DEFAULT_PREFIX
 from schemas.base import Message
 from schemas.endpoints import (
     ALIVE,
+    DISABLED,
     HEALTH,
     LIVELINESS,
     TABLE,
@@ -78,6 +79,15 @@ class Keys:
     @property
     def where_all(self) -> str:
         return self(f"{WHERE}/**")
+
+    def disabled(self, service: str, why: str) -> str:
+        """Liveliness token saying that a service is off on purpose, and why (a word such
+        as ``single_reader_channel``)."""
+        return self(f"{DISABLED}/{service}/{why}")
+
+    @property
+    def disabled_all(self) -> str:
+        return self(f"{DISABLED}/**")
 
     def health(self, service: str) -> str:
         """Queryable of one service's bad-input counts (``schemas.health.NodeHealth``)."""

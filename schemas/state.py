@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.objects import ObjectContact, ObjectTruth
 from schemas.target import TargetTruth
 
 
@@ -89,6 +90,22 @@ STOPPING_PHASES = frozenset(
     }
 )
 """Bridge phases in which no goal can run (the arm is stopped or folding)."""
+ON_ITS_WAY_PHASES = frozenset(
+    {
+        BridgePhase.OPENING,
+        BridgePhase.WAITING_POWER_UP,
+        BridgePhase.ENTERING_JOINT_MODE,
+        BridgePhase.INITIALISING,
+        BridgePhase.RESYNC,
+        BridgePhase.FOLDING_IN,
+        BridgePhase.FOLDING_OUT,
+    }
+)
+"""Bridge phases that lead to ``running`` by themselves: the start-up, a resync, a fold
+in progress. From the others but ``running`` (stopped, estopped, arm_error, shutdown)
+only a command (``clear``, an e-stop's release) or a new bridge brings it back:
+``manus up`` and the sequencer wait a bounded time for the former and refuse at once in
+the latter."""
 
 
 @dataclass(frozen=True)
@@ -239,11 +256,34 @@ class SimTruth(Message):
         "smallest `clearance` at any tick since power-up (None: no scene)", unit="m", default=None
     )
     contacts: int = field(
-        "ticks on which a body met an object (or the arm itself) and the arm was stopped",
+        "ticks on which a body, or the object the gripper holds, met an object (or the arm "
+        "itself) and the arm was stopped",
         default=0,
         minimum=0,
     )
     contact: str = field("body/object of the last contact ('': none yet)", default="")
+    objects: list[ObjectTruth] = field(
+        "every object of the simulator, where it truly is (docs/objects.md)",
+        default_factory=list,
+    )
+    object_contacts: list[ObjectContact] = field(
+        "every pair that touched since power-up: an arm body and a free object, or a held "
+        "object and the scene or another object",
+        default_factory=list,
+    )
+    held_clearance: float | None = field(
+        "smallest true distance now between a held object and the scene or another object "
+        "(None: nothing held)",
+        unit="m",
+        default=None,
+    )
+    held_clearance_pair: str = field("object/other of `held_clearance`", default="")
+    held_min_person: float | None = field(
+        "smallest true distance between a held object and the person at any tick since "
+        "power-up (None: nothing held yet)",
+        unit="m",
+        default=None,
+    )
     person_clearance: float | None = field(
         "smallest true distance now between the arm and a person object (no clearance; "
         "None: no person in the scene)",

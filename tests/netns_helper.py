@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import sys
 
-from manus.node import Node, wait_for_signal
+from manus.node import Node
+from manus.process import wait_for_signal
 from manus.protocol import FrameId, decode_move
 from manus.session import open_session, settings_from_env
 from schemas import endpoints as ep

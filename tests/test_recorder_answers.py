@@ -144,8 +144,8 @@ def test_exchanges_of_the_thesis_recording() -> None:
 def test_standing_in_for_the_planner_publishes_its_scene_states_only() -> None:
     recording = Recording(SQUARE)
     SERVICE_OUTPUTS, SERVICE_QUERYABLES = service_outputs_table(), service_queryables_table()
-    assert SERVICE_OUTPUTS["planner"] == ("planner/scene_state",)
-    scheduled = schedule(recording, as_service="planner")
+    assert SERVICE_OUTPUTS["planner"] == ("planner/scene_state", "planner/objects")
+    scheduled = schedule(recording, as_service="planner")  # (no objects in this one)
     assert scheduled and {s.rec.suffix for s in scheduled} == {"planner/scene_state"}
     assert set(SERVICE_QUERYABLES) <= set(SERVICE_OUTPUTS)
     with pytest.raises(RecordingError, match="nothing to replay"):

@@ -17,14 +17,9 @@ from PIL import Image
 
 from manus_stack.cli import main
 from manus_stack.controlled import controller_input
+from manus_stack.difference import first_difference
 from manus_stack.recordings import record_thesis_run
-from manus_stack.regression import (
-    EVERYTHING,
-    check_controller,
-    check_planner,
-    first_difference,
-    service_window,
-)
+from manus_stack.regression import EVERYTHING, check_controller, check_planner, service_window
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
 from schemas.liveliness import LIVELINESS, LivelinessChange

@@ -32,13 +32,16 @@ from manus.protocol import (
 )
 from manus.session import ZenohSettings
 from schemas import endpoints as ep
+from schemas.objects import Perception
 from schemas.state import SimTruth
+from services.simulator.camera_config import CameraConfig
 from services.simulator.config import SimConfig
 from services.simulator.core import SimCore
 from services.simulator.live import LiveSim
 from services.simulator.scripted import joint_move
-from services.simulator.shell import TruthPublisher
+from services.simulator.shell import MessagePublisher, TruthPublisher
 from services.simulator.slcan import SlcanPtyBus
+from tests.conftest import eventually
 
 FAST = SimConfig(gripper_ready_ms=60, angles_measured_ms=120)
 
@@ -192,3 +195,28 @@ def test_truth_is_published_once_per_cycle(
     assert [m.seq for m in got] == list(range(got[0].seq, got[0].seq + len(got)))
     stamps = [m.stamp_ns for m in got]
     assert all((b - a) == 60_000_000 for a, b in itertools.pairwise(stamps))
+
+
+def test_the_camera_publishes_on_the_stacks_clock(
+    virtual_pair: tuple[can.BusABC, can.BusABC], zenoh_settings: ZenohSettings
+) -> None:
+    arm, _ = virtual_pair
+    got: list[Perception] = []
+    config = FAST.with_overrides(objects="default", camera=CameraConfig(period_ms=50.0))
+    with (
+        Node("test-listener", zenoh_settings) as listener,
+        Node("simulator", zenoh_settings) as node,
+    ):
+        listener.subscribe(node.keys(ep.PERCEPTION), Perception, lambda m, _rx: got.append(m))
+        live = LiveSim(SimCore(config), arm)
+        live.on_message = MessagePublisher(node, lambda: live.wall_t0_ns)
+        before = time.time_ns()
+        live.start()
+        try:
+            eventually(lambda: len(got) >= 3, what="three camera frames")
+        finally:
+            live.stop()
+        after = time.time_ns()
+    assert all(before <= m.stamp_ns <= after for m in got)  # the wall clock, not sim time
+    assert [m.seq for m in got] == sorted(m.seq for m in got)
+    assert {o.id for m in got for o in m.objects} == {"cup", "bottle", "phone"}

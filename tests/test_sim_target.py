@@ -37,8 +37,9 @@ def _frames(core: SimCore, until_s: float) -> list[tuple[int, TargetPose]]:
     core.advance(round(until_s * S))
     out = []
     for at, suffix, msg in core.take_messages():
-        assert suffix == ep.TARGET and isinstance(msg, TargetPose)
-        out.append((at, msg))
+        if suffix == ep.TARGET:  # (the camera's frames beside them)
+            assert isinstance(msg, TargetPose)
+            out.append((at, msg))
     return out
 
 

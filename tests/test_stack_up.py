@@ -15,7 +15,11 @@ from pathlib import Path
 import psutil
 import pytest
 
+from manus.world import apply_update
 from manus_stack.up import free_port
+from schemas import endpoints as ep
+from schemas.objects import Perception, WorldObject, WorldUpdate
+from services.recorder.reading import Recording
 from tests.conftest import eventually
 from tests.foxglove_client import collect
 
@@ -94,8 +98,26 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
     text = (tmp_path / "logs" / "sequencer.log").read_text()
     assert "sequencer: serving uptest/sequencer/submit" in text
     assert (tmp_path / "recording.mcap").stat().st_size > 0
+    # The simulator's camera reported its objects; the planner's world model kept them.
+    recording = Recording(tmp_path / "recording.mcap")
+    frames = [m for _, m in recording.decoded([ep.PERCEPTION]) if isinstance(m, Perception)]
+    assert {o.id for f in frames for o in f.objects} == {"cup", "bottle", "phone"}
+    world = [m for _, m in recording.decoded([ep.OBJECTS]) if isinstance(m, WorldUpdate)]
+    assert {o.id for o in follow_updates(world)} == {"cup", "bottle", "phone"}
     assert (tmp_path / "flight").is_dir()
     assert not list((tmp_path / "flight").iterdir())  # an orderly shutdown is no fault
+
+
+def follow_updates(updates: list[WorldUpdate]) -> list[WorldObject]:
+    """The objects a follower of ``updates`` holds at the end (from the first whole set)."""
+    held: dict[str, WorldObject] | None = None
+    version = 0
+    for update in updates:
+        if held is None and update.base_version != -1:
+            continue  # a follower starting late waits for a whole set
+        held = apply_update(held or {}, version, update)
+        version = update.version
+    return list((held or {}).values())
 
 
 def _listening(port: int) -> bool:

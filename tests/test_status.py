@@ -40,8 +40,10 @@ def test_status_shows_services_hosts_bridge_and_arm(zenoh_settings: ZenohSetting
     with (
         Node("can_bridge", zenoh_settings) as bridge,
         Node("controller", zenoh_settings),
+        Node("guardian", zenoh_settings, liveliness=False) as guardian,
         Node("status-test", zenoh_settings, liveliness=False) as viewer,
     ):
+        guardian.declare_disabled("single_reader_channel")  # off on purpose
         feeder = threading.Thread(target=_publish_until, args=(stop, bridge), daemon=True)
         feeder.start()
         try:
@@ -60,12 +62,19 @@ def test_status_shows_services_hosts_bridge_and_arm(zenoh_settings: ZenohSetting
             feeder.join(timeout=2.0)
     services = status["services"]
     host = Keys().where("x", socket.gethostname(), 1).split("/")[3]
-    assert services["can_bridge"] == {"alive": True, "hosts": [{"host": host, "pid": os.getpid()}]}
+    here = [{"host": host, "pid": os.getpid()}]
+    assert services["can_bridge"] == {"alive": True, "hosts": here, "disabled": None}
+    assert services["guardian"] == {
+        "alive": False,
+        "hosts": [],
+        "disabled": "single_reader_channel",
+    }
     assert services["controller"]["alive"] and not services["planner"]["alive"]
     assert status["bridge"]["phase"] == "running" and status["bridge"]["cycles"] == 7
     assert status["arm"]["text"] == "joint mode"
     text = format_status(status)
     assert "can_bridge  alive" in text and "planner     DOWN" in text
+    assert "guardian    OFF    single_reader_channel: the bridge's CAN channel admits one" in text
     assert "phase running   detail: fold_out complete" in text
     assert "mode joint, general 9: joint mode" in text
     # the command: JSON, exit 1 because the planner and the sequencer are down
@@ -73,6 +82,7 @@ def test_status_shows_services_hosts_bridge_and_arm(zenoh_settings: ZenohSetting
     shown = json.loads(cli.stdout)
     assert shown["services"]["controller"]["alive"] is True
     assert shown["services"]["sequencer"]["alive"] is False
+    assert shown["services"]["guardian"]["disabled"] == "single_reader_channel"
 
 
 def test_status_without_a_bridge_says_so(zenoh_settings: ZenohSettings) -> None:

@@ -20,5 +20,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "view": ("manus_stack.bench.view", False),
     "flight": ("manus_stack.bench.flight", False),
     "chaos": ("manus_stack.bench.chaos", False),
+    "objects": ("manus_stack.bench.objects", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -6,7 +6,7 @@ steps alone. Over Zenoh, as deployed: ``manus planner`` as its own process, a cl
 a loopback router that runs in this process beside the client node; the client sends the
 same request many times (MessagePack both ways, the reply carrying the trajectory and its
 preview). Both processes freeze their start-up heap as the services do
-(:func:`manus.node.freeze_startup_heap`): without it, a full garbage collection of the
+(:func:`manus.process.freeze_startup_heap`): without it, a full garbage collection of the
 client's imports (5-15 ms here) sets the 99th percentile. ``planner_compute`` is the
 planner's own time per request (``compute_ms``).
 """
@@ -26,7 +26,8 @@ import numpy as np
 
 from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import ik_batch
-from manus.node import Node, QueryError, freeze_startup_heap
+from manus.node import Node, QueryError
+from manus.process import freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
 from manus_stack.up import free_port

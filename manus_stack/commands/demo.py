@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 from manus.config import load_arm_config
-from manus.node import Node, QueryError, wait_for_signal
+from manus.node import Node, QueryError
+from manus.process import wait_for_signal
 from manus.session import client_settings
 from manus_stack.commands.up import add_stack_arguments, stack_options
 from manus_stack.demo import (

@@ -11,7 +11,7 @@ import argparse
 import json
 import sys
 
-from manus.node import wait_for_signal
+from manus.process import wait_for_signal
 from manus_stack.regression import CHECKS
 from services.recorder import replay_cli
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from manus.node import wait_for_signal
+from manus.process import wait_for_signal
 from manus.session import (
     DEFAULT_ROUTER_ENDPOINT,
     build_config,

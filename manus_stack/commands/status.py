@@ -1,7 +1,9 @@
 """``manus status [--json] [--wait S]``: services alive and where, bridge health, arm status.
 
 Exits 0 when every service of ``schemas.keys.SERVICES`` but the optional ones
-(simulator, recorder) is alive, 1 otherwise (a quick check for scripts).
+(simulator, recorder) is alive or off on purpose (its ``disabled/<service>/<why>`` token is
+up: the guardian beside a single-reader bridge channel, shown as ``OFF`` with why), 1
+otherwise (a quick check for scripts).
 """
 
 from __future__ import annotations
@@ -35,5 +37,5 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(status) + "\n")
     else:
         sys.stdout.write(format_status(status) + "\n")
-    needed = [n for n, info in status["services"].items() if n not in OPTIONAL]
-    return 0 if all(status["services"][n]["alive"] for n in needed) else 1
+    needed = {n: info for n, info in status["services"].items() if n not in OPTIONAL}
+    return 0 if all(i["alive"] or i["disabled"] is not None for i in needed.values()) else 1

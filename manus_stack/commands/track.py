@@ -22,7 +22,8 @@ import threading
 import time
 
 from manus.errors import SchemaError
-from manus.node import Node, QueryError, wait_for_signal
+from manus.node import Node, QueryError
+from manus.process import wait_for_signal
 from manus.session import settings_from_env
 from schemas import endpoints as ep
 from schemas.control import EndCause, GoalAck, GoalResult

@@ -2,15 +2,29 @@
 
     manus up                                   # simulator on a pty, everything else, recorder
     manus up --can-interface socketcan --can-channel can0    # a real arm instead
+    manus up --can-interface slcan --can-channel /dev/ttyACM0 \
+        --guardian-channel /dev/ttyACM1          # slcan: the guardian on a second adapter
     manus up --endpoint tcp/127.0.0.1:7500 --prefix arm2     # a second stack alongside
     manus up --view                            # and the arm live in Foxglove (port 8765)
 
-Starts a loopback Zenoh router, the simulator (or nothing, with a real arm), the bridge,
+Starts a loopback Zenoh router, the simulator (or nothing, with a real arm; its camera
+reports its objects, ``--objects``), the bridge,
 the CAN guardian (not with ``--no-guardian``), planner, controller, sequencer and
-recorder (``manus_stack.up``), waits until each one's liveliness token is up, prints
-where things are, and runs until Ctrl-C (or ``--duration``), then stops every process it
-started, newest first, by pid. Exits 1 if something did not come up or died meanwhile
-(naming it and its log).
+recorder (``manus_stack.up``), waits until each one's liveliness token is up and the
+bridge is in phase ``running`` (the arm powered up, in joint mode, its start-up moves
+done), then prints where things are and ``up: ...``, and runs until Ctrl-C (or
+``--duration``), then stops every process it started, newest first, by pid. All of that
+within ``--start-timeout`` (default 60 s); else it exits 1 saying what did not come up:
+a process and its log, or the bridge's phase and its detail (at once for a phase the
+bridge does not leave by itself: stopped, estopped, arm_error). Exits 1 as well when a
+process dies meanwhile.
+
+The guardian never shares a single-reader CAN channel (slcan, serial) with the bridge
+(``manus_stack.guardian_can``): give it its own, a second adapter on the same bus
+(``--guardian-channel``; ``--guardian-interface`` if of another kind). Without one it
+stays off, ``manus up`` says so and why (``guardian: OFF: ...``) and ``manus status``
+shows it; a ``--guardian-channel`` that is the bridge's own is refused before anything
+starts. socketcan and the other shared interfaces keep one channel for both.
 """
 
 from __future__ import annotations
@@ -21,7 +35,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-from manus.node import wait_for_signal
+from manus.process import wait_for_signal
 from manus_stack.up import LocalStack, StackOptions
 
 
@@ -40,6 +54,21 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         help="python-can interface of a real arm (default: the simulator)",
     )
     parser.add_argument("--can-channel", default="", help="its channel (e.g. can0)")
+    parser.add_argument(
+        "--objects",
+        default="default",
+        help="the simulator's objects, which its camera reports: 'default' (a cup, a bottle "
+        "and a phone on the table), 'none' or an objects file (docs/objects.md)",
+    )
+    parser.add_argument(
+        "--guardian-channel",
+        default="",
+        help="the guardian's own channel, a second adapter on the arm's bus (needed with "
+        "slcan or serial; default: the bridge's if it can be shared, as with socketcan)",
+    )
+    parser.add_argument(
+        "--guardian-interface", default="", help="its interface (default: --can-interface)"
+    )
     parser.add_argument(
         "--no-record",
         dest="record",
@@ -68,7 +97,7 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=60.0,
         metavar="S",
-        help="how long to wait for every service [s]",
+        help="how long to wait for every service and the bridge's phase running [s] (default 60)",
     )
 
 
@@ -82,11 +111,14 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         prefix=args.prefix,
         can_interface=args.can_interface,
         can_channel=args.can_channel,
+        guardian_interface=args.guardian_interface,
+        guardian_channel=args.guardian_channel,
         record=args.record,
         guardian=args.guardian,
         flight_ring_s=max(0.0, args.ring),
         view=args.view,
         view_port=args.view_port,
+        objects=args.objects,
     )
 
 
@@ -103,10 +135,14 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     stack = LocalStack(stack_options(args))
     try:
+        start = time.monotonic()
         stack.start(timeout=args.start_timeout)
+        stack.wait_running(max(0.0, args.start_timeout - (time.monotonic() - start)))
         for line in stack.describe():
             print(line)
-        print("up: every service is alive; Ctrl-C stops them all", flush=True)
+        print(
+            "up: every service is alive, the bridge is running; Ctrl-C stops them all", flush=True
+        )
         deadline = None if args.duration is None else time.monotonic() + args.duration
         while not stop.is_set():
             if deadline is not None and time.monotonic() >= deadline:

@@ -7,7 +7,10 @@
 
 With ``slcan`` (the default) and no ``--can-channel``, the channel is read from the
 device file the simulator writes (``--device-file``, default ``$MANUS_SIM_DEVICE_FILE``
-or ``/tmp/manus-sim.device``), waiting up to ``--wait-device`` seconds for it.
+or ``/tmp/manus-sim.device``), waiting up to ``--wait-device`` seconds for it. A
+single-reader channel (slcan, serial: :mod:`manus.can_sharing`) is locked before it is
+opened: a second process that would read it too (a guardian on the same device) is
+refused with an error naming the device.
 
 Runs until SIGINT/SIGTERM (or ``--duration``): the arm then gets zeros and 0x370 before
 the bus is closed. Prints ``bridge: ...`` when ready and one ``stats:`` JSON line (health
@@ -27,9 +30,10 @@ from typing import Any
 
 import can
 
+from manus.can_sharing import claim_channel
 from manus.canbus import open_bus
 from manus.errors import ConfigError
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
@@ -115,27 +119,30 @@ def run(args: argparse.Namespace) -> int:
     channel = resolve_channel(
         args.can_interface, args.can_channel, args.device_file, args.wait_device
     )
-    bus = open_arm_bus(args.can_interface, channel, args.bitrate)
-    try:
-        with BridgeShell(bus, settings, config) as shell:
-            freeze_startup_heap()  # before the cycle runs: no long collections in it
-            shell.start()
-            print(
-                f"bridge: {args.can_interface} {channel}, "
-                f"serving {shell.node.keys(ep.BRIDGE_COMMAND)}",
-                file=sys.stderr,
-                flush=True,
-            )
-            stop.wait(args.duration)
-            shell.stop(timeout=3.0)
-            with shell.lock:
-                state = shell.core.health
-                stats = {
-                    "phase": shell.core.phase,
-                    **dataclasses.asdict(state),
-                    "send_errors": shell.send_errors,
-                }
-    finally:
-        bus.shutdown()
+    # a single-reader channel (slcan, serial) is locked first: a second reader is refused
+    with claim_channel(args.can_interface, channel, "manus bridge"):
+        bus = open_arm_bus(args.can_interface, channel, args.bitrate)
+        try:
+            with BridgeShell(bus, settings, config) as shell:
+                freeze_startup_heap()  # before the cycle runs: no long collections in it
+                shell.start()
+                print(
+                    f"bridge: {args.can_interface} {channel}, "
+                    f"serving {shell.node.keys(ep.BRIDGE_COMMAND)}",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                stop.wait(args.duration)
+                shell.stop(timeout=3.0)
+                with shell.lock:
+                    state = shell.core.health
+                    stats = {
+                        "phase": shell.core.phase,
+                        **dataclasses.asdict(state),
+                        "send_errors": shell.send_errors,
+                        "recv_errors": shell.recv_errors,
+                    }
+        finally:
+            bus.shutdown()
     print(f"stats: {json.dumps(stats)}", file=sys.stderr, flush=True)
     return 0

@@ -29,7 +29,7 @@ from collections.abc import Callable
 import can
 import zenoh
 
-from manus.canbus import from_can, to_can
+from manus.canbus import from_can, recv, to_can
 from manus.node import Node
 from manus.protocol import FrameId
 from manus.session import ZenohSettings
@@ -84,6 +84,8 @@ class BridgeShell:
         self.node = Node(SERVICE_NAME, settings, session=session, liveliness=False)
         self.lock = self.node.lock
         self.send_errors = 0
+        self.recv_errors = 0
+        """Lines the bus backend could not parse (a garbled serial line; dropped)."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_phase = ""
@@ -144,7 +146,7 @@ class BridgeShell:
                 self._publish(out)
             if deadline is not None and (self.core.finished or self.clock() >= deadline):
                 break
-            msg = self.bus.recv(timeout=0.01)
+            msg = recv(self.bus, 0.01, self._garbled)
             now = self.clock()
             if msg is not None:
                 self._frame(msg, now)
@@ -161,6 +163,11 @@ class BridgeShell:
             self._send(out, None)
             self._publish(out)
         log.info("stopped: zeros and 0x370 sent")
+
+    def _garbled(self, exc: Exception) -> None:
+        self.recv_errors += 1
+        log.warning("dropped a line the CAN backend could not parse (%d so far): %r",
+                    self.recv_errors, exc)  # fmt: skip
 
     def _frame(self, msg: can.Message, now: int) -> None:
         stamp = round(msg.timestamp * 1e9) if msg.timestamp else now

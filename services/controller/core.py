@@ -111,6 +111,7 @@ class ControllerCore:
         self.sources = tuple(kind(self) for kind in SOURCES)
         """One of each registered command source."""
         self._ranked = sorted(self.sources, key=lambda s: -s.PRIORITY)
+        self._observers = [s for s in self.sources if type(s).observe is not CommandSource.observe]
 
     # -- what a source may ask (services.controller.command_source.Host) -----------------
 
@@ -172,12 +173,18 @@ class ControllerCore:
 
     def take(self, kind: type[S], handle: Callable[[S, Any], Output], msg: Any) -> Output:
         """A publication for source ``kind``: its outputs; the sources below it preempted
-        if it took the arm; zeros now if it stopped at once; the results so far."""
+        if it took the arm; zeros now if it stopped at once; the results so far, with
+        anything it publishes (results leave with the controller's next publication)."""
         source = self.source(kind)
         was = source.engaged
         out = handle(source, msg)
         self._preempt_below(source)
-        return out + self._stopped_now(source, was, flush=True)
+        js = self._last_js
+        if js is None or not out:
+            return out
+        if was and source.STOPS_AT_ONCE and not source.engaged:
+            out.append(self._zeros_now(js))
+        return out + self._flush(js.stamp_ns)
 
     def ask(self, kind: type[S], handle: Callable[[S, Any], Message], request: Any) -> Message:
         """A query for source ``kind``: its reply (results leave with the next joint state)."""
@@ -193,13 +200,6 @@ class ControllerCore:
         for other in self._ranked:
             if other.PRIORITY < source.PRIORITY and other.engaged:
                 other.stop(end)
-
-    def _stopped_now(self, source: CommandSource, was: bool, *, flush: bool) -> Output:
-        js = self._last_js
-        out = self._flush(js.stamp_ns) if js is not None and flush else []
-        if not (was and source.STOPS_AT_ONCE) or source.engaged or js is None:
-            return out
-        return [self._zeros_now(js), *out]
 
     def _zeros_now(self, js: JointState) -> tuple[str, Message]:
         """Zeros replacing the command already sent for ``js`` (at the next sync)."""
@@ -296,7 +296,7 @@ class ControllerCore:
             js.seq != last.seq + 1 or js.stamp_ns - last.stamp_ns > cfg.max_stamp_gap_ns
         )
         self._last_js = js
-        for source in self.sources:
+        for source in self._observers:  # (the others do nothing there: no call per cycle)
             source.observe(js, last)
         usable = js.valid and js.mode == "joint"
         if gap or not usable:

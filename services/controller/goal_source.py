@@ -90,13 +90,15 @@ class GoalSource(CommandSource):
 
     def __init__(self, host: Host) -> None:
         super().__init__(host)
+        self.config = host.config
+        """The controller's settings (immutable)."""
         self.pending: TrajectoryGoal | None = None
         self.run: TrajectoryRun | None = None
         self.gripper: GripperRun | None = None
         self.heartbeat_since_ns = 0
         """Stamp [ns] of the joint state at which the running trajectory started (the
         deadman's reference until a heartbeat newer than it arrives)."""
-        self.supervision = Supervision(host.config.cycle_ns)
+        self.supervision = Supervision(self.config.cycle_ns)
         """The supervisor's deadman: the newest echo, its sender, when states are judged."""
         self._ran: tuple[Vec3, tuple[Step, TrajectoryRun] | None] | None = None
         """This cycle's gripper position [m] and trajectory step, for the feedback."""
@@ -110,7 +112,7 @@ class GoalSource(CommandSource):
 
     def submit(self, goal: TrajectoryGoal) -> GoalAck:
         """Accept (start at the next joint state) or refuse a trajectory goal."""
-        arm = self.host.config.arm
+        arm = self.config.arm
         try:
             check_goal(goal)  # then what it starts with, built again when it starts:
             tolerances(goal, "path_tolerance")
@@ -209,7 +211,7 @@ class GoalSource(CommandSource):
     def command(self, cycle: Cycle) -> Command | None:
         """Start a pending goal, judge the deadman, step the trajectory and the gripper."""
         self._ran = None
-        if not self.engaged:
+        if self.pending is None and self.run is None and self.gripper is None:
             return None
         js, snap = cycle.js, cycle.snap_ns
         before = self.run
@@ -224,7 +226,7 @@ class GoalSource(CommandSource):
         # The gripper position of the measured angles: one forward kinematics per cycle,
         # shared by the via points, the verdicts and the feedback.
         if run is not None or self.gripper is not None:
-            xyz = gripper_position(cycle.position, self.host.config.arm)
+            xyz = gripper_position(cycle.position, self.config.arm)
             if run is not None:
                 if cycle.gap:
                     run.pause(snap)  # the reference waits for the arm over the gap
@@ -252,7 +254,7 @@ class GoalSource(CommandSource):
         xyz, ran = self._ran
         self._ran = None
         cmd = sent.command
-        arm = self.host.config.arm
+        arm = self.config.arm
         fb = goal_feedback(sent.js, self._fb_seq, xyz, ran, self.gripper, cmd.velocity, arm)
         self._fb_seq += 1
         if sent.guard:
@@ -304,7 +306,7 @@ class GoalSource(CommandSource):
         goal, self.pending = self.pending, None
         if goal is None:
             return
-        cfg = self.host.config
+        cfg = self.config
         tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
         old = self.run
         new = End(ResultStatus.PREEMPTED, EndCause.NEW_GOAL, "")
@@ -334,7 +336,7 @@ class GoalSource(CommandSource):
             run.start_ns = snap
         goal = run.goal
         error = goal.opening - js.gripper
-        counts = gripper_command(self.host.config, cycle.grip, goal.opening, run.cancelled)
+        counts = gripper_command(self.config, cycle.grip, goal.opening, run.cancelled)
         end: End | None = None
         if run.cancelled:
             end = End(ResultStatus.CANCELLED, EndCause.CANCEL_REQUEST, "cancelled")
@@ -356,7 +358,7 @@ class GoalSource(CommandSource):
 
     def _end_run(self, run: TrajectoryRun, end: End) -> None:
         js = self.host.last_js
-        stop_ns = js.stamp_ns - self.host.config.snapshot_age_ns if js is not None else 0
+        stop_ns = js.stamp_ns - self.config.snapshot_age_ns if js is not None else 0
         self.host.finish(
             GoalOutcome(
                 run.goal.goal_id,

@@ -113,7 +113,7 @@ class Guard:
         cmd_dh = encoder_increments_to_dh_list(motor)
         nxt = [a + v * self.cycle_s for a, v in zip(q, applied, strict=True)]
         end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
-        if self._proven_clear(list(q), nxt, end):
+        if self._proven_clear(q, nxt, end):
             return Verdict(counts, 1.0, "", None)
         return self._decide(counts, list(q), nxt, end, cmd_dh)
 
@@ -203,22 +203,25 @@ class Guard:
         self._anchor = _Anchor(q.tolist(), bodies, best.margin)
         return _AnchorResult(best.margin, best)
 
-    def _proven_clear(self, *qs: list[float]) -> bool:
-        """Every configuration in the joint-space box from the anchor to ``qs`` keeps every
-        body closer to the anchor than its margin there.
+    def _proven_clear(
+        self, q0: Sequence[float], q1: Sequence[float], q2: Sequence[float] | None = None
+    ) -> bool:
+        """Every configuration in the joint-space box from the anchor to ``q0``, ``q1``
+        (and ``q2``) keeps every body closer to the anchor than its margin there.
 
         A point moves at most ``sum_j |dq_j| r_j`` with ``r_j`` its largest distance from
         joint ``j``'s axis on the way, which only the joints beyond ``j`` change: ``r_j
         <= reach_j + sum_{k>j} |dq_k| r_k`` (:func:`manus.sweep` bounds the same way).
-        Plain floats, unrolled: this runs every cycle.
+        Plain floats, unrolled, no ``max`` calls: this runs every cycle.
         """
         a = self._anchor
         if a is None:
             return False
-        aq = a.q
-        box = [abs(x - y) for x, y in zip(qs[0], aq, strict=True)]
-        for q in qs[1:]:
-            box = [max(b, abs(x - y)) for b, x, y in zip(box, q, aq, strict=True)]
+        box = []
+        for x0, x1, x2, y in zip(q0, q1, q1 if q2 is None else q2, a.q, strict=True):
+            d, e, f = abs(x0 - y), abs(x1 - y), abs(x2 - y)
+            d = e if e > d else d  # max(d, e) without the call
+            box.append(f if f > d else d)
         b0, b1, b2, b3, b4, b5 = box
         for free, (r5, r4, r3, r2, r1, r0) in a.bodies:
             if free <= 0.0:

@@ -104,7 +104,7 @@ class JogSource(CommandSource):
 
     @property
     def reason(self) -> str:
-        """The jog state's words (:func:`.jog_state.jog_reason`)."""
+        """The state's words (:func:`.jog_state.jog_reason`): stable while the state is."""
         return jog_reason(self.stopped, self.cause, self.limits())
 
     # -- the stream --------------------------------------------------------------------------
@@ -152,8 +152,10 @@ class JogSource(CommandSource):
 
     def command(self, cycle: Cycle) -> Command | None:
         """The deadman, then this cycle's counts while a jog moves."""
+        if self.target is None:
+            return None
         self._deadman(cycle.js)
-        if not self.engaged:
+        if not self.engaged:  # the deadman stopped it
             return None
         counts, grip = self._counts(cycle.joints)
         if cycle.gap:  # nothing is known of the cycle(s) missed: stop, start afresh
@@ -166,12 +168,12 @@ class JogSource(CommandSource):
 
     def reports(self, sent: Sent) -> Output:
         """The JogState while a jog runs, and once after each change."""
-        show = self.engaged or self.announce
-        self.announce = False
-        limits = self.limits()
-        self.guard = None
+        show = self.target is not None or self.announce
         if not show:
             return []
+        self.announce = False
+        limits, reason = self.limits(), self.reason
+        self.guard = None  # the guard's verdict holds for this cycle only
         msg = jog_state(
             sent.js,
             self._seq,
@@ -179,6 +181,7 @@ class JogSource(CommandSource):
             stopped=self.stopped,
             cause=self.cause,
             limits=limits,
+            reason=reason,
             level=self.level,
             cfg=self.cfg,
             counts=(self.command_seq, self.refused, self.deadman_stops),

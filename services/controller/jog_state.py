@@ -61,6 +61,7 @@ def jog_state(
     stopped: End | None,
     cause: EndCause | None,
     limits: list[Slowdown],
+    reason: str,
     level: int,
     cfg: JogConfig,
     counts: tuple[int, int, int],
@@ -75,6 +76,7 @@ def jog_state(
         stopped: the stop in force (None: armed).
         cause: why the jog last stopped (None: never).
         limits: what holds the running jog back this cycle.
+        reason: the same in words (:func:`jog_reason`).
         level: the speed level in use.
         cfg: the jog's settings.
         counts: the newest command's seq, the refusals, the deadman stops.
@@ -104,7 +106,7 @@ def jog_state(
         caps=cfg.caps(level),
         scale=min(1.0, max(0.0, scale)),
         limits=[_message(lim) for lim in limits],
-        reason=jog_reason(stopped, cause, limits),
+        reason=reason,
         command_seq=command_seq,
         refused=refused,
         deadman_stops=deadman_stops,

@@ -11,7 +11,7 @@ import json
 import sys
 
 from manus.config import load_arm_config
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
 from services.controller.config import QUANTIZERS, ControllerConfig

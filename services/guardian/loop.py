@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import can
 
+from manus.canbus import recv
 from manus.protocol import Frame
 from services.guardian.core import Action, GuardianCore
 
@@ -32,11 +33,13 @@ class LoopStats:
     Attributes:
         reaction_ms: for each 0x370 sent, from the deadline to ``bus.send`` returning [ms].
         send_errors: failed sends.
+        recv_errors: lines the bus backend could not parse (dropped: ``manus.canbus.recv``).
         cpu_ns: CPU time of the loop's thread [ns].
     """
 
     reaction_ms: list[float] = field(default_factory=list)
     send_errors: int = 0
+    recv_errors: int = 0
     cpu_ns: int = 0
 
 
@@ -61,19 +64,23 @@ def run_loop(
         fd: int | None = bus.fileno()
     except NotImplementedError:
         fd = None
+
+    def garbled(exc: Exception) -> None:
+        stats.recv_errors += 1
+
     while not stop.is_set():
         due = core.next_deadline_ns()
         wait = MAX_WAIT_S if due is None else min(MAX_WAIT_S, max(0.0, (due - clock()) / 1e9))
         if fd is not None:
             select.select([fd], [], [], wait)
-            msg = bus.recv(timeout=0.0)
+            msg = recv(bus, 0.0, garbled)
         else:
-            msg = bus.recv(timeout=wait)
+            msg = recv(bus, wait, garbled)
         while msg is not None:
             action = core.on_frame(_frame(msg, clock()))
             if action is not None:
                 on_action(action)
-            msg = bus.recv(timeout=0.0)
+            msg = recv(bus, 0.0, garbled)
         frame, action = core.due(clock())
         if frame is not None and due is not None:
             try:

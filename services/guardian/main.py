@@ -2,13 +2,25 @@
 
     manus guardian                                            # the simulator's second node
     manus guardian --can-interface socketcan --can-channel can0   # beside the bridge on a real arm
+    manus guardian --can-interface slcan --can-channel /dev/ttyACM1 \
+        --bridge-channel /dev/ttyACM0                         # its own adapter on the arm's bus
 
 An independent process with its own CAN connection: it imports :mod:`manus.protocol`,
-python-can and the standard library only (no Zenoh, nothing of the bridge or the
-controller). With ``slcan`` and no ``--can-channel`` the channel is read from
-``--device-file`` (``manus sim --nodes 2`` writes node 1's pty to
-``<its --device-file>.1``; default ``$MANUS_SIM_DEVICE_FILE.1`` or
-``/tmp/manus-sim.device.1``). Each action is logged on standard error; unless
+:mod:`manus.canbus` and :mod:`manus.can_sharing` (Zenoh-free), python-can and the
+standard library only (no Zenoh, nothing of the bridge or the controller). With
+``slcan`` and no ``--can-channel`` the channel is read from ``--device-file``
+(``manus sim --nodes 2`` writes node 1's pty to ``<its --device-file>.1``; default
+``$MANUS_SIM_DEVICE_FILE.1`` or ``/tmp/manus-sim.device.1``).
+
+It never shares a single-reader channel with the bridge (:mod:`manus.can_sharing`: two
+readers of one serial line split its bytes): given the bridge's channel
+(``--bridge-channel``) and the same one of an interface such as slcan, it stays **off**:
+it opens nothing, says why on standard error, and its reporter holds the token
+``disabled/guardian/single_reader_channel`` (``manus status`` shows it) until it is stopped.
+A single-reader channel it does open is locked first, so a guardian pointed at the
+bridge's device by another name is refused with an error naming the device.
+
+Each action is logged on standard error; unless
 ``--no-report``, a reporter process (``python -m services.guardian.reporter``, the only
 part that speaks Zenoh) publishes it on ``<prefix>/guardian/report``. It is fed through a
 pipe by a thread with a bounded queue, so the decision never waits on it: when the queue
@@ -36,6 +48,8 @@ from typing import IO, Any
 
 import can
 
+from manus.can_sharing import DISABLED_SINGLE_READER, claim_channel, second_reader_refusal
+from manus.errors import ConfigError
 from manus.protocol import BITRATE
 from services.guardian.core import DEFAULT_DEADLINE_MS, Action, GuardianCore
 from services.guardian.loop import LoopStats, run_loop
@@ -65,6 +79,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--wait-device", type=float, default=10.0, help="wait for it [s]")
     parser.add_argument(
+        "--bridge-channel",
+        default="",
+        help="the bridge's channel: with a single-reader interface (slcan, serial) the "
+        "guardian does not open it too, and stays off saying why",
+    )
+    parser.add_argument(
+        "--bridge-interface", default="", help="the bridge's interface (default: the same)"
+    )
+    parser.add_argument(
         "--deadline-ms",
         type=float,
         default=DEFAULT_DEADLINE_MS,
@@ -81,22 +104,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
 
 
-def open_guardian_bus(args: argparse.Namespace) -> tuple[can.BusABC, str]:
-    """The guardian's own CAN connection and its channel (for slcan without
-    ``--can-channel``: read from the device file)."""
-    channel, extra = args.can_channel, dict[str, Any]()
+def guardian_channel(args: argparse.Namespace) -> str:
+    """The guardian's channel: as given, or (slcan without one) read from the device file.
+
+    Raises:
+        SystemExit: no channel and no device file within ``--wait-device``.
+    """
+    if args.can_channel or args.can_interface != "slcan":
+        return str(args.can_channel)
+    path, deadline = Path(args.device_file), time.monotonic() + args.wait_device
+    while not path.exists():
+        if time.monotonic() >= deadline:
+            raise SystemExit(f"manus guardian: no device file {path}: give --can-channel")
+        time.sleep(0.05)
+    return path.read_text().strip()
+
+
+def open_guardian_bus(args: argparse.Namespace, channel: str) -> can.BusABC:
+    """The guardian's own CAN connection on ``channel`` (its device locked first:
+    :func:`manus.can_sharing.claim_channel`; the lock goes with the process)."""
+    extra = dict[str, Any]()
     if args.can_interface == "slcan":
-        if not channel:
-            path, deadline = Path(args.device_file), time.monotonic() + args.wait_device
-            while not path.exists():
-                if time.monotonic() >= deadline:
-                    raise SystemExit(f"manus guardian: no device file {path}: give --can-channel")
-                time.sleep(0.05)
-            channel = path.read_text().strip()
         # non-blocking serial reads: the loop waits in select (services.guardian.loop)
         extra = {"timeout": 0, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
-    bus = can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
-    return bus, channel
+    try:
+        claim_channel(args.can_interface, channel, "manus guardian")
+    except ConfigError as exc:
+        raise SystemExit(str(exc)) from exc
+    return can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
 
 
 class Reports:
@@ -138,12 +173,34 @@ class Reports:
                 return  # the reporter is gone: the guardian goes on without it
 
 
-def start_reporter(args: argparse.Namespace) -> subprocess.Popen[str]:
-    """The reporter process, fed on its stdin (it exits when the pipe closes)."""
+def start_reporter(args: argparse.Namespace, disabled: str = "") -> subprocess.Popen[str]:
+    """The reporter process, fed on its stdin (it exits when the pipe closes); with
+    ``disabled``, it holds ``disabled/guardian/<disabled>`` instead of reporting."""
     cmd = [sys.executable, "-m", "services.guardian.reporter"]
     cmd += ["--connect", *args.connect] if args.connect else []
     cmd += ["--prefix", args.prefix] if args.prefix else []
+    cmd += ["--disabled", disabled] if disabled else []
     return subprocess.Popen(cmd, stdin=subprocess.PIPE, text=True)
+
+
+def stay_off(args: argparse.Namespace, stop: threading.Event, why: str) -> int:
+    """Open nothing; say ``why`` and hold the ``disabled`` token (reporter) until stopped."""
+    print(f"guardian: off: {why}", file=sys.stderr, flush=True)
+    reporter = start_reporter(args, disabled=DISABLED_SINGLE_READER) if args.report else None
+    stop.wait(args.duration)
+    if reporter is not None:
+        stop_reporter(reporter)
+    return 0
+
+
+def stop_reporter(reporter: subprocess.Popen[str]) -> None:
+    """Close the reporter's input and wait for it (killed after 2 s)."""
+    if reporter.stdin is not None:
+        reporter.stdin.close()
+    try:
+        reporter.wait(2.0)
+    except subprocess.TimeoutExpired:
+        reporter.kill()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -155,8 +212,13 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    channel = guardian_channel(args)
+    bridge_interface = args.bridge_interface or args.can_interface
+    why = second_reader_refusal(args.can_interface, channel, bridge_interface, args.bridge_channel)
+    if why:
+        return stay_off(args, stop, why)
     core = GuardianCore(args.deadline_ms)
-    bus, channel = open_guardian_bus(args)
+    bus = open_guardian_bus(args, channel)
     reporter = start_reporter(args) if args.report else None
     reports = Reports(core, reporter.stdin if reporter is not None else None)
     stats = LoopStats()
@@ -180,17 +242,13 @@ def run(args: argparse.Namespace) -> int:
         bus.shutdown()
         if reporter is not None:
             time.sleep(0.1)  # let the last reports leave
-            if reporter.stdin is not None:
-                reporter.stdin.close()
-            try:
-                reporter.wait(2.0)
-            except subprocess.TimeoutExpired:
-                reporter.kill()
+            stop_reporter(reporter)
     reaction = sorted(stats.reaction_ms)
     out = {
         **asdict(core.counts),
         "reports_dropped": reports.dropped,
         "send_errors": stats.send_errors,
+        "recv_errors": stats.recv_errors,
         "cpu_ms": round(stats.cpu_ns / 1e6, 3),
         "reaction_ms_p50": round(reaction[len(reaction) // 2], 3) if reaction else None,
         "reaction_ms_p99": round(reaction[(99 * len(reaction)) // 100], 3) if reaction else None,

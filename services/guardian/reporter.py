@@ -5,6 +5,9 @@ this process publishes each as a :class:`schemas.guardian.GuardianReport` on
 ``<prefix>/guardian/report`` and holds the liveliness token ``alive/guardian``. When no
 router answers it logs one warning and only drains its input, so the guardian never
 blocks on a full pipe. It ends when its input closes.
+
+With ``--disabled WHY`` (a guardian that stays off, ``manus guardian``) it holds the token
+``disabled/guardian/<WHY>`` instead of ``alive/guardian`` and publishes nothing.
 """
 
 from __future__ import annotations
@@ -48,15 +51,24 @@ def main(argv: list[str] | None = None) -> int:
     """Publish the reports read on stdin until it closes."""
     parser = argparse.ArgumentParser(prog="python -m services.guardian.reporter")
     add_bus_arguments(parser)
+    parser.add_argument(
+        "--disabled", default="", help="hold disabled/guardian/<WHY> instead of reporting"
+    )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         # the where token names the guardian (this process's parent), not the reporter
-        node: Node | None = Node("guardian", bus_settings(args), pid=os.getppid())
+        node: Node | None = Node(
+            "guardian", bus_settings(args), pid=os.getppid(), liveliness=not args.disabled
+        )
     except ConfigError as exc:
         log.warning("no report on Zenoh: %s", exc)
         node = None
-    pub = node.publisher(node.keys(ep.GUARDIAN_REPORT)) if node is not None else None
+    pub = None
+    if node is not None and args.disabled:
+        node.declare_disabled(args.disabled)
+    elif node is not None:
+        pub = node.publisher(node.keys(ep.GUARDIAN_REPORT))
     seq = 0
     try:
         for line in sys.stdin:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ConfigError
+from manus.world import WorldConfig
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,8 @@ class PlannerConfig:
             [ms], judged on the joint states' stamps (at the first one, then every so
             often), so that a controller or sequencer started (or restarted) after a
             run-time update, and a recording, learn it; 0: only when an update replaces it.
+        world: the world model's rules (stale time, jumps; :mod:`manus.world`): the planner
+            keeps the objects perception reports and publishes them on ``planner/objects``.
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -40,6 +43,7 @@ class PlannerConfig:
     max_preview_points: int = 2000
     scene: str = ""
     scene_every_ms: float = 1000.0
+    world: WorldConfig = field(default_factory=WorldConfig)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.scene_every_ms) and 0.0 <= self.scene_every_ms <= 60_000.0):

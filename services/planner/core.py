@@ -34,6 +34,7 @@ from manus.collision import CollisionModel
 from manus.kinematics import branch_of, fk_batch
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
 from manus.viapoints import ViaPointError, validate_path
+from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
@@ -72,6 +73,8 @@ class PlannerCore:
         self.checking = threading.Lock()
         """Held while the collision model is used or replaced: its Pinocchio data is
         scratch space shared by every check (a live shell plans on several threads)."""
+        self.world = WorldModel(self.config.world)
+        """The objects perception reports (``perception/objects`` -> ``planner/objects``)."""
         self.set_scene(scene_from_setting(self.config.scene))
         self.scene_state = start_scene_state(self.config.scene)
 

@@ -11,8 +11,9 @@ import json
 import sys
 
 from manus.config import load_arm_config
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
+from manus.world import WorldConfig
 from schemas import endpoints as ep
 from services.planner.config import PlannerConfig
 from services.planner.plan_cli import add_scene_argument
@@ -24,12 +25,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_bus_arguments(parser)
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     add_scene_argument(parser)
+    parser.add_argument(
+        "--object-stale-s",
+        type=float,
+        default=WorldConfig().stale_after_s,
+        metavar="S",
+        help="an object perception has not reported for longer than this is stale; a plan "
+        "to it is refused (default %(default)g s; docs/objects.md)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve plans until interrupted."""
     settings = bus_settings(args)
-    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
+    config = PlannerConfig(
+        arm=load_arm_config(args.arm_config),
+        scene=args.scene,
+        world=WorldConfig(stale_after_s=args.object_stale_s),
+    )
     stop = wait_for_signal()
     with PlannerShell(settings, config) as shell:
         freeze_startup_heap()

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.recorder.recover import recover
 from services.recorder.shell import RecorderShell

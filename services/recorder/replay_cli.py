@@ -21,7 +21,7 @@ import json
 import math
 import sys
 
-from manus.node import wait_for_signal
+from manus.process import wait_for_signal
 from manus.session import settings_from_env
 from services.recorder.errors import RecordingError
 from services.recorder.playback import Playback

@@ -151,8 +151,9 @@ class TaskClient:
             time.sleep(0.05)
         return self.bridge_phase
 
-    def submit(self, task: Task, timeout: float = 60.0) -> SubmitReply:
-        """Submit ``task`` (the sequencer validates it whole before answering).
+    def submit(self, task: Task, timeout: float = 120.0) -> SubmitReply:
+        """Submit ``task`` (the sequencer validates it whole before answering, and holds it
+        first while the bridge is still starting: at most its ``bridge_wait_s``).
 
         Raises:
             manus.node.QueryError: no sequencer answered within ``timeout`` [s].

@@ -38,6 +38,9 @@ class SequencerConfig:
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
         history: how many ended tasks ``sequencer/history`` remembers.
+        bridge_wait_s: how long a task submitted while the bridge is still starting
+            waits for phase ``running`` and a valid joint state before it is refused [s]
+            (0: refused at once; :mod:`services.sequencer.bridge_wait`).
         scene: the scene folds are checked against (``""`` = ``$MANUS_SCENE`` or the
             shipped one, ``default``, ``none`` or a file; the planner checks every move
             against its own, the same by default).
@@ -54,6 +57,7 @@ class SequencerConfig:
     fold_heartbeat_timeout_s: float = 0.15
     link_timeout_s: float = 0.5
     history: int = 100
+    bridge_wait_s: float = 30.0
     scene: str = ""
 
     def __post_init__(self) -> None:
@@ -67,6 +71,10 @@ class SequencerConfig:
                 raise ConfigError(
                     f"sequencer {name} = {value!r} s is outside 0..10 s (0: no deadman)"
                 )
+        if not 0.0 <= self.bridge_wait_s <= 3600.0:
+            raise ConfigError(
+                f"sequencer bridge_wait_s = {self.bridge_wait_s!r} s is outside 0..3600 s"
+            )
         if not 1 <= self.history <= 10_000:
             raise ConfigError(f"sequencer history = {self.history!r} is outside 1..10000")
         if not 0.1 <= self.link_timeout_s <= 3600.0:

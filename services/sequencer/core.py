@@ -10,8 +10,9 @@ submitted task, for its submitter). No Zenoh, no threads, no clock: the same inp
 the same outputs.
 
 **Submission** (:meth:`SequencerCore.submit`): a task is refused at once (a task running
-or paused, another being validated, required services missing, no joint state, the
-bridge not running) or validated whole (state ``validating``, :mod:`validate`): every
+or paused, another being validated, required services missing, the bridge stopped), held
+while the bridge is still starting (at most ``bridge_wait_s``, :mod:`bridge_wait`), or
+validated whole (state ``validating``, :mod:`validate`): every
 move is planned by the planner (``planner/plan`` queries, from where the previous steps
 leave the arm) before anything moves. The :class:`Reply` ends it: every problem found, or
 accepted, and then the task starts at once (after checking again what may have changed
@@ -93,6 +94,7 @@ from services.sequencer.actions import (
     Query,
     Reply,
 )
+from services.sequencer.bridge_wait import BridgeWait, bridge_on_its_way
 from services.sequencer.config import SequencerConfig
 from services.sequencer.steps import BY_REQUEST, NS, STEP_TYPES, Phase, Step
 from services.sequencer.validate import Validator, fold_checker, scene_fold_checker, step_label
@@ -153,6 +155,7 @@ class SequencerCore:
         self.reason = ""
         self.now = 0
         self._submission: Submission | None = None
+        self.bridge_wait = BridgeWait(self.config.bridge_wait_s)
         self._seq = 0
         self._token = 0
         self._goals = 0
@@ -189,7 +192,10 @@ class SequencerCore:
 
     @property
     def validating(self) -> str:
-        """Id of the submitted task being validated ('' when none)."""
+        """Id of the submitted task being validated or held ('' when none)."""
+        held = self.bridge_wait.held
+        if held is not None:
+            return held.task_id
         return self._submission.task_id if self._submission is not None else ""
 
     @property
@@ -218,6 +224,8 @@ class SequencerCore:
     def status(self, ok: bool = True, message: str = "") -> TaskStatus:
         """Where the current (or last) task stands; a task being validated first."""
         sub = self._submission
+        if self.bridge_wait.held is not None:
+            return self.bridge_wait.status(self.bridge_phase)
         if sub is not None:
             return TaskStatus(ok=ok, task_id=sub.task_id, state=TaskState.VALIDATING, step=-1,
                               total=len(sub.task.steps), progress=0.0,
@@ -246,10 +254,12 @@ class SequencerCore:
         """Why ``task`` cannot start now (busy, services missing, no arm), or None."""
         if self.busy:
             return refusal(f"busy: task {self.task_id} is {self.state}; cancel it first")
-        if self._submission is not None:
+        held = self.bridge_wait.busy()
+        if self._submission is not None or held:
             return refusal(
-                f"busy: task {self._submission.task_id} is being validated; submit again once "
-                "it is accepted or refused"
+                held
+                or f"busy: task {self.validating} is being validated; submit again once it "
+                "is accepted or refused"
             )
         missing = self.missing_services()
         if missing:
@@ -258,6 +268,8 @@ class SequencerCore:
             return refusal("no valid joint state from the arm yet; try again in a moment")
         if self.bridge_phase != BridgePhase.RUNNING:
             seen = self.bridge_phase or "no state/bridge received yet"
+            detail = self._bridge_state.detail if self._bridge_state is not None else ""
+            seen += f": {detail}" if detail and self.bridge_phase else ""
             return refusal(
                 f"the bridge is not running ({seen}); a task starts only in phase running"
             )
@@ -274,8 +286,36 @@ class SequencerCore:
         """
         self.now = now_ns
         refused = self.refuse(task)
+        held = refused is not None and self._bridge_starting()
+        if held and self.bridge_wait.hold(task_id, task, now_ns):
+            return []  # answered when the bridge runs, or at the end of the wait
         if refused is not None:
             return [answer(task_id, refused)]
+        return self._begin(task_id, task)
+
+    def _bridge_starting(self) -> bool:
+        """Only the bridge, on its way to running, keeps a task from starting now."""
+        if self.busy or self._submission is not None or self.missing_services():
+            return False
+        return bridge_on_its_way(self.bridge_phase, self.start_configuration() is not None)
+
+    def _recheck_held(self) -> list[Action]:
+        """The held submission: begun once the bridge is ready, refused when it stopped
+        starting or the wait is over, else held on."""
+        held = self.bridge_wait.held
+        if held is None or (self._bridge_starting() and self.now < held.until_ns):
+            return []
+        self.bridge_wait.held = None
+        refused = self.refuse(held.task)
+        if refused is None:
+            return self._begin(held.task_id, held.task)
+        if self._bridge_starting():  # the wait is over
+            detail = self._bridge_state.detail if self._bridge_state is not None else ""
+            refused = self.bridge_wait.late(held, self.bridge_phase, detail, self.now)
+        return [answer(held.task_id, refused)]
+
+    def _begin(self, task_id: str, task: Task) -> list[Action]:
+        """Validate ``task`` (plan queries), then start it."""
         validator = Validator(task, self.start_configuration(), self.config.arm, self.fold_check)
         self._submission = Submission(task_id, task, validator)
         return self._validate()
@@ -284,6 +324,10 @@ class SequencerCore:
         """Give up validating submission ``task_id`` (its submitter stopped waiting): its
         :class:`Reply` refuses it with ``reason``; late plan answers are ignored."""
         self.now = now_ns
+        held = self.bridge_wait.held
+        if held is not None and held.task_id == task_id:
+            self.bridge_wait.held = None
+            return [answer(task_id, refusal(reason))]
         sub = self._submission
         if sub is None or sub.task_id != task_id:
             return []
@@ -445,7 +489,7 @@ class SequencerCore:
                 task_id=self.task_id,
             )
             out.append(Publish(HEARTBEAT_SUFFIX, beat))
-        return out + self._check_deadline()
+        return out + self._check_deadline() + self._recheck_held()
 
     def on_bridge_state(self, bs: BridgeState, now_ns: int) -> list[Action]:
         """Bridge phase: fold progress, arm errors, e-stop."""
@@ -457,7 +501,7 @@ class SequencerCore:
         self._bridge_state = bs
         self.bridge_phase = bs.phase
         if not self.busy:
-            return []
+            return self._recheck_held()
         if self.state == TaskState.RUNNING and self._current is not None:
             out = self._current.on_bridge_state(bs)
             if out is not None:
@@ -535,7 +579,7 @@ class SequencerCore:
             out = self._current.on_tick()
             if out is not None:
                 return out
-        return self._check_link() + self._check_deadline()
+        return self._check_link() + self._check_deadline() + self._recheck_held()
 
     def on_reply(self, token: int, reply: Message | None, error: str, now_ns: int) -> list[Action]:
         """The answer to the :class:`Query` with ``token`` (None and ``error``: no answer)."""

@@ -3,14 +3,17 @@
     manus run paths/thesis_square.txt 40 paths/thesis_circle.txt 0
     manus run task.toml
 
-Submits the task to the running sequencer (or, when none is up, runs one in this
-process), shows a progress bar for the task and one for the current step, and exits 0
-when the task succeeds; 1 with the failure reason when it fails or is cancelled, or when
-the sequencer's liveliness token vanishes while the task runs and this client's link is
-up (the sequencer died or hangs: no final event may come; named on stderr, within the
-token's loss); 2 when it is refused. A final event lost on the way (a router restart, a
-sequencer whose session was down) is read from ``sequencer/history`` once the
-sequencer's token is back, and said so
+Waits up to ``--wait`` for the services, then submits the task to the running sequencer
+(or, when none is up, runs one in this process): a bridge still starting (after
+``manus up`` or a restart) holds the task in the sequencer until it runs, at most the
+sequencer's ``bridge_wait_s`` (30 s by default); a bridge stopped (stopped, estopped,
+arm_error) refuses it at once with the phase and its detail. Then it shows a progress
+bar for the task and one for the current step, and exits 0 when the task succeeds; 1
+with the failure reason when it fails or is cancelled, or when the sequencer's liveliness
+token vanishes while the task runs and this client's link is up (the sequencer died or
+hangs: no final event may come; named on stderr, within the token's loss); 2 when it is
+refused. A final event lost on the way (a router restart, a sequencer whose session was
+down) is read from ``sequencer/history`` once the sequencer's token is back, and said so
 (every validation problem is printed, with its location). Ctrl-C cancels the task (the
 arm decelerates and stops) and exits 130.
 """
@@ -22,7 +25,8 @@ import contextlib
 import sys
 import threading
 
-from manus.node import Node, QueryError, wait_for_signal
+from manus.node import Node, QueryError
+from manus.process import wait_for_signal
 from manus.session import settings_from_env
 from schemas.sequencing import StepKind, Task, TaskAction, TaskEvent, TaskEventKind, TaskStep
 from services.sequencer.client import LINK_WAIT_S, TaskClient
@@ -124,10 +128,11 @@ def run(args: argparse.Namespace) -> int:
                 f"manus run: waited {args.wait:g} s; still missing: {', '.join(missing)} "
                 "(start them, e.g. with `manus up`)"
             )
-        elif client.wait_for_arm(args.wait) != "running":
+        elif client.bridge_phase != "running":  # the sequencer holds the task meanwhile
             _err(
-                f"manus run: the bridge is not running after {args.wait:g} s "
-                f"(phase {client.bridge_phase or 'unknown'})"
+                f"manus run: the bridge is not running yet (phase "
+                f"{client.bridge_phase or 'unknown'}): the sequencer waits for it (its "
+                "bridge_wait_s, 30 s by default) or refuses the task at once if it stopped"
             )
         try:
             reply = client.submit(task)

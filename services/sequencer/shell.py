@@ -99,9 +99,11 @@ class SequencerShell:
     def _submit(self, task: Task, task_id: str) -> SubmitReply:
         """Hand ``task`` to the core and wait for its :class:`Reply` (the query worker
         carries the plan requests meanwhile); withdrawn when it takes longer than
-        ``query_timeout`` per step, plus one."""
+        ``query_timeout`` per step, plus one, plus the core's wait for a starting bridge
+        (``bridge_wait_s``)."""
         answer: Future[SubmitReply] = Future()
-        bound = self.query_timeout * (len(task.steps) + 1)
+        wait_s = self.core.config.bridge_wait_s
+        bound = self.query_timeout * (len(task.steps) + 1) + wait_s
         try:
             with self.node.lock:
                 self._answers[task_id] = answer

@@ -12,11 +12,13 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
 4. work area: a motion that would straighten the elbow further inside the stretched
    margin (warning 2) or take the gripper deeper into the forbidden area (warning 1) is
    refused, the arm holds;
-5. gripper (0..max), then the belts: the true joint follows its motor through a dead band,
+5. gripper (0..max; not below the width of an object held between the jaws), then the
+   belts: the true joint follows its motor through a dead band,
    and joint 1 has a scale error;
 6. the scene (:mod:`services.simulator.contact`): a motion that would take a body of the
-   true arm deeper into an object (or the arm itself) is refused, the arm holds where
-   the body met it (warning 3, "motor blocked"), also during a fold.
+   true arm, or the object it holds (:attr:`ArmModel.held`), deeper into an object (or
+   the arm itself) is refused, the arm holds where the body met it (warning 3, "motor
+   blocked"), also during a fold.
 
 :meth:`ArmModel.step` is pure, so the core also uses it to evaluate the truth between ticks.
 """
@@ -24,6 +26,7 @@ moves with motor 2: docs/protocol.md, Encoder map). Per step:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -36,6 +39,10 @@ from services.simulator.config import SimConfig
 from services.simulator.contact import ContactModel, Distance
 from services.simulator.drives import backlash, lag_step, move_toward
 from services.simulator.workspace import area_violation, stretch_violation
+
+Measure = Callable[[np.ndarray, float], Distance | None]
+"""The smallest true distance of something the arm carries, at DH angles [deg] and a
+gripper opening [mm] (None: nothing to measure)."""
 
 _DQ_DE = np.diag(M_ENCODER_TO_DH).copy()
 """d q_i / d e_i: how DH joint i moves with its own motor (the diagonal of the map)."""
@@ -84,6 +91,8 @@ class Intent:
             rates are zero (paused).
         stuck: motors that cannot move, shape (6,) of bool.
         checks: refuse motion into the stretched elbow or the forbidden area.
+        gripper_min_mm: the jaws cannot close below this (an object held between them)
+            [mm].
     """
 
     rates_deg_s: np.ndarray
@@ -91,6 +100,7 @@ class Intent:
     fold_target_deg: np.ndarray | None = None
     stuck: np.ndarray | None = None
     checks: bool = True
+    gripper_min_mm: float = 0.0
 
 
 class StepResult(NamedTuple):
@@ -132,6 +142,10 @@ class ArmModel:
         # transmission accumulates with its motion from there.
         self._q1_start = float(config.start_q_deg[0])
         self.contacts = ContactModel(config.scene, config.arm, config.start_gripper_mm * 1e-3)
+        self.held: Measure | None = None
+        """The held object's smallest true distance to the scene at DH angles [deg] and a
+        gripper opening [mm] (None: nothing to hold; set by the simulator's objects,
+        :mod:`services.simulator.object_world`): it meets the scene as a body does."""
 
     def initial_state(self) -> ArmState:
         """At rest in the configured start pose, every belt's slack centred."""
@@ -175,24 +189,43 @@ class ArmModel:
             if refused is not None:
                 warnings.add(refused)
                 x, v = x0, np.zeros(6)
-        g, gv = self._gripper(state, intent.gripper_mm_s, dt_s)
+        g, gv = self._gripper(state, intent.gripper_mm_s, dt_s, intent.gripper_min_mm)
         out = backlash(state.output_deg, x, self.width)
         end = ArmState(x, v, out, g, gv)
-        after = self.contacts.distance(self.q_true_deg(end), g)
+        q_end = self.q_true_deg(end)
+        after = self.contacts.distance(q_end, g)
         contact = ""
-        if after is not None and after.distance < 0.0 and not np.array_equal(x, x0):
-            before = self.contacts.distance(self.q_true_deg(state), state.gripper_mm)
-            assert before is not None
-            if after.distance < before.distance - _EPS:
+        if not np.array_equal(x, x0):
+            contact = self._meets(self.contacts.distance, state, q_end, g, after)
+            if not contact and self.held is not None:
+                contact = self._meets(self.held, state, q_end, g)
+            if contact:
                 warnings.add(WARN_MOTOR_BLOCKED)
-                contact = after.pair
                 end = ArmState(x0, np.zeros(6), state.output_deg, g, gv)
                 x = x0
-                after = before
+                after = self.contacts.distance(self.q_true_deg(state), state.gripper_mm)
         arrived = intent.fold_target_deg is not None and bool(
             np.all(np.abs(intent.fold_target_deg - x) <= _EPS)
         )
         return StepResult(end, frozenset(warnings), arrived, after, contact)
+
+    def _meets(
+        self,
+        measure: Measure,
+        state: ArmState,
+        q_end: np.ndarray,
+        gripper_mm: float,
+        after: Distance | None = None,
+    ) -> str:
+        """``body/object`` when the step from ``state`` to true DH angles ``q_end`` [deg]
+        and opening ``gripper_mm`` [mm] takes that pair deeper into contact ('': it
+        does not)."""
+        if after is None:
+            after = measure(q_end, gripper_mm)
+        if after is None or after.distance >= 0.0:
+            return ""
+        before = measure(self.q_true_deg(state), state.gripper_mm)
+        return after.pair if before is None or after.distance < before.distance - _EPS else ""
 
     def _limit(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         # Each DH joint i is set by its own motor i (joint 3 relative to motor 2), so clamp
@@ -233,7 +266,9 @@ class ArmModel:
             self._area_cache[key] = cached
         return cached
 
-    def _gripper(self, state: ArmState, rate_mm_s: float, dt_s: float) -> tuple[float, float]:
+    def _gripper(
+        self, state: ArmState, rate_mm_s: float, dt_s: float, lowest_mm: float
+    ) -> tuple[float, float]:
         gx, gv = lag_step(
             np.array([state.gripper_mm]),
             np.array([state.gripper_speed_mm_s]),
@@ -242,8 +277,9 @@ class ArmModel:
             self.tau_s,
         )
         g, speed = float(gx[0]), float(gv[0])
-        if g <= 0.0 or g >= self.gripper_max_mm:
-            return min(max(g, 0.0), self.gripper_max_mm), 0.0
+        lowest = min(max(lowest_mm, 0.0), self.gripper_max_mm)
+        if g <= lowest or g >= self.gripper_max_mm:
+            return min(max(g, lowest), self.gripper_max_mm), 0.0
         return g, speed
 
 

@@ -27,6 +27,7 @@ from manus.config import (
     read_json_object,
 )
 from manus.errors import ConfigError
+from services.simulator.camera_config import CameraConfig
 from services.simulator.faults import FaultConfig
 from services.simulator.target_config import NO_TARGET, TargetConfig
 
@@ -91,6 +92,12 @@ class SimConfig:
             ``$MANUS_SCENE`` or the shipped wheelchair scene, ``default``, ``none`` or a
             scene file), the same as the planner's by default. A body
             that meets an object stops there (warning 3); the truth reports distances.
+        objects: the objects the simulator holds at power-up (docs/objects.md): ``""`` =
+            ``$MANUS_OBJECTS`` or none, ``default`` (a cup, a bottle and a phone on the
+            shipped scene's table), ``none`` or an objects file.
+        grasp_tolerance_mm: a grasp holds when the object's centre is within this of the
+            grasp point across the jaw axis, else it slips [mm].
+        camera: the simulated camera (:class:`~services.simulator.camera_config.CameraConfig`).
         target: a moving target and its tracker (the user's mouth; off by default:
             :class:`~services.simulator.target_config.TargetConfig`).
     """
@@ -117,6 +124,9 @@ class SimConfig:
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
     scene: str = ""
+    objects: str = ""
+    grasp_tolerance_mm: float = 15.0
+    camera: CameraConfig = field(default_factory=CameraConfig)
     target: TargetConfig = NO_TARGET
 
     def __post_init__(self) -> None:
@@ -159,6 +169,7 @@ class SimConfig:
         _finite("stretched_margin_deg", self.stretched_margin_deg, 0.0, 45.0)
         _finite("floor_z_mm", self.floor_z_mm, -2000.0, 2000.0)
         _finite("base_radius_mm", self.base_radius_mm, 0.0, 1000.0)
+        _finite("grasp_tolerance_mm", self.grasp_tolerance_mm, 0.0, 100.0)
         if self.garbage not in GARBAGE_KINDS:
             raise ConfigError(f"`garbage` {self.garbage!r} must be one of {GARBAGE_KINDS}")
         q = self.start_q_deg
@@ -200,18 +211,11 @@ class SimConfig:
         for key, value in data.items():
             if key not in known:
                 raise ConfigError(f"{source}: unknown simulator setting `{key}` ({sorted(known)})")
-            if key == "arm":
+            nested = _NESTED.get(key)
+            if nested is not None:
                 if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `arm` must be an object")
-                kwargs[key] = ArmConfig.from_mapping(value, source=f"{source}: arm")
-            elif key == "target":
-                if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `target` must be an object")
-                kwargs[key] = TargetConfig.from_mapping(value, source=source)
-            elif key == "faults":
-                if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `faults` must be an object")
-                kwargs[key] = FaultConfig.from_mapping(value, source=source)
+                    raise ConfigError(f"{source}: `{key}` must be an object")
+                kwargs[key] = nested(value, source)
             elif isinstance(value, list):
                 kwargs[key] = tuple(value)
             else:
@@ -249,3 +253,12 @@ def load_sim_config(
     if seed is not None:
         config = config.with_overrides(seed=seed)
     return config
+
+
+_NESTED: dict[str, Any] = {
+    "arm": lambda value, source: ArmConfig.from_mapping(value, source=f"{source}: arm"),
+    "camera": lambda value, source: CameraConfig.from_mapping(value, source=f"{source}: camera"),
+    "target": lambda value, source: TargetConfig.from_mapping(value, source=source),
+    "faults": lambda value, source: FaultConfig.from_mapping(value, source=source),
+}
+"""The settings that are objects of their own, and how each is read (value, source)."""

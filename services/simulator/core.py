@@ -9,12 +9,14 @@ another reply replaces it (a late or missing reply repeats the last command); a 
 (0x375/0x376) advances only in the cycles after a sync that it answered.
 
 Every 20 ms tick integrates the active command over the tick that ends there
-(:mod:`services.simulator.arm`). Events at the same instant run in this order: the
+(:mod:`services.simulator.arm`), then moves the objects (:mod:`.object_world`: held,
+falling, resting, their contacts). Events at the same instant run in this order: the
 tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
-or sync), frames leaving, frames from the PC, then the moving target's tracker
-(:mod:`.target`: its captures and frames on ``target/pose``; :meth:`SimCore.take_messages`
-hands them out). The target's body (the user's head) is placed where it is at each tick
-before the tick's integration, so the true distances see the person move.
+or sync), frames leaving, frames from the PC, then the camera's capture and publications
+(:mod:`.camera`) and the moving target's tracker (:mod:`.target`: its captures and frames
+on ``target/pose``); :meth:`SimCore.take_messages` hands them out. The target's body (the
+user's head) is placed where it is at each tick before the tick's integration, so the
+true distances see the person move.
 
 The core never reads a clock and draws every random number from generators seeded by
 ``config.seed``: same configuration and inputs, same frames, bit for bit.
@@ -22,6 +24,7 @@ The core never reads a clock and draws every random number from generators seede
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import itertools
 
@@ -44,6 +47,7 @@ from schemas.base import Message
 from schemas.state import SimTruth
 from services.simulator.arm import ArmModel, ArmState, Intent
 from services.simulator.arm_faults import ArmFaults
+from services.simulator.camera import Camera
 from services.simulator.cartesian import cartesian_fields
 from services.simulator.config import MS, SimConfig
 from services.simulator.controller import ArmController, FoldProcedure
@@ -55,6 +59,8 @@ from services.simulator.faults import (
     Silence,
 )
 from services.simulator.messages import MessageBoard
+from services.simulator.object_world import ObjectWorld
+from services.simulator.rays import Primitive
 from services.simulator.replies import WARN_CLAMPED, Reply, classify
 from services.simulator.report import (
     Snapshot,
@@ -87,8 +93,8 @@ class SimCore:
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
-        rngs = np.random.default_rng(cfg.seed).spawn(4)
-        model_rng, fault_rng, self._garbage_rng, target_rng = rngs
+        rngs = np.random.default_rng(cfg.seed).spawn(5)
+        model_rng, fault_rng, self._garbage_rng, camera_rng, target_rng = rngs
         gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
         self.model = ArmModel(cfg, gains)
         self.counters = SimCounters()
@@ -115,10 +121,16 @@ class SimCore:
         self._arm_faults = ArmFaults()
         for fault in cfg.faults.all:
             self.add_fault(fault)
+        scene = scene_from_setting(cfg.scene)
+        self.objects = ObjectWorld(cfg, scene)
+        """The objects: resting, held, falling (:mod:`services.simulator.object_world`)."""
+        self.model.held = self.objects.held_distance
+        self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
+        """The simulated camera (None: switched off)."""
         self.target: MovingTarget | None = None
         """The moving target and its tracker (None: switched off)."""
         if cfg.target.enabled:
-            self.target = MovingTarget(cfg.target, target_rng, scene_from_setting(cfg.scene))
+            self.target = MovingTarget(cfg.target, target_rng, scene)
         self._messages: list[tuple[int, str, Message]] = []
 
     # -- the harness interface -----------------------------------------------------------
@@ -129,13 +141,14 @@ class SimCore:
         return self._now
 
     def next_event_ns(self) -> int:
-        """Time of the next thing the core does: a tick, a frame leaving, or a capture or
-        frame of the target's tracker [ns]."""
-        t = (
-            self._next_tick
-            if self.target is None
-            else min(self._next_tick, self.target.next_event_ns())
-        )
+        """Time of the next thing the core does: a tick, a frame leaving, a capture or a
+        publication of the camera or of the target's tracker [ns]."""
+        due = [self._next_tick]
+        if self.camera is not None:
+            due.append(self.camera.next_event_ns())
+        if self.target is not None:
+            due.append(self.target.next_event_ns())
+        t = min(due)
         if self._outbox:
             return min(t, self._outbox[0][0])
         return t
@@ -155,8 +168,9 @@ class SimCore:
         while True:
             t_out = self._outbox[0][0] if self._outbox else None
             t_in = self._inbox[0][0] if self._inbox else None
+            t_cam = None if self.camera is None else self.camera.next_event_ns()
             t_tgt = None if self.target is None else self.target.next_event_ns()
-            t = min(x for x in (self._next_tick, t_out, t_in, t_tgt) if x is not None)
+            t = min(x for x in (self._next_tick, t_out, t_in, t_cam, t_tgt) if x is not None)
             if t > t_ns:
                 break
             self._now = t
@@ -168,8 +182,11 @@ class SimCore:
             elif t == t_in:
                 self._handle(heapq.heappop(self._inbox)[2])
             else:
-                assert self.target is not None
-                self._messages += [(at, ep.TARGET, msg) for at, msg in self.target.due(t)]
+                if t_cam is not None and t == t_cam:
+                    self._camera_event(t)
+                if t_tgt is not None and t == t_tgt:
+                    assert self.target is not None
+                    self._messages += [(at, ep.TARGET, msg) for at, msg in self.target.due(t)]
         self._now = t_ns
         self.counters.frames_sent += len(sent)
         return sent
@@ -200,11 +217,14 @@ class SimCore:
         state = self.state_at(t)
         self._place_body(t)
         target = None if self.target is None else self.target.truth(t)
-        return make_truth(self.model, state, t, t // TICK_NS, self.contact_record, target)
+        return make_truth(
+            self.model, state, t, t // TICK_NS, self.contact_record, self.objects, target
+        )
 
     def take_messages(self) -> list[tuple[int, str, Message]]:
-        """The bus messages published since the last call (the target's tracker's frames
-        on ``target/pose``): (publication time [ns], key suffix, message), in order."""
+        """The bus messages published since the last call (the camera's frames on
+        ``perception/objects``, the target's tracker's on ``target/pose``): (publication
+        time [ns], key suffix, message), in order."""
         out, self._messages = self._messages, []
         return out
 
@@ -278,6 +298,10 @@ class SimCore:
         self._place_body(t)
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
+        if self.objects.objects:
+            if result.contact:
+                self.objects.blocked(t, result.contact)
+            self._move_objects(t)
         self.contact_record.update(result)
         self._board.raise_warnings(result.warnings)
         ctl = self.controller
@@ -301,6 +325,24 @@ class SimCore:
             self._emit(sync_frame(t))
             self._window = (t, t + WINDOW_NS)
             self._window_used = False
+
+    def _move_objects(self, t: int) -> None:
+        state = self._state
+        self.objects.tick(t, self.model.q_true_deg(state), state.gripper_mm)
+        floor = self.objects.gripper_floor_mm
+        if floor > state.gripper_mm:  # the jaws closed on an object this tick: they stop there
+            self._state = dataclasses.replace(state, gripper_mm=floor, gripper_speed_mm_s=0.0)
+
+    def _camera_event(self, t: int) -> None:
+        camera = self.camera
+        assert camera is not None
+        if t >= camera.next_capture_ns:
+            state = self.state_at(t)
+            q = self.model.q_true_deg(state)
+            bodies, poses = self.objects.placed(t, q, state.gripper_mm)
+            arm = [Primitive(b.shape, b.size, b.pose) for b in bodies]
+            camera.capture(t, list(zip(self.objects.objects, poses, strict=True)), arm)
+        self._messages += [(at, ep.PERCEPTION, msg) for at, msg in camera.due(t)]
 
     def _timed_faults(self, t: int) -> None:
         for code in self._arm_faults.errors_due(t):
@@ -354,7 +396,9 @@ class SimCore:
         """What the drives do over the tick starting at ``t0``."""
         stuck = self._arm_faults.stuck_at(t0)
         error = self._board.error is not None
-        return self.controller.intent(t0, self._state.motor_deg, stuck, error=error)
+        intent = self.controller.intent(t0, self._state.motor_deg, stuck, error=error)
+        floor = self.objects.gripper_floor_mm
+        return intent if floor <= 0.0 else dataclasses.replace(intent, gripper_min_mm=floor)
 
     # -- the report ----------------------------------------------------------------------
 

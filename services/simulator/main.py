@@ -9,9 +9,10 @@
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
-answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle, its moving
-target's tracker on ``<prefix>/target/pose`` (when the config's ``target`` is enabled)
-and answers ``<prefix>/sim/fault`` (switch a fault on at run time,
+answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle, its camera's
+frames on ``<prefix>/perception/objects`` (docs/objects.md), its moving target's tracker on
+``<prefix>/target/pose`` (when the config's ``target`` is enabled; docs/follow.md) and
+answers ``<prefix>/sim/fault`` (switch a fault on at run time,
 ``services/simulator/fault_desk.py``).
 """
 
@@ -24,18 +25,20 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import can
 
 from manus.canbus import open_bus
-from manus.node import Node, freeze_startup_heap, wait_for_signal
+from manus.node import Node
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
 from manus.session import settings_from_env
 from schemas import endpoints as ep
 from schemas.simfault import SimFault
 from schemas.state import SimTruth
-from services.simulator.config import load_sim_config
+from services.simulator.config import SimConfig, load_sim_config
 from services.simulator.core import SimCore
 from services.simulator.fault_desk import FaultDesk
 from services.simulator.live import LiveSim
@@ -74,6 +77,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--config", help="simulator config JSON (default $MANUS_SIM_CONFIG)")
     parser.add_argument("--seed", type=int, help="random seed (overrides the config)")
+    parser.add_argument(
+        "--objects",
+        help="the objects at power-up (overrides the config): an objects file, 'default' (a "
+        "cup, a bottle and a phone on the table) or 'none' (docs/objects.md)",
+    )
+    parser.add_argument(
+        "--camera",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="the simulated camera on <prefix>/perception/objects (overrides the config)",
+    )
     parser.add_argument(
         "--arm-config",
         help="arm geometry/limits JSON, the same file the other services read (default: "
@@ -139,9 +153,20 @@ def wait_for_client(
     log.info("slcan client opened %s: powering the arm up", bus.channel_info)
 
 
+def sim_config(args: argparse.Namespace) -> SimConfig:
+    """The configuration of the command line: defaults < file < ``--seed``, ``--objects``,
+    ``--camera``."""
+    config = load_sim_config(args.config, seed=args.seed, arm_config=args.arm_config)
+    if args.objects is not None:
+        config = config.with_overrides(objects=args.objects)
+    if args.camera is not None:
+        config = config.with_overrides(camera=replace(config.camera, enabled=args.camera))
+    return config
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the simulator (or write the step-response plot)."""
-    config = load_sim_config(args.config, seed=args.seed, arm_config=args.arm_config)
+    config = sim_config(args)
     if args.step_response:
         from services.simulator.stepresponse import plot_step_response
 
@@ -171,19 +196,9 @@ def run(args: argparse.Namespace) -> int:
             for sink in sinks:
                 sink(truth)
 
-        live: LiveSim | None = None
-
-        def wall_t0() -> int:
-            return live.wall_t0_ns if live is not None else 0
-
-        publish = MessagePublisher(node, wall_t0) if node is not None else None
-        live = LiveSim(
-            SimCore(config),
-            bus,
-            on_snapshot=on_snapshot if sinks else None,
-            on_message=publish,
-        )
+        live = LiveSim(SimCore(config), bus, on_snapshot=on_snapshot if sinks else None)
         if node is not None:
+            live.on_message = MessagePublisher(node, lambda: live.wall_t0_ns)
             node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
             node.announce()
         if isinstance(bus, SlcanPtyBus | NodeHub) and args.wait_client:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,6 +14,9 @@ from schemas.state import SimTruth
 from schemas.target import TargetTruth
 from services.simulator.arm import ArmModel, ArmState, StepResult, motor_to_dh_deg
 
+if TYPE_CHECKING:
+    from services.simulator.object_world import ObjectWorld
+
 
 def make_truth(
     model: ArmModel,
@@ -20,10 +24,12 @@ def make_truth(
     t_ns: int,
     seq: int,
     record: ContactRecord | None = None,
+    world: ObjectWorld | None = None,
     target: TargetTruth | None = None,
 ) -> SimTruth:
-    """The truth of ``state`` at ``t_ns`` (``record``: the contacts so far; ``target``: the
-    moving target's truth at ``t_ns``).
+    """The truth of ``state`` at ``t_ns`` (``record``: the contacts so far; ``world``: the
+    objects, their contacts and the held object's clearances; ``target``: the moving
+    target's truth at ``t_ns``).
 
     ``q_true`` are the belt-side joint angles (backlash, joint 1 scale error); ``q_reported``
     the DH angles of the encoder readings (motor angles quantised to 0.1 deg) at the same
@@ -43,6 +49,10 @@ def make_truth(
     person = record.min_person
     if now is not None and now.person is not None:
         person = now.person if person is None else min(person, now.person)
+    objects, held = [], None
+    if world is not None and world.objects:
+        objects = world.truth(t_ns, np.degrees(q_true), state.gripper_mm)
+        held = world.contacts.held_clearance
     return SimTruth(
         stamp_ns=t_ns,
         seq=seq,
@@ -57,6 +67,11 @@ def make_truth(
         min_clearance=lowest,
         contacts=record.contacts,
         contact=record.last,
+        objects=objects,
+        object_contacts=world.contacts.contacts() if world is not None else [],
+        held_clearance=None if held is None else held[0],
+        held_clearance_pair="" if held is None else held[1],
+        held_min_person=world.contacts.held_min_person if world is not None else None,
         person_clearance=None if now is None else now.person,
         person_pair="" if now is None else now.person_pair,
         min_person_clearance=person,

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from manus.config import load_arm_config
-from manus.node import freeze_startup_heap, wait_for_signal
+from manus.process import freeze_startup_heap, wait_for_signal
 from manus.session import add_bus_arguments, bus_settings
 from services.viewer.layout import layout_json
 from services.viewer.server import DEFAULT_BACKLOG, DEFAULT_HOST, DEFAULT_PORT
