@@ -5,7 +5,9 @@ once as a ``TargetTaken``, after which joint state it came, for exact replays) a
 follow goals (``controller/follow``). A goal starts at the next joint state: its tracked
 point follows the target of its ``source`` to the standoff point and holds it there
 (:mod:`.follow_law`; the target's prediction over the delays: :mod:`.target_track`;
-the scene's persons, zones and reach: :mod:`.follow_space`), until it is stopped (a
+the scene's persons, zones and reach: :mod:`.follow_space`; the goal's checks:
+:mod:`.follow_goal`; the bodies the frames report: :mod:`.follow_body`), until it is
+stopped (a
 ``stop`` request: cancelled), preempted (a jog: ``user_took_over``; a new follow goal:
 ``new_goal``) or a fault ends it. It ranks above trajectory goals (it preempts them) and
 below the jog.
@@ -28,14 +30,9 @@ scene that replaces this one too).
 
 from __future__ import annotations
 
-import functools
-import math
-
 import numpy as np
 
-from manus.errors import ManusError
 from manus.kinematics import gripper_pose
-from manus.orientation import ypr_to_matrix
 from schemas import endpoints as ep
 from schemas.control import CommandSourceKind, EndCause, GoalAck, GoalKind, Refusal, ResultStatus
 from schemas.follow import FollowGoal
@@ -52,6 +49,8 @@ from services.controller.command_source import (
     SourceAnswer,
     SourceInput,
 )
+from services.controller.follow_body import Bodies, rotation
+from services.controller.follow_goal import FollowError, settings
 from services.controller.follow_law import Aim, FollowRun, Settings, follow_counts
 from services.controller.follow_report import FollowReport
 from services.controller.follow_space import FollowSpace
@@ -64,22 +63,6 @@ from services.controller.target_track import Frame, TargetTrack
 _ZERO = np.zeros(6, dtype=np.int64)
 _SOURCES_KEPT = 8
 """Trackers whose frames are kept (the oldest heard of is forgotten beyond)."""
-
-
-class FollowError(ManusError, ValueError):
-    """A follow goal that cannot run (the message names the field, value and limit)."""
-
-
-@functools.lru_cache(maxsize=64)
-def _ypr_matrix(yaw: float, pitch: float, roll: float) -> np.ndarray:
-    R = ypr_to_matrix(yaw, pitch, roll)
-    R.flags.writeable = False
-    return R
-
-
-def _rotation(ypr: list[float]) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (a tracker's orientations repeat: cached)."""
-    return _ypr_matrix(ypr[0], ypr[1], ypr[2])
 
 
 def _ack(goal_id: str, refused: Refused | None = None) -> GoalAck:
@@ -119,10 +102,8 @@ class FollowSource(CommandSource):
         self._space: tuple[object, FollowSpace] | None = None
         self.refused: dict[str, int] = {}
         """Frames refused per tracker (not decodable: under '')."""
-        self._bodies_due: dict[str, np.ndarray] = {}
-        """Body poses the newest frames reported (chair frame), placed at the next joint
-        state (:meth:`observe`)."""
-        self._rests: dict[tuple[int, str], tuple[float, float, float] | None] = {}
+        self.bodies = Bodies(self.config.follow.max_body_shift_m)
+        """The person bodies the frames report, placed at the next joint state."""
 
     @property
     def engaged(self) -> bool:
@@ -167,7 +148,7 @@ class FollowSource(CommandSource):
                 f"{jump.interval * 1e3:.0f} ms, more than a person can "
                 f"({jump.allowed * 1e3:.0f} mm at {track.max_speed:g} m/s plus the noise)",
             )
-        why = self._place_body(msg, space)
+        why = self.bodies.take(msg, space, self.host.scene)
         if why is not None and following:
             self._fault(EndCause.TARGET_JUMP, why)
         return taken
@@ -275,42 +256,14 @@ class FollowSource(CommandSource):
         return track
 
     def _settings(self, goal: FollowGoal) -> Settings:
-        """The goal's settings against the controller's.
+        """The goal's settings against the controller's (:func:`.follow_goal.settings`).
 
         Raises:
             FollowError: naming the field, the value and the limit.
         """
-        cfg = self.config.follow
-        if not goal.source:
-            raise FollowError("`source` is empty: name the tracker to follow (TargetPose.source)")
-        size = math.sqrt(sum(v * v for v in goal.approach))
-        if not size > 1e-9:
-            raise FollowError(f"`approach` {goal.approach} has no direction")
-        if goal.max_speed > cfg.max_speed:
-            raise FollowError(
-                f"`max_speed` {goal.max_speed:g} m/s is above the controller's cap "
-                f"{cfg.max_speed:g} m/s"
-            )
-        standoff = goal.standoff or cfg.standoff_m
-        person = self.space.person_clearance
-        clearance = goal.close_clearance if goal.close else person
         newest = self.frames_of.get(goal.source)
-        free = newest is not None and not newest.body  # a target on no person
-        if not goal.close and not free and standoff < person:
-            raise FollowError(
-                f"`standoff` {standoff * 1e3:.0f} mm is inside the person's clearance "
-                f"{person * 1e3:.0f} mm (a closer approach is `close`, explicitly)"
-            )
-        if goal.close and standoff < goal.close_clearance:
-            raise FollowError(
-                f"`standoff` {standoff * 1e3:.0f} mm is below `close_clearance` "
-                f"{goal.close_clearance * 1e3:.0f} mm"
-            )
-        a, b, c = (v / size for v in goal.approach)
-        x, y, z = goal.offset
-        return Settings(
-            standoff, (a, b, c), (x, y, z), goal.max_speed or cfg.max_speed, clearance, goal.close
-        )
+        on_person = newest is None or bool(newest.body)  # no frame yet: as if on a person
+        return settings(goal, self.config.follow, self.space.person_clearance, on_person)
 
     def _not_ready(self, goal: FollowGoal) -> Refused | None:
         """Why ``goal`` cannot start now: no joint state, no fresh frame of its target."""
@@ -344,7 +297,7 @@ class FollowSource(CommandSource):
         predicted = track.predict(t_end_ns)
         assert predicted is not None  # a goal starts only with a frame
         frame = self.frames_of[goal.source]
-        R = self.space.rotation_to_base(_rotation(frame.ypr), frame.frame)
+        R = self.space.rotation_to_base(rotation(frame.ypr), frame.frame)
         assert self.run is not None
         a = self.run.settings.approach
         n = R @ np.array(a)
@@ -360,57 +313,10 @@ class FollowSource(CommandSource):
             p[2] + R[6] * x + R[7] * y + R[8] * z,
         )
 
-    def _place_body(self, msg: TargetPose, space: FollowSpace) -> str | None:
-        """Keep the frame's body pose to place at the next joint state (within the bound);
-        why not (None: kept, or nothing to place)."""
-        if not msg.body or len(msg.body_xyz) != 3 or len(msg.body_ypr) != 3:
-            return None
-        rest = self._rest_of(msg.body)
-        if rest is None:
-            return f"the target's body {msg.body!r} is not a person of the scene"
-        rotation = _rotation(msg.body_ypr)
-        pose = np.eye(4)
-        if msg.frame == "chair":
-            pose[:3, :3], pose[:3, 3] = rotation, msg.body_xyz
-        else:  # the guard places scene objects in the chair frame
-            base = np.eye(4)
-            base[:3, :3], base[:3, 3] = rotation, msg.body_xyz
-            pose = space.pose_to_chair(base)
-        shift = math.dist(pose[:3, 3], rest)
-        bound = self.config.follow.max_body_shift_m
-        if shift > bound:
-            return (
-                f"the target's body {msg.body!r} reported {shift * 1e3:.0f} mm from its place "
-                f"in the scene, more than max_body_shift_m {bound * 1e3:.0f} mm"
-            )
-        self._bodies_due[msg.body] = pose
-        return None
-
-    def _rest_of(self, name: str) -> tuple[float, float, float] | None:
-        """Where the person object ``name`` is in the scene (chair frame; None: no such
-        person)."""
-        scene = self.host.scene
-        key = (id(scene), name)
-        if key not in self._rests:
-            found = next((o for o in scene.objects if o.name == name), None) if scene else None
-            xyz = found.body.pose[:3, 3] if found is not None and found.cls == "person" else None
-            self._rests[key] = (
-                None if xyz is None else (float(xyz[0]), float(xyz[1]), float(xyz[2]))
-            )
-        return self._rests[key]
-
     def observe(self, js: JointState, last: JointState | None) -> None:
         """Place the bodies the newest frames reported, once per joint state, before any
         command is guarded."""
-        if not self._bodies_due:
-            return
-        space = self.space
-        for name, pose in self._bodies_due.items():
-            self.host.move_object(name, pose)
-            base = space.to_base @ pose
-            space.move_person(name, base)
-            self.report.bodies[name] = base
-        self._bodies_due.clear()
+        self.bodies.place(self.host, self.space, self.report.bodies)
 
     def _stop_request(self, goal_id: str) -> GoalAck:
         current = self.goal or self.pending
