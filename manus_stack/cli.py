@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),
     "jog": ("manus_stack.commands.jog", "drive the arm from the keyboard (live control)"),
     "panel": ("manus_stack.commands.panel", "the web page for the user: tasks, jog pad, STOP"),
+    "track": ("manus_stack.commands.track", "follow a tracker's target (a mouth) to a standoff"),
     "task": ("services.sequencer.task_cli", "pause, resume, cancel or show the running task"),
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),

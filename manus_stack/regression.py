@@ -43,13 +43,14 @@ from pathlib import Path
 
 from manus.wiring import BAD_PAYLOAD
 from manus_stack.comparison import CPU_ROUNDING, CheckResult, Comparer, plain
-from manus_stack.service_window import Window, service_window
+from manus_stack.service_window import EARLY_OUTPUT_NS, EVERYTHING, Window, service_window
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.jog import JogTaken
 from schemas.liveliness import TokenGone
 from schemas.planning import PlanReply
 from schemas.state import JointState
+from schemas.target import TargetTaken
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER
@@ -133,12 +134,7 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     """Replay the controller's inputs through :class:`ControllerCore` (module docstring)."""
     recording = Recording(path)
     core = ControllerCore(config)
-    window = service_window(
-        recording,
-        CONTROLLER.service,
-        (ep.JOINTS,),
-        CONTROLLER.output_suffixes,  # its clock
-    )
+    window = _controller_window(recording)
     recorded, last_ns = _recorded_outputs(recording, CONTROLLER.output_suffixes, window)
     cmp = Comparer(recorded, last_ns, CPU_ROUNDING)  # its counts exactly: integers
     window = (window[0], last_ns)
@@ -153,6 +149,13 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
                 if taken is not None
                 else CONTROLLER.feed_bad(core, ep.JOG, msg.error, t)
             )
+        elif isinstance(msg, TargetTaken):  # the same for a tracker's frames
+            frame = msg.target
+            outputs = (
+                CONTROLLER.feed(core, ep.TARGET, frame, t)
+                if frame is not None
+                else CONTROLLER.feed_bad(core, ep.TARGET, msg.error, t)
+            )
         elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
             outputs = CONTROLLER.feed_token_gone(core, msg.service, t)
         elif msg is None:
@@ -162,6 +165,29 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         for suffix, out_msg in outputs:
             cmp.add(suffix, out_msg.encode(), rec.log_ns)
     return cmp.result(CONTROLLER.service, inputs)
+
+
+def _controller_window(recording: Recording) -> Window:
+    """The controller's window (:func:`service_window`): from the joint state its first
+    command answers; and from its first record of a taken input (a tracker's frame, a jog
+    command) before any joint state, when that comes first: a tracker publishing before the
+    controller listens is taken at once, and every frame taken shapes its prediction."""
+    start, end = service_window(
+        recording,
+        CONTROLLER.service,
+        (ep.JOINTS,),
+        CONTROLLER.output_suffixes,  # its clock
+    )
+    if start == EVERYTHING[0]:
+        return start, end
+    taken = (ep.TARGET_TAKEN, ep.JOG_TAKEN)
+    for rec in recording.messages(taken):
+        if rec.log_ns >= start:
+            break
+        msg = decode(rec)
+        if rec.log_ns >= start - EARLY_OUTPUT_NS and getattr(msg, "after_seq", 0) < 0:
+            return rec.log_ns, end
+    return start, end
 
 
 def _controller_inputs(
@@ -174,15 +200,17 @@ def _controller_inputs(
     saw them. The controller publishes each command it takes as a
     :class:`~schemas.jog.JogTaken` saying after which joint state it came: when the
     recording holds those, each is fed (as the command it carries) after that joint state
-    and before the next, at its log time within that span, instead of the raw stream.
+    and before the next, at its log time within that span, instead of the raw stream; a
+    tracker's frames likewise (:class:`~schemas.target.TargetTaken`).
     A vanished liveliness token is no sample at all: the controller's
     :class:`~schemas.liveliness.TokenGone` records are placed the same way.
     """
     have = {c.suffix for c in recording.info.channels.values()}
-    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE) if s in have)
+    records = tuple(s for s in (ep.JOG_TAKEN, ep.TARGET_TAKEN, ep.TOKEN_GONE) if s in have)
     suffixes = CONTROLLER.input_suffixes
-    if ep.JOG_TAKEN in have:
-        suffixes = tuple(s for s in suffixes if s != ep.JOG)
+    for record, raw in ((ep.JOG_TAKEN, ep.JOG), (ep.TARGET_TAKEN, ep.TARGET)):
+        if record in have:
+            suffixes = tuple(s for s in suffixes if s != raw)
     base = list(_inputs(recording, suffixes, window))
     if not records:
         return base
@@ -191,7 +219,7 @@ def _controller_inputs(
     at_seq = {m.seq: i for i, (_, m) in enumerate(base) if isinstance(m, JointState)}
     placed: list[tuple[int, int, Recorded, Message | None]] = []
     for order, (rec, taken) in enumerate(_inputs(recording, records, window)):
-        assert isinstance(taken, JogTaken | TokenGone)
+        assert isinstance(taken, JogTaken | TargetTaken | TokenGone)
         pos = bisect.bisect_right(times, rec.log_ns)
         after = at_seq.get(taken.after_seq)
         if after is not None:  # within (that joint state, the next one]

@@ -24,6 +24,7 @@ from schemas import (
     commands,
     control,
     flight,
+    follow,
     guardian,
     health,
     jog,
@@ -34,6 +35,7 @@ from schemas import (
     sequencing,
     simfault,
     state,
+    target,
 )
 from schemas.endpoint import ANYONE as ANYONE
 from schemas.endpoint import EACH_SERVICE as EACH_SERVICE
@@ -348,6 +350,40 @@ ATTACH = _query(
 )
 OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS, ATTACH)
 """The objects' endpoints (a block of their own in :data:`TABLE`)."""
+# -- following a moving target (docs/follow.md) -----------------------------------------------
+TARGET = _pub(
+    "target/pose",
+    Service.SIMULATOR,
+    target.TargetPose,
+    "a tracker's target at 5-30 Hz (the user's mouth; the pose of the head it moves with): "
+    "the simulated tracker's, until a tracker node of its own takes this key (and its "
+    "ownership)",
+    _SUP,
+)
+FOLLOW = _query(
+    "controller/follow",
+    _CTRL,
+    follow.FollowGoal,
+    control.GoalAck,
+    "follow a tracker's target to a standoff and hold it there, or stop following",
+    _SUP,
+)
+FOLLOW_STATE = _pub(
+    "controller/follow_state",
+    _CTRL,
+    follow.FollowState,
+    "the follow goal every cycle while it runs (target, predicted target, standoff point, "
+    "tracked point), once when it ends",
+    _SUP,
+)
+TARGET_TAKEN = _pub(
+    "controller/target_taken",
+    _CTRL,
+    target.TargetTaken,
+    "each target frame as the controller took it: after which joint state (exact replays)",
+)
+FOLLOW_ENDPOINTS = (TARGET, FOLLOW, FOLLOW_STATE, TARGET_TAKEN)
+"""The endpoints of following a target (a block of their own in :data:`TABLE`)."""
 
 
 TABLE = Table(
@@ -391,6 +427,7 @@ TABLE = Table(
         FLIGHT_TRIGGER,
         PLAYBACK_CONTROL,
         *OBJECT_ENDPOINTS,
+        *FOLLOW_ENDPOINTS,
     )
 )
 """Every endpoint of the stack."""

@@ -171,6 +171,12 @@ class Guard:
         near = self._now(now, m_end, q_s)
         return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
+    def object_moved(self, by: float) -> None:
+        """A scene object moved by at most ``by`` [m]: every margin of the anchor shrinks
+        by that much, so its proof stays conservative without a new distance."""
+        if by > 0.0:
+            self.advance.shrink(by)
+
     # --- internals ---------------------------------------------------------------------------
 
     def _stopped(self, counts: np.ndarray, found: Clearance, when: str, near: Clearance) -> Verdict:
@@ -241,6 +247,14 @@ class RunGuard:
         ):
             self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
+
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame).
+
+        Raises:
+            SceneError: no such object.
+        """
+        self.guard.object_moved(self.guard.model.move_object(name, pose))
 
     def result(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance of the goal (forgotten once read)."""

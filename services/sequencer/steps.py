@@ -7,7 +7,9 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
   trajectory; a :class:`~services.sequencer.goal_step.GoalStep`, as the gripper's);
 - ``gripper``: :class:`~services.sequencer.gripper_step.GripperStep`;
 - ``fold_in`` and ``fold_out``: :class:`~services.sequencer.fold_step.FoldStep`;
-- ``wait``: :class:`~services.sequencer.wait_step.WaitStep`.
+- ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
+- ``follow``: :class:`~services.sequencer.follow_step.FollowStep` (a controller follow
+  goal, held for a time or until the supervisor's ``done``).
 
 A new kind of step is one class and one entry here, its checks before the task starts
 included.
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 from schemas.sequencing import StepKind
 from services.sequencer.fold_step import FoldStep
+from services.sequencer.follow_step import FollowStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
 from services.sequencer.step import Step
@@ -29,5 +32,6 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_IN: FoldStep,
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
+    StepKind.FOLLOW: FollowStep,
 }
 """The class of each kind of step."""

@@ -30,6 +30,10 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
     pose = "home"                    # home, unfolded or folded (planned like a path)
     duration = 4.0                   # optional: shortest time of that move [s]
     [[step]]
+    follow = "mouth"                 # follow a tracker's target to a standoff and hold it
+    offset_mm = [0, 0, 60]           # optional keys: services/sequencer/follow_spec.py
+    hold_s = 10                      # (without it: until `manus task done`)
+    [[step]]
     fold_in = true
 
 Every problem of the file is found in one pass and reported together
@@ -50,6 +54,8 @@ from manus.errors import ManusError
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
 from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
+from services.sequencer.follow_spec import OPTIONS as FOLLOW_OPTIONS
+from services.sequencer.follow_spec import follow_step
 from services.sequencer.poses import POSES
 
 MAX_OPENING_MM = 90.0
@@ -66,6 +72,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.FOLD_IN: (),
     StepKind.FOLD_OUT: (),
     StepKind.WAIT: (),
+    StepKind.FOLLOW: FOLLOW_OPTIONS,
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -231,6 +238,8 @@ class _StepContext:
             step = self._wait(value, where, errors)
         elif kind == StepKind.POSE:
             step = self._pose(value, where, errors, options)
+        elif kind == StepKind.FOLLOW:
+            step = follow_step(raw, where, lambda key, msg: self.error(errors, key, kind, msg))
         else:
             step = TaskStep(kind=kind, where=where)
             if value is not True:

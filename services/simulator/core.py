@@ -13,7 +13,10 @@ Every 20 ms tick integrates the active command over the tick that ends there
 falling, resting, their contacts). Events at the same instant run in this order: the
 tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
 or sync), frames leaving, frames from the PC, then the camera's capture and publications
-(:mod:`.camera`; :meth:`SimCore.take_messages` hands them out).
+(:mod:`.camera`) and the moving target's tracker (:mod:`.target`: its captures and frames
+on ``target/pose``); :meth:`SimCore.take_messages` hands them out. The target's body (the
+user's head) is placed where it is at each tick before the tick's integration, so the
+true distances see the person move.
 
 The core never reads a clock and draws every random number from generators seeded by
 ``config.seed``: same configuration and inputs, same frames, bit for bit.
@@ -65,6 +68,7 @@ from services.simulator.report import (
     gripper_field,
     joint_fields,
 )
+from services.simulator.target import MovingTarget
 from services.simulator.truth import ContactRecord, make_truth
 
 TICK_NS = 20 * MS
@@ -89,8 +93,8 @@ class SimCore:
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
-        rngs = np.random.default_rng(cfg.seed).spawn(4)
-        model_rng, fault_rng, self._garbage_rng, camera_rng = rngs
+        rngs = np.random.default_rng(cfg.seed).spawn(5)
+        model_rng, fault_rng, self._garbage_rng, camera_rng, target_rng = rngs
         gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
         self.model = ArmModel(cfg, gains)
         self.counters = SimCounters()
@@ -123,6 +127,10 @@ class SimCore:
         self.model.held = self.objects.held_distance
         self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
         """The simulated camera (None: switched off)."""
+        self.target: MovingTarget | None = None
+        """The moving target and its tracker (None: switched off)."""
+        if cfg.target.enabled:
+            self.target = MovingTarget(cfg.target, target_rng, scene)
         self._messages: list[tuple[int, str, Message]] = []
 
     # -- the harness interface -----------------------------------------------------------
@@ -134,12 +142,13 @@ class SimCore:
 
     def next_event_ns(self) -> int:
         """Time of the next thing the core does: a tick, a frame leaving, a capture or a
-        publication of the camera [ns]."""
-        t = (
-            self._next_tick
-            if self.camera is None
-            else min(self._next_tick, self.camera.next_event_ns())
-        )
+        publication of the camera or of the target's tracker [ns]."""
+        due = [self._next_tick]
+        if self.camera is not None:
+            due.append(self.camera.next_event_ns())
+        if self.target is not None:
+            due.append(self.target.next_event_ns())
+        t = min(due)
         if self._outbox:
             return min(t, self._outbox[0][0])
         return t
@@ -160,7 +169,8 @@ class SimCore:
             t_out = self._outbox[0][0] if self._outbox else None
             t_in = self._inbox[0][0] if self._inbox else None
             t_cam = None if self.camera is None else self.camera.next_event_ns()
-            t = min(x for x in (self._next_tick, t_out, t_in, t_cam) if x is not None)
+            t_tgt = None if self.target is None else self.target.next_event_ns()
+            t = min(x for x in (self._next_tick, t_out, t_in, t_cam, t_tgt) if x is not None)
             if t > t_ns:
                 break
             self._now = t
@@ -172,7 +182,11 @@ class SimCore:
             elif t == t_in:
                 self._handle(heapq.heappop(self._inbox)[2])
             else:
-                self._camera_event(t)
+                if t_cam is not None and t == t_cam:
+                    self._camera_event(t)
+                if t_tgt is not None and t == t_tgt:
+                    assert self.target is not None
+                    self._messages += [(at, ep.TARGET, msg) for at, msg in self.target.due(t)]
         self._now = t_ns
         self.counters.frames_sent += len(sent)
         return sent
@@ -201,11 +215,16 @@ class SimCore:
         """
         t = self._now if t_ns is None else t_ns
         state = self.state_at(t)
-        return make_truth(self.model, state, t, t // TICK_NS, self.contact_record, self.objects)
+        self._place_body(t)
+        target = None if self.target is None else self.target.truth(t)
+        return make_truth(
+            self.model, state, t, t // TICK_NS, self.contact_record, self.objects, target
+        )
 
     def take_messages(self) -> list[tuple[int, str, Message]]:
         """The bus messages published since the last call (the camera's frames on
-        ``perception/objects``): (publication time [ns], key suffix, message), in order."""
+        ``perception/objects``, the target's tracker's on ``target/pose``): (publication
+        time [ns], key suffix, message), in order."""
         out, self._messages = self._messages, []
         return out
 
@@ -216,6 +235,7 @@ class SimCore:
             raise SimError(f"state at {t_ns} ns: only [{last}, {self._next_tick}] ns is known now")
         if t_ns == last:
             return self._state
+        self._place_body(t_ns)
         return self.model.step(self._state, self._intent(last), (t_ns - last) / 1e9).state
 
     # -- run-time controls and readings -----------------------------------------------------
@@ -266,7 +286,16 @@ class SimCore:
 
     # -- the timeline --------------------------------------------------------------------
 
+    def _place_body(self, t: int) -> None:
+        """The target's body (the user's head) where it is at ``t`` (the true distances)."""
+        target = self.target
+        if target is not None and target.body_rest is not None:
+            pose = target.body_pose(t)
+            assert pose is not None
+            self.model.contacts.move(target.config.body, pose)
+
     def _tick(self, t: int) -> None:
+        self._place_body(t)
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
         if self.objects.objects:

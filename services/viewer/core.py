@@ -27,6 +27,8 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
   (``planner/objects``, :mod:`services.viewer.objects`): free ones where perception saw
   them, held ones in ``gripper_frame`` (they move with the gripper); each update replaces
   every entity;
+- ``P/viz/follow`` [``foxglove.SceneUpdate``] (:mod:`services.viewer.follow`): a follow
+  goal's target, predicted target, standoff point, tracked point and the person's body;
 - ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
   errors, bridge phases, goals and results, task events, e-stops, services appearing and
   vanishing;
@@ -57,6 +59,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
+from schemas.follow import FollowState
 from schemas.keys import Keys, channel_type
 from schemas.objects import WorldUpdate
 from schemas.planning import PlanReply, Trajectory
@@ -64,6 +67,7 @@ from schemas.state import JointState, SimTruth
 from services.viewer import scene
 from services.viewer.config import ViewerConfig, ViewerStats
 from services.viewer.events import EventLog, LogLine
+from services.viewer.follow import follow_update
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
 from services.viewer.objects import drawn_objects
 from services.viewer.path import GripperPath
@@ -84,6 +88,7 @@ JSON_SUFFIXES: tuple[str, ...] = (
     ep.SIM_TRUTH,
     ep.LIVELINESS,
     ep.OBJECTS,
+    ep.FOLLOW_STATE,
 )
 """Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
 
@@ -175,6 +180,7 @@ class ViewerCore:
             ep.LIVELINESS: self._logging(self.events.liveliness),
             ep.SCENE_STATE: self._scene_state,
             ep.OBJECTS: self._objects,
+            ep.FOLLOW_STATE: self._follow,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
@@ -200,6 +206,7 @@ class ViewerCore:
             (self.topics.true, SceneUpdate),
             (self.topics.scene, SceneUpdate),
             (self.topics.objects, SceneUpdate),
+            (self.topics.follow, SceneUpdate),
             (self.topics.log, Log),
         ]
         out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
@@ -380,6 +387,10 @@ class ViewerCore:
         if self.world.version == before and msg.base_version != -1:
             return []  # a diff it cannot apply: drawn again at the next whole set
         return [self.objects_update(t_ns)]
+
+    def _follow(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, FollowState)
+        return [self._proto(self.topics.follow, follow_update(msg, t_ns), t_ns)]
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)

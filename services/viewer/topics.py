@@ -21,6 +21,7 @@ class Topics:
         self.true = f"{viz}/true"
         self.scene = f"{viz}/scene"
         self.objects = f"{viz}/objects"
+        self.follow = f"{viz}/follow"
         self.log = f"{viz}/log"
         self._json: dict[type[Message], SchemaInfo] = {}
 
