@@ -15,6 +15,7 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.held import HeldBody
 from manus.moved_objects import MOVE_BOUND_M
 from manus.scene import SceneError, default_scene
+from manus.validity import ValidityChecker, checker_for
 
 UNFOLDED = np.radians(UNFOLDED_Q_DEG)
 MODEL = CollisionModel(default_scene(), DEFAULT_ARM)
@@ -82,3 +83,19 @@ def test_a_model_built_for_held_objects_keeps_the_moved_head() -> None:
     assert np.array_equal(holding.moved.poses["head"], pose)
     fresh = CollisionModel(default_scene(), DEFAULT_ARM).holding([cup])
     assert to_head(holding, UNFOLDED) < to_head(fresh, UNFOLDED) - 0.05
+
+
+def test_the_fast_check_follows_a_moved_object_and_stays_below_coal() -> None:
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    fast = checker_for(model)
+    before = fast.margins(UNFOLDED)
+    pose = head_pose(model)
+    pose[:3, 3] += [0.2, -0.2, -0.2]  # the person leans to the upper arm
+    model.move_object("head", pose)
+    after = fast.margins(UNFOLDED)
+    assert before.check.other != "head"
+    assert after.check.other == "head"
+    assert after.tight < before.tight
+    assert after.tight <= to_head(model, UNFOLDED)
+    rebuilt = ValidityChecker(model).margins(UNFOLDED)
+    assert np.array_equal(after.free, rebuilt.free)
