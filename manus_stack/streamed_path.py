@@ -5,12 +5,15 @@ A client (a supervisor; ``manus bench follow``) keeps a :class:`StreamedPath`. T
 starts as any plan does (:meth:`StreamedPath.start`: a ``PlanRequest`` from the arm at
 rest). Each time via points arrive (:meth:`StreamedPath.append`, or
 :meth:`StreamedPath.replace` for the ones not yet reached), it asks the planner for a
-**continuation**: a plan from the running reference's state at the splice time (its
-joint angles as ``start``, and its velocity as the first via point's: the planner's
-clamped spline starts with it, so position and velocity are continuous across the
-splice), through the via points not yet reached and the new ones, at their times on the
-path's one clock. The planner checks the new part as any plan (limits, the collision
-sweep), and refuses it the same way (the running path then goes on to its own end). The
+**continuation** (:class:`~schemas.planning.ViaPointContinuation`, a kind of motion of its
+own): a plan from the running reference's state at the splice time (its joint angles as
+``start``, its joint velocities as the continuation's ``velocity``: the planner's clamped
+spline starts with them, so position and velocity are continuous across the splice),
+through the via points not yet reached and the new ones, at their times on the path's
+one clock, never stretched. Its knots are labelled with the via points' indices in the
+whole streamed path (``first_index``). The planner checks the new part as any plan
+(limits, the collision sweep), and refuses it the same way (the running path then goes
+on to its own end). The
 continuation goes to the controller as a ``TrajectoryGoal`` with ``replace`` and
 ``splice_at`` (the running trajectory's time its time 0 stands for), so its knots keep
 the path's clock whenever the controller splices it in, and the controller's splice
@@ -24,17 +27,26 @@ newest ``ControllerFeedback.t`` of the running goal tells where it is.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
 from manus.config import ArmConfig
 from manus.errors import ManusError
-from manus.kinematics import fk, jacobian
+from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
 from manus.trajectory import JointTrajectory
 from schemas.control import TrajectoryGoal
-from schemas.planning import Path, PlanRequest, Trajectory, ViaPoint
+from schemas.planning import (
+    Path,
+    PlanRequest,
+    Trajectory,
+    ViaPoint,
+    ViaPointContinuation,
+    ViaPointPath,
+)
+
+SOURCE = "streamed via points"
+"""The plans' source (their refusals name it)."""
 
 GAP_S = 0.2
 """A via point closer than this after the splice counts as reached [s]: the continuation
@@ -43,14 +55,6 @@ needs room to bend toward the next one."""
 
 class StreamError(ManusError, ValueError):
     """A streamed via point that cannot be taken (the message names it)."""
-
-
-def _ypr_rates(ypr: tuple[float, float, float], omega: np.ndarray) -> list[float]:
-    """(yaw, pitch, roll) rates [rad/s] of the angular velocity ``omega`` [rad/s]."""
-    yaw, pitch = ypr[0], ypr[1]
-    cy, sy, cp, sp = math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch)
-    E = np.array([[0.0, -sy, cy * cp], [0.0, cy, sy * cp], [1.0, 0.0, -sp]])
-    return [float(v) for v in np.linalg.solve(E, omega)]
 
 
 class StreamedPath:
@@ -70,7 +74,10 @@ class StreamedPath:
         """The trajectory the controller runs (None: none yet)."""
         self.offset = 0.0
         """The path time of the running trajectory's time 0 [s]."""
-        self._asked: tuple[float, list[ViaPoint]] | None = None
+        self.numbered = 0
+        """Via points the path has been given so far (the next one's index is this + 1;
+        index 0 is the start)."""
+        self._asked: tuple[float, list[ViaPoint], int] | None = None
 
     def start(self, q: list[float], via_points: list[ViaPoint]) -> PlanRequest:
         """The first plan: from the arm at rest at ``q`` [rad] through ``via_points``
@@ -80,9 +87,10 @@ class StreamedPath:
             StreamError: a via point not after the one before it.
         """
         self._check(0.0, via_points)
-        rest = self._state_point(np.asarray(q, dtype=float), np.zeros(6))
-        self._asked = (0.0, list(via_points))
-        return self._request(q, [rest, *via_points])
+        rest = self._state_point(np.asarray(q, dtype=float))
+        self._asked = (0.0, list(via_points), len(via_points))
+        path = Path(via_points=[rest, *via_points], source=SOURCE)
+        return PlanRequest(ViaPointPath(path=path, interpolation=self.interpolation), start=q)
 
     def append(self, via_points: list[ViaPoint], now_s: float) -> PlanRequest:
         """A continuation through the via points not yet reached and ``via_points``,
@@ -102,10 +110,10 @@ class StreamedPath:
         be set by the caller), and the path's state updated. None for the first plan (a
         plain goal: the caller sends it without ``replace``)."""
         assert self._asked is not None, "no plan was asked for"
-        splice, pending = self._asked
+        splice, pending, numbered = self._asked
         self._asked = None
         first = self.running is None
-        self.running, self.pending = trajectory, pending
+        self.running, self.pending, self.numbered = trajectory, pending, numbered
         if first:
             self.offset = 0.0
             return None
@@ -124,10 +132,17 @@ class StreamedPath:
         left = [vp for vp in self.pending if vp.time > splice + GAP_S] if keep else []
         points = left + list(new)
         self._check(splice + GAP_S, points)
-        here = self._state_point(sample.q, sample.qd)
+        here = self._state_point(sample.q)
         shifted = [dataclasses.replace(vp, time=vp.time - splice) for vp in points]
-        self._asked = (splice, points)
-        return self._request([float(v) for v in sample.q], [here, *shifted])
+        numbered = self.numbered + len(new)
+        self._asked = (splice, points, numbered)
+        motion = ViaPointContinuation(
+            path=Path(via_points=[here, *shifted], source=SOURCE),
+            velocity=[float(v) for v in sample.qd],
+            first_index=numbered - len(points) + 1,
+            interpolation=self.interpolation,
+        )
+        return PlanRequest(motion, start=[float(v) for v in sample.q])
 
     def _check(self, after_s: float, points: list[ViaPoint]) -> None:
         last = after_s
@@ -141,20 +156,15 @@ class StreamedPath:
                 )
             last = vp.time
 
-    def _state_point(self, q: np.ndarray, qd: np.ndarray) -> ViaPoint:
-        """The via point of the reference's state: its pose, and its velocity."""
+    def _state_point(self, q: np.ndarray) -> ViaPoint:
+        """Via point 0, standing for the reference's state (its pose; the planner puts the
+        start there, and the continuation's velocity in joint space)."""
         T = fk(q, self.arm)
-        twist = jacobian(q, self.arm) @ qd
-        ypr = matrix_to_ypr(T[:3, :3])
         return ViaPoint(
             xyz=[float(v) for v in T[:3, 3]],
-            velocity=[float(v) for v in twist[:3]],
-            ypr=[float(v) for v in ypr],
-            angular_velocity=_ypr_rates(ypr, twist[3:]),
+            velocity=[0.0, 0.0, 0.0],
+            ypr=[float(v) for v in matrix_to_ypr(T[:3, :3])],
+            angular_velocity=[0.0, 0.0, 0.0],
             time=0.0,
             type=0,
         )
-
-    def _request(self, q: list[float], points: list[ViaPoint]) -> PlanRequest:
-        path = Path(via_points=points, source="streamed via points")
-        return PlanRequest(path=path, start=list(q), interpolation=self.interpolation)

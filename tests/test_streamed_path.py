@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from manus.config import DEFAULT_ARM
-from manus.kinematics import fk, jacobian
+from manus.kinematics import fk
 from manus.trajectory import JointTrajectory
 from manus_stack.bench.follow_stream import STEP_S, Run, _plan, via_points
 from manus_stack.streamed_path import StreamedPath, StreamError
 from schemas.control import TrajectoryGoal
+from schemas.planning import ViaPointContinuation
 from services.planner.core import PlannerCore
 
 
@@ -25,14 +26,18 @@ def test_a_continuation_starts_on_the_running_reference_and_keeps_its_clock() ->
     request = stream.append(points[2:3], now_s=2.0)
     running = JointTrajectory(first).sample(2.0)
     assert request.start == pytest.approx(running.q.tolist())
-    head = request.path.via_points[0]
-    twist = jacobian(running.q, DEFAULT_ARM) @ running.qd
-    assert head.velocity == pytest.approx(twist[:3].tolist())
-    assert [vp.time for vp in request.path.via_points] == pytest.approx(
+    motion = request.motion
+    assert isinstance(motion, ViaPointContinuation)
+    assert motion.velocity == pytest.approx(running.qd.tolist())  # in joint space
+    assert [vp.time for vp in motion.path.via_points] == pytest.approx(
         [0.0, points[1].time - 2.0, points[2].time - 2.0]  # via point 0 was reached
     )
     reply = PlannerCore().plan(request)
     assert reply.trajectory is not None
+    # Knots labelled: the start, then the streamed path's via points 2 and 3.
+    assert reply.trajectory.knot_kinds == ["start", "via_point", "via_point"]
+    assert reply.trajectory.via_indices == [-1, 2, 3]
+    assert reply.trajectory.time_scale == 1.0
     goal = stream.accepted(reply.trajectory)
     assert goal is not None and goal.replace and goal.splice_at == pytest.approx(2.0)
     cont = JointTrajectory(reply.trajectory).sample(0.0)
@@ -48,7 +53,10 @@ def test_replacing_drops_the_via_points_not_reached_and_bad_times_are_refused() 
     q0 = [0.0, 0.5236, -0.5236, 0.0, -1.0472, 0.0]
     stream.accepted(_plan(stream.start(q0, points[:3])))
     request = stream.replace(points[4:5], now_s=1.0)
-    assert len(request.path.via_points) == 2  # the state, then only the new one
+    motion = request.motion
+    assert isinstance(motion, ViaPointContinuation)
+    assert len(motion.path.via_points) == 2  # the state, then only the new one
+    assert motion.first_index == 4  # numbered after the three of the start
     with pytest.raises(StreamError, match="not after"):
         stream.append(points[0:1], now_s=2.0)  # due before the splice
     with pytest.raises(StreamError, match="start"):

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from schemas.planning import Motion, ViaPointPath
+from schemas.planning import Motion, ViaPointContinuation, ViaPointPath
 from services.planner.planner import Planner
-from services.planner.via_point_planner import ViaPointPlanner
+from services.planner.via_point_planner import ContinuationPlanner, ViaPointPlanner
 
 PLANNERS: dict[type[Motion], type[Planner[Any]]] = {
     ViaPointPath: ViaPointPlanner,
+    ViaPointContinuation: ContinuationPlanner,
 }
 """The planner class of each kind of motion."""
