@@ -14,9 +14,10 @@ from manus.errors import ConfigError
 from manus.kinematics import fk, gripper_pose
 from manus.scene import default_scene
 from schemas.control import EndCause
-from schemas.follow import CLOSE_SPEED_CAP
+from schemas.follow import CLOSE_SPEED_CAP, FollowGoal
 from services.controller.config import ControllerConfig
 from services.controller.follow_config import FollowConfig
+from services.controller.follow_goal import settings as follow_settings
 from services.controller.follow_law import Aim, FollowRun, Settings, standoff_point
 from services.controller.follow_space import FollowSpace
 
@@ -57,6 +58,16 @@ def test_the_standoff_point_keeps_the_clearance() -> None:
     inside = Aim(MOUTH, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))  # an axis along the face
     pushed = standoff_point(_settings(standoff=0.02, clearance=0.05), inside, SPACE)
     assert SPACE.person_distance(pushed)[0] >= 0.05  # pushed out along the axis
+
+
+def test_the_standoff_grows_while_the_person_comes_at_the_arm() -> None:
+    lean = _settings()._replace(lean_s=0.2)
+    coming = Aim(MOUTH, (0.15, 0.05, 0.0), FORWARD)  # 150 mm/s toward the arm
+    point = standoff_point(lean, coming, SPACE)
+    assert point[0] - MOUTH[0] == pytest.approx(0.06 + 0.2 * 0.15)
+    leaving = Aim(MOUTH, (-0.15, 0.0, 0.0), FORWARD)  # leaning back: no less than 60 mm
+    assert standoff_point(lean, leaving, SPACE)[0] - MOUTH[0] == pytest.approx(0.06)
+    assert standoff_point(_settings(), coming, SPACE)[0] - MOUTH[0] == pytest.approx(0.06)
 
 
 def test_zones_and_reach_refuse_a_standoff_point() -> None:
@@ -128,3 +139,11 @@ def test_settings_are_checked() -> None:
         FollowConfig(model="quadratic")
     with pytest.raises(ConfigError, match="max_body_shift_m"):
         FollowConfig(max_body_shift_m=1.0)
+    with pytest.raises(ConfigError, match="lean_margin_s"):
+        FollowConfig(lean_margin_s=-0.1)
+
+
+def test_only_a_target_on_a_person_grows_its_standoff() -> None:
+    goal = FollowGoal(goal_id="g", source="mouth")
+    assert follow_settings(goal, FollowConfig(), 0.05, on_person=True).lean_s == 0.2
+    assert follow_settings(goal, FollowConfig(), 0.05, on_person=False).lean_s == 0.0

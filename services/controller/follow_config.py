@@ -26,6 +26,10 @@ class FollowConfig:
     Attributes:
         standoff_m: default standoff from the target along the approach axis [m]: just
             outside the person's clearance (50 mm in the default scene).
+        lean_margin_s: for a target on a person, the standoff grows by the target's
+            predicted speed toward the arm times this [s]: the arm starts backing off
+            before the person is in (the tracker's latency and the arm's 60-120 ms leave
+            about 170 ms before the arm answers a lean).
         max_speed: speed cap of the tracked point, the most a goal may ask [m/s] (at most
             0.25, the reduced speed for robots working next to people).
         approach_speed: speed of the tracked point relative to the target while it
@@ -61,6 +65,7 @@ class FollowConfig:
     """
 
     standoff_m: float = 0.060
+    lean_margin_s: float = 0.2
     max_speed: float = 0.200
     approach_speed: float = 0.100
     accel: float = 2.0
@@ -83,6 +88,7 @@ class FollowConfig:
 
     def __post_init__(self) -> None:
         _check("standoff_m", self.standoff_m, 0.0, 0.5)
+        _check("lean_margin_s", self.lean_margin_s, 0.0, 2.0)
         _check("max_speed", self.max_speed, 0.001, 0.25)
         _check("approach_speed", self.approach_speed, 0.001, self.max_speed)
         _check("accel", self.accel, 0.01, 100.0)

@@ -50,4 +50,5 @@ def settings(
     a, b, c = (v / size for v in goal.approach)
     x, y, z = goal.offset
     cap = goal.max_speed or cfg.max_speed
-    return Settings(standoff, (a, b, c), (x, y, z), cap, clearance, goal.close)
+    lean = cfg.lean_margin_s if on_person else 0.0
+    return Settings(standoff, (a, b, c), (x, y, z), cap, clearance, goal.close, lean)

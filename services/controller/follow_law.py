@@ -64,6 +64,7 @@ class Settings(NamedTuple):
         max_speed: speed cap of the tracked point [m/s].
         clearance: the tracked point's smallest distance to a person [m].
         close: the closer approach (its speed cap inside 100 mm of the target).
+        lean_s: the standoff grows by the target's speed toward the arm times this [s].
     """
 
     standoff: float
@@ -72,6 +73,7 @@ class Settings(NamedTuple):
     max_speed: float
     clearance: float
     close: bool
+    lean_s: float = 0.0
 
 
 class Aim(NamedTuple):
@@ -154,9 +156,11 @@ def _capped(v: Vec3, cap: float) -> Vec3:
 
 
 def standoff_point(settings: Settings, aim: Aim, space: FollowSpace) -> Vec3:
-    """The target, ``standoff`` out along the approach axis, pushed further out until it
-    keeps the clearance from every person [m]."""
-    point = _add(aim.target, aim.normal, settings.standoff)
+    """The target, ``standoff`` (grown while the target comes at the arm) out along the
+    approach axis, pushed further out until it keeps the clearance from every person [m]."""
+    n, v = aim.normal, aim.velocity
+    coming = max(0.0, v[0] * n[0] + v[1] * n[1] + v[2] * n[2])
+    point = _add(aim.target, n, settings.standoff + settings.lean_s * coming)
     for _ in range(10):  # one push along the normal; more along an axis near the tangent
         distance, _name = space.person_distance(point)
         short = settings.clearance - distance
