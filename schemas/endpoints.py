@@ -195,6 +195,12 @@ TOKEN_GONE = _pub(
     "each alive/<service> token vanishing as the controller took it: after which joint "
     "state (goals whose heartbeats that service sent stop at once; exact replays)",
 )
+QUERY_TAKEN = _pub(
+    "controller/query_taken",
+    _CTRL,
+    control.QueryTaken,
+    "each query as the controller took it: after which joint state (exact replays)",
+)
 JOG_STATE = _pub(
     "controller/jog_state",
     _CTRL,
@@ -375,6 +381,7 @@ TABLE = Table(
         JOG_LEVEL,
         JOG_TAKEN,
         TOKEN_GONE,
+        QUERY_TAKEN,
         JOG_STATE,
         HEARTBEAT,
         SUBMIT,
