@@ -11,9 +11,10 @@ recorder's JSON Schemas), the schema export (``manus schemas``,
 access-control policy check, the services' wiring maps and the key table of
 docs/architecture.md (:func:`~schemas.endpoint_table.markdown_table`).
 
-Adding an endpoint is one :class:`Endpoint` here (and, for its owner's core, one line of
-the service's wiring map, ``services/<name>/wiring.py``). A key suffix is spelled as a
-string literal only here.
+Adding an endpoint is one :class:`Endpoint` here, or in a block module of its own that
+this one re-exports (:mod:`schemas.object_endpoints`), and, for its owner's core, one
+line of the service's wiring map (``services/<name>/wiring.py``). A key suffix is spelled
+as a string literal only in its declaration.
 """
 
 from __future__ import annotations
