@@ -12,7 +12,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from manus.held import HeldBody
 from manus.protocol import FrameId
+from manus.validity import ValidityChecker
 from manus_stack.follow_lockstep import FollowArm
 from manus_stack.regression import check_controller
 from schemas import endpoints as ep
@@ -199,6 +201,15 @@ def test_the_guard_keeps_the_person_where_the_tracker_sees_it() -> None:
     assert truth is not None
     chair = model.scene.mount @ head.placement.homogeneous  # type: ignore[union-attr]
     assert np.allclose(chair[:3, 3], truth.body_xyz, atol=0.003)
+    # the fast check the guard anchors with has it there too (as one built now would)
+    js = arm.core.last_js
+    assert js is not None
+    q = np.array(js.position)
+    fast = guard.guard.advance.checker.margins(q)
+    assert np.array_equal(fast.free, ValidityChecker(model).margins(q).free)
+    # and a guard rebuilt for a held cup keeps it there
+    guard.hold([HeldBody("cup", "cup", "cylinder", (0.035, 0.1), (0.0, 0.0, 0.08), (0.0,) * 3)])
+    assert np.array_equal(guard.guard.model.moved.poses["head"], model.moved.poses["head"])
 
 
 def test_every_frame_is_recorded_where_the_controller_took_it() -> None:
