@@ -25,7 +25,6 @@ Contract (docs/architecture.md, Time; Freshness and safety rules; Command source
 
 from __future__ import annotations
 
-import contextlib
 import math
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -33,7 +32,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from manus.joint_map import dh_increments_to_encoder_list, dh_to_encoder_list
-from manus.scene import Scene, SceneError, start_scene_state
+from manus.scene import Scene, start_scene_state
 from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -248,12 +247,9 @@ class ControllerCore:
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        guard = scene_guard(scene, self._config.arm, self.world.held)
+        guard = scene_guard(scene, self._config.arm, self.world.held, self.moved)
         if guard is not None and self.guard is not None:
             self.guard = guard
-            for name, pose in self.moved.items():  # where the tracker last put them
-                with contextlib.suppress(SceneError):  # not in the new scene
-                    guard.move_object(name, pose)
         return []
 
     def on_objects(self, update: WorldUpdate) -> Output:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -269,14 +269,23 @@ class RunGuard:
 
 
 def scene_guard(
-    state: SceneState, arm: ArmConfig, held: Sequence[HeldBody] = ()
+    state: SceneState,
+    arm: ArmConfig,
+    held: Sequence[HeldBody] = (),
+    moved: Mapping[str, np.ndarray] | None = None,
 ) -> RunGuard | None:
-    """The guard for a scene published by the planner, the arm holding ``held`` (None: it
-    does not build)."""
+    """The guard for a scene published by the planner, the arm holding ``held``, its
+    objects of ``moved`` where a tracker last put them (name -> pose, 4x4, chair frame;
+    one the scene does not have is left out) (None: it does not build)."""
     try:
         scene = parse_scene(state.text, state.source)
         scene = dataclasses.replace(scene, version=state.version)
-        return RunGuard(Guard(CollisionModel(scene, arm, held=held)))
+    except SceneError:
+        return None
+    names = {o.name for o in scene.objects}
+    there = {name: pose for name, pose in (moved or {}).items() if name in names}
+    try:
+        return RunGuard(Guard(CollisionModel(scene, arm, held=held, moved=there)))
     except SceneError:
         return None
 
