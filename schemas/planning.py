@@ -61,6 +61,12 @@ class PlanErrorReason(StrEnum):
     """the request itself is inconsistent"""
     COLLISION = "collision"
     """the arm would come too close to the scene, a protection zone or itself"""
+    GOAL_COLLISION = "goal_collision"
+    """every configuration that reaches the goal is too close to something (named)"""
+    ZONE = "zone"
+    """the goal lies inside a keep-out zone or outside the keep-in zone"""
+    NO_PATH = "no_path"
+    """no collision-free path was found within the search budget"""
 
 
 class KnotKind(StrEnum):

@@ -1,0 +1,287 @@
+"""Joint-space search with OMPL (the ``ompl`` package's official bindings): a path of
+joint configurations from the start to one of the goal states, around everything the
+:class:`~services.planner.validity.Validity` knows.
+
+1. **Direct**: the straight joint-space motion to each of the :data:`DIRECT_TRIES`
+   nearest goal states; the first that is clear is the path (most goals need no search).
+2. **Search**: OMPL's RRTConnect (:data:`PLANNER`; chosen by measurement, docs/reach.md)
+   in the box the start and goals span, widened by :data:`BOX_MARGIN` and cut to the
+   joint limits; every goal state is a goal (``GoalStates``). A configuration is valid
+   when it keeps :attr:`SearchSettings.padding` beyond every clearance (the start and the
+   goal states need only their clearances); a motion between two configurations when
+   :meth:`Validity.motion` proves every margin stays above the smaller of the padding
+   and the two ends' smallest margins (less :data:`SLACK_M`).
+3. **Simplification**: OMPL's shortcuts (partial shortcuts, vertex reduction, collapsing
+   close vertices), then a greedy pass of our own (from each vertex, the farthest one it
+   sees).
+
+**Determinism.** OMPL draws every random number from generators seeded, as each is
+created, by one process-wide seed generator, which :func:`ompl.util.RNG.setSeed`
+reseeds (OMPL logs an error when that happens after the first seeds were drawn; it is
+silenced here). Each search reseeds it with the request's seed and creates its planner,
+sampler and simplifier afresh, under :data:`_LOCK` (a live shell plans on several
+threads): the same start, goals, scene and seed give the same path, bit for bit. The
+search stops after a number of iterations (``budget``), never after a time, so a slow
+machine finds the same path, later.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from services.planner.validity import Validity
+
+PLANNER = "RRTConnect"
+"""The OMPL planner used (see docs/reach.md, Choosing the planner, for the measurement)."""
+
+DIRECT_TRIES = 4
+"""Nearest goal states tried with a straight motion before any search."""
+
+BOX_MARGIN = math.pi / 2
+"""How far beyond the range the start and the goals span each joint may go [rad]."""
+
+SLACK_M = 0.001
+"""How far below the smaller of its two ends' margins a motion may dip [m] (it could
+never leave a configuration exactly at its floor otherwise)."""
+
+SIMPLIFY_ROUNDS = 3
+"""Rounds of OMPL's shortcutting."""
+
+_LOCK = threading.Lock()
+"""One search at a time in a process: OMPL's seed generator is process-wide."""
+
+
+class SearchSettings(NamedTuple):
+    """How a search runs.
+
+    Attributes:
+        seed: the seed of every random number the search draws (>= 1).
+        budget: most iterations (samples) of the search before it gives up [-].
+        padding: margin kept beyond the clearances away from the start and goal [m].
+        planner: the OMPL planner's name (``RRTConnect``; others for measurements).
+    """
+
+    seed: int = 1
+    budget: int = 3000
+    padding: float = 0.005
+    planner: str = PLANNER
+
+
+class Found(NamedTuple):
+    """A path.
+
+    Attributes:
+        path: waypoints [rad], shape (n, 6), the start first and a goal state last.
+        goal: index of the goal state reached.
+        iterations: search iterations used (0: the direct motion).
+    """
+
+    path: np.ndarray
+    goal: int
+    iterations: int
+
+
+class NotFound(NamedTuple):
+    """How far a search got.
+
+    Attributes:
+        iterations: search iterations used [-].
+        states: configurations in the start tree and in the goal tree [-].
+        closest: the start-tree configuration nearest a goal state [rad], shape (6,).
+        distance: its joint-space distance to that goal state [rad].
+        goal: index of that goal state.
+    """
+
+    iterations: int
+    states: tuple[int, int]
+    closest: np.ndarray
+    distance: float
+    goal: int
+
+
+def search(
+    start: np.ndarray,
+    goals: np.ndarray,
+    validity: Validity,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    settings: SearchSettings,
+) -> Found | NotFound:
+    """A path from ``start`` to one of ``goals`` (see the module docstring).
+
+    Args:
+        start: start configuration [rad], shape (6,); within its clearances.
+        goals: goal states [rad], shape (k, 6), nearest first; within their clearances.
+        validity: the geometry.
+        lower: lower joint limits [rad], shape (6,).
+        upper: upper joint limits [rad], shape (6,).
+        settings: seed, budget, padding, planner.
+    """
+    floors = _Floors(validity, settings.padding, [start, *goals])
+    for k, goal in enumerate(goals[:DIRECT_TRIES]):
+        if floors.motion(start, goal):
+            return Found(np.array([start, goal]), k, 0)
+    lo = np.maximum(lower, np.minimum(start, goals.min(axis=0)) - BOX_MARGIN)
+    hi = np.minimum(upper, np.maximum(start, goals.max(axis=0)) + BOX_MARGIN)
+    with _LOCK:
+        return _Search(start, goals, floors, lo, hi, settings).run()
+
+
+class _Floors:
+    """The padding policy: which configurations are valid and what each motion keeps."""
+
+    def __init__(self, validity: Validity, padding: float, ends: list[np.ndarray]) -> None:
+        self.validity = validity
+        self.padding = padding
+        self._ends = {np.asarray(q, dtype=float).tobytes() for q in ends}
+
+    def state(self, q: np.ndarray) -> bool:
+        tightest = self.validity.margins(q).tightest
+        if tightest >= self.padding:
+            return True
+        return tightest >= 0.0 and q.tobytes() in self._ends
+
+    def motion(self, qa: np.ndarray, qb: np.ndarray) -> bool:
+        if not (self.state(qa) and self.state(qb)):
+            return False
+        ma, mb = self.validity.margins(qa), self.validity.margins(qb)
+        least = min(ma.tightest, mb.tightest, self.padding)
+        return self.validity.motion(qa, qb, max(least - SLACK_M, 0.0))
+
+
+def _array(state: ob.State) -> np.ndarray:
+    return np.array(state[0:6], dtype=float)
+
+
+class _Motions(ob.MotionValidator):  # type: ignore[misc]
+    """OMPL's motion validator, answered by :class:`_Floors` (both ends included)."""
+
+    def __init__(self, si: ob.SpaceInformation, floors: _Floors) -> None:
+        super().__init__(si)
+        self.floors = floors
+
+    def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:  # noqa: N802 (OMPL's name)
+        return self.floors.motion(_array(s1), _array(s2))
+
+
+class _Search:
+    """One OMPL search, its objects created afresh (see the module docstring)."""
+
+    def __init__(
+        self,
+        start: np.ndarray,
+        goals: np.ndarray,
+        floors: _Floors,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        settings: SearchSettings,
+    ) -> None:
+        self.start, self.goals, self.floors, self.settings = start, goals, floors, settings
+        self.lo, self.hi = lo, hi
+        self.iterations = 0
+
+    def _budget(self) -> bool:
+        self.iterations += 1
+        return self.iterations > self.settings.budget
+
+    def run(self) -> Found | NotFound:
+        level = ou.getLogLevel()
+        ou.setLogLevel(ou.LOG_NONE)  # reseeding after the first search logs an error
+        try:
+            ou.RNG.setSeed(self.settings.seed)
+            return self._solve()
+        finally:
+            ou.setLogLevel(level)
+
+    def _solve(self) -> Found | NotFound:
+        space = ob.RealVectorStateSpace(6)
+        bounds = ob.RealVectorBounds(6)
+        for j in range(6):
+            bounds.setLow(j, float(self.lo[j]))
+            bounds.setHigh(j, float(self.hi[j]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        floors = self.floors
+        si.setStateValidityChecker(lambda s: floors.state(_array(s)))
+        motions = _Motions(si, floors)
+        si.setMotionValidator(motions)
+        si.setup()
+        pdef = ob.ProblemDefinition(si)
+        pdef.addStartState(_state(space, self.start))
+        goal = ob.GoalStates(si)
+        for q in self.goals:
+            goal.addState(_state(space, q))
+        pdef.setGoal(goal)
+        planner = _planner(self.settings.planner, si)
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+        status = planner.solve(ob.PlannerTerminationCondition(self._budget))
+        exact = status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION
+        if not exact:
+            return self._not_found(pdef, planner, si)
+        path = pdef.getSolutionPath()
+        simplifier = og.PathSimplifier(si, goal)
+        for _ in range(SIMPLIFY_ROUNDS):
+            changed = simplifier.partialShortcutPath(path)
+            changed = simplifier.reduceVertices(path) or changed
+            changed = simplifier.collapseCloseVertices(path) or changed
+            if not changed:
+                break
+        waypoints = np.array([_array(path.getState(i)) for i in range(path.getStateCount())])
+        waypoints = greedy_shortcut(waypoints, floors.motion)
+        end = int(np.argmin(np.abs(self.goals - waypoints[-1]).max(axis=1)))
+        return Found(waypoints, end, self.iterations)
+
+    def _not_found(
+        self, pdef: ob.ProblemDefinition, planner: ob.Planner, si: ob.SpaceInformation
+    ) -> NotFound:
+        data = ob.PlannerData(si)
+        planner.getPlannerData(data)
+        tags = [data.getVertex(i).getTag() for i in range(data.numVertices())]
+        states = (tags.count(1), tags.count(2))
+        closest, distance, k = self.start, math.inf, 0
+        if pdef.hasApproximateSolution():
+            path = pdef.getSolutionPath()
+            closest = _array(path.getState(path.getStateCount() - 1))
+        gaps = np.linalg.norm(self.goals - closest, axis=1)
+        k = int(np.argmin(gaps))
+        distance = float(gaps[k])
+        return NotFound(min(self.iterations, self.settings.budget), states, closest, distance, k)
+
+
+def _state(space: ob.RealVectorStateSpace, q: np.ndarray) -> ob.State:
+    state = space.allocState()
+    state[0:6] = [float(v) for v in q]
+    return state
+
+
+def _planner(name: str, si: ob.SpaceInformation) -> ob.Planner:
+    """The OMPL planner called ``name`` (a geometric planner's class name)."""
+    make: Callable[[ob.SpaceInformation], ob.Planner] | None = getattr(og, name, None)
+    if make is None:
+        raise ValueError(f"no OMPL geometric planner named {name!r}")
+    return make(si)
+
+
+def greedy_shortcut(
+    path: np.ndarray, clear: Callable[[np.ndarray, np.ndarray], bool]
+) -> np.ndarray:
+    """From each kept waypoint, jump to the farthest later one it reaches in a straight
+    motion (``clear``), shape (m, 6) with m <= n; the ends are kept."""
+    kept = [0]
+    i = 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not clear(path[i], path[j]):
+            j -= 1
+        kept.append(j)
+        i = j
+    return np.asarray(path[kept])
