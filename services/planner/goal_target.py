@@ -42,8 +42,8 @@ class Target(NamedTuple):
 
 def describe_pose(T: np.ndarray) -> str:
     """``(560.0, 100.0, -150.0) mm, ypr (0.0, 90.0, 0.0) deg`` of a base-frame pose."""
-    p = T[:3, 3] * 1e3
-    ypr = np.degrees(matrix_to_ypr(T[:3, :3]))
+    p = T[:3, 3] * 1e3 + 0.0  # (+ 0.0: no "-0.0")
+    ypr = np.round(np.degrees(matrix_to_ypr(T[:3, :3])), 6) + 0.0
     return (
         f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm, "
         f"ypr ({ypr[0]:.1f}, {ypr[1]:.1f}, {ypr[2]:.1f}) deg"

@@ -1,4 +1,5 @@
-"""``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON.
+"""``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON
+(``manus plan --to-pose ...`` and the other goals: :mod:`.reach_cli`).
 
 The trajectory is checked against the scene (``--scene``); the smallest clearance and
 where it occurs go into the JSON (``clearance``) and on one line of standard error.
@@ -24,12 +25,15 @@ from schemas.collision import ClearanceReport
 from schemas.planning import PlanRequest, ViaPointPath
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
-from services.planner.errors import PlanningError
+from services.planner.errors import PlanningError, refuse
+from services.planner.reach_cli import add_goal_arguments, goal_from_args, run_goal
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """FILE, ``--start-joints``, ``--quintic``, ``--speed-scaling``, ``--preview``."""
-    parser.add_argument("file", help="via-point file (14 columns, mm, deg, s)")
+    parser.add_argument(
+        "file", nargs="?", help="via-point file (14 columns, mm, deg, s); or give a goal option"
+    )
     parser.add_argument(
         "--start-joints",
         nargs=6,
@@ -49,6 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     add_scene_argument(parser)
+    add_goal_arguments(parser)
 
 
 def add_scene_argument(parser: argparse.ArgumentParser) -> None:
@@ -86,7 +91,19 @@ def _mm(a: list[Any]) -> list[Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan ``args.file`` from ``args.start_joints``; print JSON."""
+    """Plan ``args.file`` (or the goal the options name) from ``args.start_joints``;
+    print JSON."""
+    goal = goal_from_args(args)
+    if goal is not None:
+        if args.file is not None:
+            raise refuse(
+                "invalid", f"give a via-point file or a goal option, not both ({args.file})"
+            )
+        return run_goal(args, goal)
+    if args.file is None:
+        raise refuse(
+            "invalid", "give a via-point file or a goal (--to-pose, --to-joints, --to, ...)"
+        )
     config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
     motion = ViaPointPath(
         path=load_path(args.file),

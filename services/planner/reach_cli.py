@@ -1,0 +1,204 @@
+"""``manus plan --to-pose X Y Z YAW PITCH ROLL``, ``--to-joints Q1..Q6``, ``--to NAME``,
+``--to-object NAME X Y Z YAW PITCH ROLL``, ``--approach MM``: plan a goal in-process and
+print the trajectory as JSON, as ``manus plan FILE`` does (:mod:`.plan_cli`).
+
+Thesis units at this edge: millimetres and degrees; a pose is ``X Y Z YAW PITCH ROLL``
+(R = Rz(yaw) Ry(pitch) Rx(roll)), the order ``manus kin fk`` prints. A goal that cannot
+be reached exits 1 with the reason on one line of standard error; nothing moves (use
+``manus reach`` / ``manus move-to`` to run it on the stack).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from manus.collision import CollisionModel
+from manus.config import load_arm_config
+from manus.named_poses import NamedPoseError, named_poses
+from manus.scene import scene_from_setting
+from schemas.goals import Goal, GoalKind, LineFrame, ReachRequest
+from schemas.planning import Trajectory
+from services.planner.config import PlannerConfig
+from services.planner.errors import refuse
+from services.planner.reach import plan_reach
+
+POSE_METAVAR = ("X", "Y", "Z", "YAW", "PITCH", "ROLL")
+"""A pose on the command line: position [mm], then yaw, pitch, roll [deg]."""
+
+
+def add_goal_arguments(parser: argparse.ArgumentParser) -> None:
+    """The goal options (one of them) and the search's settings."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument(
+        "--to-pose",
+        nargs=6,
+        type=float,
+        metavar=POSE_METAVAR,
+        help="goal: gripper pose in the base frame [mm, deg] (as `manus kin fk` prints it)",
+    )
+    group.add_argument(
+        "--to-joints", nargs=6, type=float, metavar="Q", help="goal: DH joint angles [deg]"
+    )
+    group.add_argument(
+        "--to", metavar="NAME", help="goal: a named pose (home, drink, folded, unfolded, ...)"
+    )
+    group.add_argument(
+        "--to-object",
+        nargs=7,
+        metavar=("NAME", *POSE_METAVAR),
+        help="goal: a gripper pose in a scene object's frame [mm, deg]",
+    )
+    group.add_argument(
+        "--approach",
+        type=float,
+        metavar="MM",
+        help="a straight line along the gripper's axis [mm] (negative: retreat)",
+    )
+    parser.add_argument(
+        "--free-axis",
+        action="store_true",
+        help="any turn about the gripper's axis is fine (pose and object goals)",
+    )
+    parser.add_argument(
+        "--tolerance-mm", type=float, default=0.0, help="position tolerance of the goal [mm]"
+    )
+    parser.add_argument(
+        "--tolerance-deg", type=float, default=0.0, help="orientation tolerance of the goal [deg]"
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed of the search (default 1)")
+    parser.add_argument(
+        "--budget", type=int, default=3000, help="most search iterations (default 3000)"
+    )
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=0.5,
+        help="fraction of the joint speed and acceleration limits to use (default 0.5)",
+    )
+    parser.add_argument("--poses", default="", help="named poses file (default: $MANUS_POSES)")
+
+
+def goal_from_args(args: argparse.Namespace) -> Goal | None:
+    """The goal the options ask for (None: no goal option given).
+
+    Raises:
+        PlanningError: ``invalid``: a number out of range.
+    """
+    tolerances: dict[str, Any] = {
+        "position_tolerance": args.tolerance_mm * 1e-3,
+        "angle_tolerance": math.radians(args.tolerance_deg),
+        "free_axis": args.free_axis,
+    }
+    try:
+        if args.to_pose is not None:
+            xyz, ypr = _pose(args.to_pose)
+            return Goal(kind=GoalKind.POSE, xyz=xyz, ypr=ypr, **tolerances)
+        if args.to_joints is not None:
+            return Goal(kind=GoalKind.JOINTS, joints=[math.radians(v) for v in args.to_joints])
+        if args.to is not None:
+            return Goal(kind=GoalKind.NAMED, name=args.to)
+        if args.to_object is not None:
+            name, *numbers = args.to_object
+            xyz, ypr = _pose([_number(v) for v in numbers])
+            return Goal(kind=GoalKind.OBJECT, name=name, xyz=xyz, ypr=ypr, **tolerances)
+        if args.approach is not None:
+            return Goal(
+                kind=GoalKind.LINE, xyz=[0.0, 0.0, args.approach * 1e-3], frame=LineFrame.TOOL
+            )
+    except ValueError as exc:  # a SchemaError: a field out of its range
+        raise refuse("invalid", str(exc)) from exc
+    return None
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise refuse("invalid", f"--to-object: {text!r} is not a number") from None
+
+
+def _pose(values: list[float]) -> tuple[list[float], list[float]]:
+    return [v * 1e-3 for v in values[:3]], [math.radians(v) for v in values[3:]]
+
+
+def run_goal(args: argparse.Namespace, goal: Goal) -> int:
+    """Plan ``goal`` from ``args.start_joints``; print the trajectory as JSON."""
+    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
+    try:
+        poses = named_poses(args.poses)
+    except NamedPoseError as exc:
+        raise refuse("invalid", str(exc)) from exc
+    scene = scene_from_setting(config.scene)
+    model = None if scene is None else CollisionModel(scene, config.arm)
+    request = ReachRequest(
+        goal=goal,
+        seed=args.seed,
+        budget=args.budget,
+        speed=args.speed,
+        interpolation="quintic" if args.quintic else "cubic",
+        preview_dt=0.06 if args.preview else 0.0,
+    )
+    start = np.radians(np.asarray(args.start_joints, dtype=float))
+    trajectory = plan_reach(request, start, config, model, poses)
+    out = trajectory_json(trajectory, start, request.interpolation, args.preview)
+    out["goal"] = goal.to_dict()
+    sys.stdout.write(json.dumps(out) + "\n")
+    if trajectory.clearance is not None:
+        c = trajectory.clearance
+        sys.stderr.write(
+            f"smallest clearance: {c.body} {c.distance * 1e3:.1f} mm from {c.other} "
+            f"({c.cls}: needs {c.required * 1e3:.0f} mm) at t = {c.time:.2f} s\n"
+        )
+    return 0
+
+
+def trajectory_json(
+    traj: Trajectory, start: np.ndarray, interpolation: str, preview: bool
+) -> dict[str, Any]:
+    """What ``manus plan`` prints of a trajectory (degrees, millimetres, seconds)."""
+    out: dict[str, Any] = {
+        "source": traj.notes[0] if traj.notes else "",
+        "interpolation": interpolation,
+        "start_deg": _deg(start),
+        "times_s": [round(t, 9) for t in traj.times],
+        "positions_deg": _deg(traj.positions),
+        "velocities_deg_s": _deg(traj.velocities),
+        "via_xyz_mm": _mm(traj.via_xyz),
+        "via_lines": traj.via_lines,
+        "time_scale": traj.time_scale,
+        "notes": traj.notes,
+        "clearance": None,
+        "scene_version": traj.scene_version,
+    }
+    c = traj.clearance
+    if c is not None:
+        out["clearance"] = {
+            "distance_mm": round(c.distance * 1e3, 3),
+            "required_mm": round(c.required * 1e3, 3),
+            "body": c.body,
+            "other": c.other,
+            "class": c.cls,
+            "time_s": round(c.time, 6),
+        }
+    if traj.accelerations:
+        out["accelerations_deg_s2"] = _deg(traj.accelerations)
+    if preview:
+        out["preview_dt_s"] = traj.preview_dt
+        out["preview_xyz_mm"] = _mm(traj.preview_xyz)
+    return out
+
+
+def _deg(a: Any) -> list[Any]:
+    out: list[Any] = (np.round(np.degrees(np.asarray(a, dtype=float)), 9) + 0.0).tolist()
+    return out
+
+
+def _mm(a: Any) -> list[Any]:
+    out: list[Any] = (np.round(np.asarray(a, dtype=float) * 1000.0, 6) + 0.0).tolist()
+    return out
