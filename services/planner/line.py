@@ -175,6 +175,15 @@ def _solve(
         jump = np.abs(q - knots[i - 1])
         j = int(jump.argmax())
         if jump[j] > MAX_JOINT_STEP:
+            beyond = np.flatnonzero(~solved.valid[i - 1 :].any(axis=1))
+            if len(beyond):  # the arm stretches out before the line leaves its reach
+                k = i + int(beyond[0])
+                error = _unreachable(poses[k], where(k), False, arm)
+                raise refuse(
+                    "unreachable",
+                    f"{error.error.message} (the arm is stretched out from "
+                    f"{along[i] * 1e3:.0f} mm on)",
+                )
             raise refuse(
                 "singular",
                 f"{where(i)}: joint {j + 1} would jump {math.degrees(jump[j]):.1f} deg in "

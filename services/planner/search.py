@@ -67,12 +67,15 @@ class SearchSettings(NamedTuple):
         budget: most iterations (samples) of the search before it gives up [-].
         padding: margin kept beyond the clearances away from the start and goal [m].
         planner: the OMPL planner's name (``RRTConnect``; others for measurements).
+        range: longest motion the planner adds in one step [rad] (0: OMPL's default,
+            a fifth of the search box's diagonal).
     """
 
     seed: int = 1
     budget: int = 3000
     padding: float = 0.005
     planner: str = PLANNER
+    range: float = 0.0
 
 
 class Found(NamedTuple):
@@ -221,6 +224,8 @@ class _Search:
             goal.addState(_state(space, q))
         pdef.setGoal(goal)
         planner = _planner(self.settings.planner, si)
+        if self.settings.range > 0.0:
+            planner.setRange(self.settings.range)
         planner.setProblemDefinition(pdef)
         planner.setup()
         status = planner.solve(ob.PlannerTerminationCondition(self._budget))
