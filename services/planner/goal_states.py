@@ -9,7 +9,8 @@ within the joint limits and nearest the start. Configurations too close to somet
 start first (joint-space distance), are the goal states of the search.
 
 Refusals name the reason: the gripper position inside a keep-out zone or outside the
-keep-in zone (``zone``); no IK solution (``unreachable``, with the workspace's reason);
+keep-in zone, or every solution outside the arm's own work area (``zone``,
+:mod:`.work_area`); no IK solution (``unreachable``, with the workspace's reason);
 every solution beyond a joint limit (``joint_limit``, the nearest one named); every
 solution too close to something (``goal_collision``, each branch with what it hits).
 """
@@ -29,6 +30,7 @@ from services.planner.errors import refuse
 from services.planner.goal_target import Target
 from services.planner.knots import branch_name
 from services.planner.validity import Validity
+from services.planner.work_area import WorkArea
 
 FREE_AXIS_STEPS = 12
 """Turns about the gripper's axis tried for a ``free_axis`` goal (every 30 deg)."""
@@ -49,6 +51,7 @@ def goal_states(
     validity: Validity,
     scene: Scene | None,
     seed: int,
+    work: WorkArea,
 ) -> np.ndarray:
     """Valid goal configurations [rad], shape (k, 6), k >= 1, nearest ``start`` first.
 
@@ -64,6 +67,19 @@ def goal_states(
         assert target.pose is not None
         _check_zones(target.pose, scene, target.label)
         candidates, branches = _solve(target, start, arm, seed)
+    area, elbow = work.margins(candidates)
+    inside = (area >= 0.0) & (elbow >= 0.0)
+    if not inside.any():
+        what = work.margin(candidates[0]).what
+        raise refuse(
+            "zone",
+            f"{target.label}: outside the arm's own work area ({what}): the arm refuses to "
+            "go there (warning 1 or 2)",
+            value=float(area[0]),
+            limit=0.0,
+        )
+    candidates = candidates[inside]
+    branches = [b for b, ok in zip(branches, inside, strict=True) if ok]
     order = np.argsort(np.linalg.norm(candidates - start, axis=1), kind="stable")
     kept: list[np.ndarray] = []
     hits: dict[str, str] = {}

@@ -31,19 +31,23 @@ from services.planner.errors import refuse
 from services.planner.goal_states import goal_states
 from services.planner.goal_target import resolve_target
 from services.planner.line import end_pose, solve_line
-from services.planner.retime import Timed, Unfit, fit, within_limits
+from services.planner.retime import Timed, Unfit, fit, within_limits, work_area_problem
 from services.planner.search import PLANNER, Found, SearchSettings, search
 from services.planner.spline import PiecewisePolynomial, clamped_cubic_velocities
-from services.planner.validity import CoalValidity, FreeSpace, Validity
+from services.planner.validity import CoalValidity, FastValidity, FreeSpace, Validity
+from services.planner.work_area import WorkArea
 
-_VALIDITY: weakref.WeakKeyDictionary[CollisionModel, CoalValidity] = weakref.WeakKeyDictionary()
+_VALIDITY: weakref.WeakKeyDictionary[CollisionModel, tuple[Validity, Validity]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
-def validity_of(model: CollisionModel) -> Validity:
-    """The :class:`Validity` of ``model`` (one per model: its cache lives with it)."""
+def validity_of(model: CollisionModel) -> tuple[Validity, Validity]:
+    """The fast and the exact :class:`Validity` of ``model`` (built once per model: the
+    exact one's cache lives with it)."""
     found = _VALIDITY.get(model)
     if found is None:
-        found = _VALIDITY[model] = CoalValidity(model)
+        found = _VALIDITY[model] = (FastValidity(model), CoalValidity(model))
     return found
 
 
@@ -67,9 +71,10 @@ def plan_reach(
         return _line(request, start, config, model)
     target = resolve_target(request.goal, scene, poses)
     validity = _validity(model)
-    goals = goal_states(target, start, arm, validity, scene, request.seed)
+    work = WorkArea(arm)
+    goals = goal_states(target, start, arm, validity[1], scene, request.seed, work)
     settings = SearchSettings(request.seed, request.budget, config.padding)
-    found = search(start, goals, validity, arm.lower_array, arm.upper_array, settings)
+    found = search(start, goals, validity, work, arm.lower_array, arm.upper_array, settings)
     if not isinstance(found, Found):
         T = fk(found.closest, arm)[:3, 3]
         G = fk(goals[found.goal], arm)[:3, 3]
@@ -83,7 +88,12 @@ def plan_reach(
             value=found.distance,
         )
     timed = fit(
-        found.path, arm, request.speed, quintic=request.interpolation == "quintic", model=model
+        found.path,
+        arm,
+        request.speed,
+        quintic=request.interpolation == "quintic",
+        model=model,
+        work=work,
     )
     if isinstance(timed, Unfit):
         raise refuse("collision", f"{target.label}: the planned path's trajectory {timed.problem}")
@@ -96,9 +106,9 @@ def plan_reach(
     return _trajectory(timed, request, config, model, notes)
 
 
-def _validity(model: CollisionModel | None) -> Validity:
+def _validity(model: CollisionModel | None) -> tuple[Validity, Validity]:
     if model is None:
-        return FreeSpace()
+        return FreeSpace(), FreeSpace()
     return validity_of(model)
 
 
@@ -118,12 +128,12 @@ def _check_start(start: np.ndarray, config: PlannerConfig, model: CollisionModel
                 limit=float(lim),
             )
     if model is not None:
-        found = validity_of(model).margins(start)
-        if found.tightest < 0.0:
+        exact = validity_of(model)[1]
+        if exact.margins(start).tightest < 0.0:
             raise refuse(
                 "collision",
                 f"the start configuration is already too close: "
-                f"{validity_of(model).explain(start).describe()}; move the arm clear "
+                f"{exact.explain(start).describe()}; move the arm clear "
                 "by hand (jog) first",
             )
 
@@ -142,6 +152,14 @@ def _line(
         curve = curve.stretched(stretch)
         velocities = velocities / stretch
         notes.append(f"slowed {stretch:.3f}x to keep the joints within their limits")
+    seg, problem = work_area_problem(curve, WorkArea(arm))
+    if seg >= 0:
+        mm = line.along[seg + 1] * 1e3
+        raise refuse(
+            "zone",
+            f"{line.label}: by {mm:.0f} mm of {line.along[-1] * 1e3:.0f} mm the line leaves "
+            f"the arm's own work area ({problem}): the arm refuses to go there",
+        )
     clearance = None
     if model is not None:
         ex = curve.extremes(1)

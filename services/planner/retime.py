@@ -33,12 +33,16 @@ from services.planner.spline import (
     quintic_knot_accelerations,
     time_stretch,
 )
+from services.planner.work_area import WorkArea
 
 MAX_INSERTIONS = 6
 """Knots added where the spline leaves what was proven, before stopping at each waypoint."""
 
 MIN_SEGMENT_S = 0.2
 """Shortest time between two knots [s]."""
+
+WORK_STEP_M = 0.002
+"""Largest gripper travel between two samples of the work-area check [m]."""
 
 
 class Timed(NamedTuple):
@@ -85,6 +89,7 @@ def fit(
     *,
     quintic: bool,
     model: CollisionModel | None,
+    work: WorkArea | None = None,
     smooth: bool = True,
 ) -> Timed | Unfit:
     """Time ``knots`` (see the module docstring).
@@ -96,6 +101,7 @@ def fit(
         speed: fraction of the speed and acceleration limits to use (0, 1].
         quintic: quintic segments instead of the cubic spline.
         model: the collision model to sweep the curve through (None: no scene).
+        work: the arm's work area to keep all along (None: not kept).
         smooth: try the spline first (False: stop at each waypoint at once).
     """
     knots = np.asarray(knots, dtype=float)
@@ -104,7 +110,7 @@ def fit(
     if smooth and len(knots) > 2:
         for _ in range(MAX_INSERTIONS + 1):
             timed = _timed(knots, arm, speed, quintic, stop=False)
-            bad, problem, clearance = _check(timed, arm, model)
+            bad, problem, clearance = _check(timed, arm, model, work)
             if bad < 0:
                 return Timed(*timed, clearance, notes)
             knots = np.insert(knots, bad + 1, 0.5 * (knots[bad] + knots[bad + 1]), axis=0)
@@ -114,7 +120,7 @@ def fit(
         )
         knots = _without_inserted(knots)
     timed = _timed(knots, arm, speed, quintic, stop=True)
-    bad, problem, clearance = _check(timed, arm, model)
+    bad, problem, clearance = _check(timed, arm, model, work)
     if bad >= 0:
         return Unfit(problem)
     return Timed(*timed, clearance, notes)
@@ -175,10 +181,15 @@ def _check(
     timed: tuple[PiecewisePolynomial, np.ndarray, np.ndarray, np.ndarray | None],
     arm: ArmConfig,
     model: CollisionModel | None,
+    work: WorkArea | None,
 ) -> tuple[int, str, Clearance | None]:
     """The first failing segment (-1: none), what fails there, and the smallest
     clearance."""
     curve = timed[0]
+    if work is not None:
+        seg, problem = work_area_problem(curve, work)
+        if seg >= 0:
+            return seg, f"leaves the arm's work area ({problem})", None
     ex = curve.extremes(0)
     lower, upper = arm.lower_array, arm.upper_array
     beyond = (ex.low < lower).any(axis=1) | (ex.high > upper).any(axis=1)
@@ -199,3 +210,25 @@ def _check(
         np.clip(np.searchsorted(curve.times, bad.time, side="right") - 1, 0, len(curve.h) - 1)
     )
     return seg, f"brings the {bad.describe()} at t = {bad.time:.2f} s", found.worst
+
+
+def work_area_problem(curve: PiecewisePolynomial, work: WorkArea) -> tuple[int, str]:
+    """The first segment of ``curve`` whose gripper leaves the arm's work area (or whose
+    elbow straightens too far), sampled every :data:`WORK_STEP_M` of the gripper's
+    travel bound; (-1, "") when clear."""
+    speed = curve.extremes(1)
+    peaks = np.maximum(np.abs(speed.low), np.abs(speed.high))  # (S, 6)
+    rate = peaks @ work.levers  # gripper speed bound per segment [m/s]
+    counts = np.maximum(1, np.ceil(rate * curve.h / WORK_STEP_M)).astype(np.int64)
+    segment = np.repeat(np.arange(len(counts)), counts + 1)
+    within = np.arange(int((counts + 1).sum())) - np.repeat(
+        np.cumsum(counts + 1) - counts - 1, counts + 1
+    )
+    ts = curve.times[segment] + curve.h[segment] * within / counts[segment]
+    Q = curve.evaluate(ts)
+    area, elbow = work.margins(Q)
+    bad = (area < WORK_STEP_M) | (elbow < 0.0)
+    if not bad.any():
+        return -1, ""
+    k = int(np.argmax(bad))
+    return int(segment[k]), work.margin(Q[k]).what

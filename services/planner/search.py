@@ -6,11 +6,9 @@ joint configurations from the start to one of the goal states, around everything
    nearest goal states; the first that is clear is the path (most goals need no search).
 2. **Search**: OMPL's RRTConnect (:data:`PLANNER`; chosen by measurement, docs/reach.md)
    in the box the start and goals span, widened by :data:`BOX_MARGIN` and cut to the
-   joint limits; every goal state is a goal (``GoalStates``). A configuration is valid
-   when it keeps :attr:`SearchSettings.padding` beyond every clearance (the start and the
-   goal states need only their clearances); a motion between two configurations when
-   :meth:`Validity.motion` proves every margin stays above the smaller of the padding
-   and the two ends' smallest margins (less :data:`SLACK_M`).
+   joint limits; every goal state is a goal (``GoalStates``). Which configurations and
+   motions are valid is :class:`~services.planner.floors.Floors`' business (the scene
+   with a padding, the arm's work area).
 3. **Simplification**: OMPL's shortcuts (partial shortcuts, vertex reduction, collapsing
    close vertices), then a greedy pass of our own (from each vertex, the farthest one it
    sees).
@@ -37,7 +35,9 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
+from services.planner.floors import Floors
 from services.planner.validity import Validity
+from services.planner.work_area import WorkArea
 
 PLANNER = "RRTConnect"
 """The OMPL planner used (see docs/reach.md, Choosing the planner, for the measurement)."""
@@ -47,10 +47,6 @@ DIRECT_TRIES = 4
 
 BOX_MARGIN = math.pi / 2
 """How far beyond the range the start and the goals span each joint may go [rad]."""
-
-SLACK_M = 0.001
-"""How far below the smaller of its two ends' margins a motion may dip [m] (it could
-never leave a configuration exactly at its floor otherwise)."""
 
 SIMPLIFY_ROUNDS = 3
 """Rounds of OMPL's shortcutting."""
@@ -113,7 +109,8 @@ class NotFound(NamedTuple):
 def search(
     start: np.ndarray,
     goals: np.ndarray,
-    validity: Validity,
+    validity: tuple[Validity, Validity],
+    work: WorkArea | None,
     lower: np.ndarray,
     upper: np.ndarray,
     settings: SearchSettings,
@@ -123,12 +120,14 @@ def search(
     Args:
         start: start configuration [rad], shape (6,); within its clearances.
         goals: goal states [rad], shape (k, 6), nearest first; within their clearances.
-        validity: the geometry.
+        validity: the geometry: the fast check for the search, the exact one for the
+            start and the goals.
+        work: the arm's own work area (None: not kept).
         lower: lower joint limits [rad], shape (6,).
         upper: upper joint limits [rad], shape (6,).
         settings: seed, budget, padding, planner.
     """
-    floors = _Floors(validity, settings.padding, [start, *goals])
+    floors = Floors(validity[0], validity[1], work, settings.padding, [start, *goals])
     for k, goal in enumerate(goals[:DIRECT_TRIES]):
         if floors.motion(start, goal):
             return Found(np.array([start, goal]), k, 0)
@@ -138,36 +137,14 @@ def search(
         return _Search(start, goals, floors, lo, hi, settings).run()
 
 
-class _Floors:
-    """The padding policy: which configurations are valid and what each motion keeps."""
-
-    def __init__(self, validity: Validity, padding: float, ends: list[np.ndarray]) -> None:
-        self.validity = validity
-        self.padding = padding
-        self._ends = {np.asarray(q, dtype=float).tobytes() for q in ends}
-
-    def state(self, q: np.ndarray) -> bool:
-        tightest = self.validity.margins(q).tightest
-        if tightest >= self.padding:
-            return True
-        return tightest >= 0.0 and q.tobytes() in self._ends
-
-    def motion(self, qa: np.ndarray, qb: np.ndarray) -> bool:
-        if not (self.state(qa) and self.state(qb)):
-            return False
-        ma, mb = self.validity.margins(qa), self.validity.margins(qb)
-        least = min(ma.tightest, mb.tightest, self.padding)
-        return self.validity.motion(qa, qb, max(least - SLACK_M, 0.0))
-
-
 def _array(state: ob.State) -> np.ndarray:
     return np.array(state[0:6], dtype=float)
 
 
 class _Motions(ob.MotionValidator):  # type: ignore[misc]
-    """OMPL's motion validator, answered by :class:`_Floors` (both ends included)."""
+    """OMPL's motion validator, answered by :class:`Floors` (both ends included)."""
 
-    def __init__(self, si: ob.SpaceInformation, floors: _Floors) -> None:
+    def __init__(self, si: ob.SpaceInformation, floors: Floors) -> None:
         super().__init__(si)
         self.floors = floors
 
@@ -182,7 +159,7 @@ class _Search:
         self,
         start: np.ndarray,
         goals: np.ndarray,
-        floors: _Floors,
+        floors: Floors,
         lo: np.ndarray,
         hi: np.ndarray,
         settings: SearchSettings,

@@ -12,6 +12,13 @@ OMPL keeps the robot behind a ``StateValidityChecker`` (one configuration) and a
   it calls valid is valid;
 - :meth:`Validity.explain`: the tightest check at ``q``, for a refusal's message.
 
+:class:`FastValidity` answers from the compiled, conservative check
+(:class:`manus.validity.ValidityChecker`: lower bounds of the margins, a few
+microseconds a configuration, motions proven by conservative advancement in compiled
+code); the search uses it. Its bounds may lie a few millimetres below the exact margins
+near an obstacle, so the goal states and the start, which may lie that close, are judged
+by :class:`CoalValidity`, the exact model:
+
 :class:`CoalValidity` answers with today's exact model (:class:`manus.collision.
 CollisionModel`, Coal) and proves motions by conservative advancement: a body cannot
 lose more margin than its points travel, and no point of it travels further than the
@@ -30,6 +37,7 @@ import numpy as np
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.travel import BodyPoints
+from manus.validity import MOTION_FLOOR_M, checker_for
 
 RESOLUTION_M = 0.001
 """Shortest stretch of a motion (of any point's travel bound) [m] that is halved again;
@@ -124,6 +132,30 @@ class CoalValidity:
             stack.append((mid, s1, slack, slack1))
             stack.append((s0, mid, slack0, slack))
         return True
+
+    def explain(self, q: np.ndarray) -> Clearance:
+        return self.model.clearance(np.asarray(q, dtype=float))
+
+
+class FastValidity:
+    """:class:`Validity` from the compiled conservative check of ``model``
+    (:func:`manus.validity.checker_for`: built once per model; the first in a process
+    loads or compiles its kernels).
+
+    Args:
+        model: the collision model.
+    """
+
+    def __init__(self, model: CollisionModel) -> None:
+        self.model = model
+        self.checker = checker_for(model)
+
+    def margins(self, q: np.ndarray) -> Margins:
+        found = self.checker.margins(q)
+        return Margins(np.maximum(found.free, 0.0), float(found.tight))
+
+    def motion(self, qa: np.ndarray, qb: np.ndarray, floor: float) -> bool:
+        return bool(self.checker.motion_valid(qa, qb, max(floor, MOTION_FLOOR_M)).ok)
 
     def explain(self, q: np.ndarray) -> Clearance:
         return self.model.clearance(np.asarray(q, dtype=float))
