@@ -1,20 +1,24 @@
 """Goals a planner reaches by itself: where the arm should end up, not how it gets there.
 
-A :class:`Goal` is one of five kinds (``kind``), each using only its own fields:
+Five kinds of motion (members of :data:`schemas.motion.MOTIONS`, each named by its
+``kind``), planned by the goal planners (:mod:`services.planner.goal_planner`,
+docs/reach.md):
 
-- ``joints``: a joint configuration (``joints``, DH angles);
-- ``pose``: a gripper pose in the arm's base frame (``xyz``, ``ypr``), with tolerances
-  (``position_tolerance``, ``angle_tolerance``, ``free_axis``: any rotation about the
-  gripper's approach axis is fine);
-- ``named``: a named pose (``name``: ``home``, ``drink``, ``folded``, ``unfolded`` or one
-  of the user's poses file, docs/reach.md);
-- ``object``: a gripper pose given in a scene object's frame (``name`` the object,
-  ``xyz``/``ypr`` the offset from its frame), with the same tolerances as ``pose``;
-- ``line``: a straight Cartesian line from where the gripper is (MoveIt's Pilz LIN):
-  ``frame`` ``base``: to the pose ``xyz``/``ypr`` (``ypr`` None: keep the orientation);
-  ``frame`` ``tool``: by the displacement ``xyz`` in the gripper's frame (z along its
-  axis: ``[0, 0, 0.05]`` approaches 50 mm, ``[0, 0, -0.05]`` retreats).
+- ``joints`` (:class:`JointGoal`): a joint configuration;
+- ``pose`` (:class:`PoseGoal`): a gripper pose in the arm's base frame, with tolerances
+  (:class:`Tolerance`: a position ball, an angle, free rotation about the gripper's
+  approach axis);
+- ``named`` (:class:`NamedGoal`): a named pose (``home``, ``drink``, ``folded``,
+  ``unfolded`` or one of the user's poses file);
+- ``object`` (:class:`ObjectGoal`): a gripper pose given in a scene object's frame (an
+  offset from it), with tolerances;
+- ``line`` (:class:`LineMotion`): a straight Cartesian line from where the gripper is
+  (MoveIt's Pilz LIN): ``frame`` ``base``: to the pose ``xyz``/``ypr`` (``ypr`` None:
+  keep the orientation); ``frame`` ``tool``: by the displacement ``xyz`` in the gripper's
+  frame (z along its axis: ``[0, 0, 0.05]`` approaches 50 mm, ``[0, 0, -0.05]``
+  retreats).
 
+The first four find their way around the scene (a seeded search, :class:`Search`).
 Orientations are (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch) Rx(roll) (the CLI's
 order, docs/protocol.md, Orientation convention).
 """
@@ -25,25 +29,16 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from schemas.base import Message, field
+from schemas.motion import MOTIONS, Motion
+from schemas.tagged import tag
 
-
-class GoalKind(StrEnum):
-    """What a :class:`Goal` names."""
-
-    JOINTS = "joints"
-    """a joint configuration"""
-    POSE = "pose"
-    """a gripper pose in the base frame, with tolerances"""
-    NAMED = "named"
-    """a named pose"""
-    OBJECT = "object"
-    """a gripper pose in a scene object's frame, with tolerances"""
-    LINE = "line"
-    """a straight Cartesian line"""
+INTERPOLATIONS = ("cubic", "quintic")
+"""The interpolations (those of :class:`schemas.planning.Interpolation`; a test keeps them
+equal)."""
 
 
 class LineFrame(StrEnum):
-    """How a ``line`` goal's ``xyz`` / ``ypr`` are meant."""
+    """How a ``line`` motion's ``xyz`` / ``ypr`` are meant."""
 
     BASE = "base"
     """the end pose, in the base frame"""
@@ -51,76 +46,23 @@ class LineFrame(StrEnum):
     """a displacement in the gripper's frame at the start (z: along the gripper's axis)"""
 
 
-GOAL_KINDS = tuple(GoalKind)
 LINE_FRAMES = tuple(LineFrame)
 
 
 @dataclass(frozen=True)
-class Goal(Message):
-    """Where the arm should end up (see the module docstring for each kind's fields)."""
+class Search(Message):
+    """How a goal's path is searched for and timed."""
 
-    TYPE_NAME = "manus/Goal/1"
+    TYPE_NAME = "manus/Search/1"
 
-    kind: str = field("what the goal names", choices=GoalKind)
-    joints: list[float] | None = field(
-        "joints: the configuration (DH joint angles)", unit="rad", default=None, length=6
-    )
-    xyz: list[float] | None = field(
-        "pose: gripper position (base frame); object: offset from the object's frame; "
-        "line: end position (frame base) or displacement (frame tool)",
-        unit="m",
-        default=None,
-        length=3,
-    )
-    ypr: list[float] | None = field(
-        "orientation (yaw, pitch, roll) in the same frame as xyz (line: None keeps it)",
-        unit="rad",
-        default=None,
-        length=3,
-    )
-    name: str = field("named: the pose's name; object: the scene object's name", default="")
-    frame: str = field("line: how xyz / ypr are meant", default=LineFrame.BASE, choices=LineFrame)
-    position_tolerance: float = field(
-        "pose, object: how far the gripper may end from xyz",
-        unit="m",
-        default=0.0,
-        minimum=0.0,
-        maximum=0.1,
-    )
-    angle_tolerance: float = field(
-        "pose, object: how far its orientation may be turned from ypr (any axis)",
-        unit="rad",
-        default=0.0,
-        minimum=0.0,
-        maximum=0.5,
-    )
-    free_axis: bool = field(
-        "pose, object: any rotation about the gripper's approach axis (its z) is fine",
-        default=False,
-    )
-
-
-@dataclass(frozen=True)
-class ReachRequest(Message):
-    """Ask the planner for a trajectory to a goal (it finds the way around the scene)."""
-
-    TYPE_NAME = "manus/ReachRequest/1"
-
-    goal: Goal = field("where to go")
-    start: list[float] | None = field(
-        "start configuration (DH joint angles); None: the newest joint state",
-        unit="rad",
-        default=None,
-        length=6,
-    )
     seed: int = field(
-        "seed of the search (the same request and seed give the same trajectory)",
+        "seed of the search (the same request, start, scene and seed give the same plan)",
         default=1,
         minimum=1,
         maximum=2**31 - 1,
     )
     budget: int = field(
-        "most configurations the search may sample before it gives up",
+        "most iterations of the search before it gives up",
         default=3000,
         minimum=1,
         maximum=1_000_000,
@@ -134,12 +76,117 @@ class ReachRequest(Message):
     interpolation: str = field(
         "cubic spline through the waypoints, or quintic segments",
         default="cubic",
-        choices=("cubic", "quintic"),
+        choices=INTERPOLATIONS,
     )
-    preview_dt: float = field(
-        "sampling step of the Cartesian preview in the reply (0: no preview)",
-        unit="s",
-        default=0.06,
+
+
+@dataclass(frozen=True)
+class Tolerance(Message):
+    """How far from a pose goal the gripper may end."""
+
+    TYPE_NAME = "manus/Tolerance/1"
+
+    position: float = field(
+        "largest distance from the goal position", unit="m", default=0.0, minimum=0.0, maximum=0.1
+    )
+    angle: float = field(
+        "largest turn from the goal orientation (any axis)",
+        unit="rad",
+        default=0.0,
         minimum=0.0,
-        maximum=10.0,
+        maximum=0.5,
     )
+    free_axis: bool = field(
+        "any rotation about the gripper's approach axis (its z) is fine", default=False
+    )
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class JointGoal(Motion):
+    """A joint configuration to reach."""
+
+    TYPE_NAME = "manus/JointGoal/1"
+
+    kind: str = tag("joints", "a joint configuration")
+    joints: list[float] = field("the configuration (DH joint angles)", unit="rad", length=6)
+    search: Search = field("search and timing", default_factory=Search)
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class PoseGoal(Motion):
+    """A gripper pose to reach, in the base frame; every IK branch is a goal."""
+
+    TYPE_NAME = "manus/PoseGoal/1"
+
+    kind: str = tag("pose", "a gripper pose in the base frame")
+    xyz: list[float] = field("gripper position, base frame", unit="m", length=3)
+    ypr: list[float] = field("gripper orientation (yaw, pitch, roll)", unit="rad", length=3)
+    tolerance: Tolerance = field("how far from it the gripper may end", default_factory=Tolerance)
+    search: Search = field("search and timing", default_factory=Search)
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class NamedGoal(Motion):
+    """A named pose to reach (docs/reach.md, Named poses)."""
+
+    TYPE_NAME = "manus/NamedGoal/1"
+
+    kind: str = tag("named", "a named pose")
+    name: str = field("the pose's name: home, drink, folded, unfolded or the user's")
+    search: Search = field("search and timing", default_factory=Search)
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class ObjectGoal(Motion):
+    """A gripper pose given in a scene object's frame (an offset from it)."""
+
+    TYPE_NAME = "manus/ObjectGoal/1"
+
+    kind: str = tag("object", "a gripper pose in a scene object's frame")
+    name: str = field("the scene object")
+    xyz: list[float] = field("gripper position in the object's frame", unit="m", length=3)
+    ypr: list[float] = field(
+        "gripper orientation (yaw, pitch, roll) in the object's frame", unit="rad", length=3
+    )
+    tolerance: Tolerance = field("how far from it the gripper may end", default_factory=Tolerance)
+    search: Search = field("search and timing", default_factory=Search)
+
+
+@MOTIONS.member
+@dataclass(frozen=True)
+class LineMotion(Motion):
+    """A straight Cartesian line from where the gripper is (see the module docstring)."""
+
+    TYPE_NAME = "manus/LineMotion/1"
+
+    kind: str = tag("line", "a straight Cartesian line")
+    xyz: list[float] = field(
+        "frame base: the end position; frame tool: the displacement in the gripper's frame",
+        unit="m",
+        length=3,
+    )
+    ypr: list[float] | None = field(
+        "frame base: the end orientation (None: keep it); frame tool: a turn in the "
+        "gripper's frame (None: none)",
+        unit="rad",
+        default=None,
+        length=3,
+    )
+    frame: str = field("how xyz / ypr are meant", default=LineFrame.BASE, choices=LineFrame)
+    speed: float = field(
+        "fraction of the line's top speed (200 mm/s) and acceleration (400 mm/s^2)",
+        default=0.5,
+        minimum=0.05,
+        maximum=1.0,
+    )
+
+
+GOAL_MOTIONS = (JointGoal, PoseGoal, NamedGoal, ObjectGoal, LineMotion)
+"""Every goal kind (each a member of :data:`schemas.motion.MOTIONS`)."""
+
+TargetGoal = JointGoal | PoseGoal | NamedGoal | ObjectGoal
+"""The goals a search reaches (all but the line)."""

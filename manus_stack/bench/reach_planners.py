@@ -20,10 +20,11 @@ import numpy as np
 from manus.config import DEFAULT_ARM
 from manus_stack.bench.reach_run import Outcome, Planning, start_of_all, stats_ms
 from manus_stack.bench.reach_set import BenchGoal
+from schemas.goals import JointGoal, NamedGoal, ObjectGoal, PoseGoal
 from services.planner.errors import PlanningError
+from services.planner.goal_planner import validity_of
 from services.planner.goal_states import goal_states
 from services.planner.goal_target import resolve_target
-from services.planner.reach import validity_of
 from services.planner.search import Found, SearchSettings, search
 from services.planner.work_area import WorkArea
 
@@ -54,6 +55,7 @@ def compare(planning: Planning, goals: list[BenchGoal], base: list[Outcome]) -> 
     work = WorkArea(arm)
     problems = []
     for goal in hard:
+        assert isinstance(goal.goal, JointGoal | PoseGoal | NamedGoal | ObjectGoal)
         target = resolve_target(goal.goal, planning.model.scene, planning.poses)
         try:
             states = goal_states(target, starts[goal.id], arm, exact, planning.model.scene, 1, work)

@@ -1,5 +1,6 @@
-"""Running the goal set of ``manus bench reach`` in-process: the planner core's goal
-planning (:func:`services.planner.reach.plan_reach`) on every goal, from its start.
+"""Running the goal set of ``manus bench reach`` in-process: the planner core
+(:class:`services.planner.core.PlannerCore`, as the planner service runs it) on every
+goal, from its start.
 
 Each goal starts at a named pose or where an earlier goal's plan (seed 1) ends, so the
 set is planned in file order. A run is timed whole (goal states, search, simplification,
@@ -8,21 +9,19 @@ time parametrisation, limit checks and the sweep of the final trajectory).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import NamedTuple
 
 import numpy as np
 
 from manus.collision import CollisionModel
-from manus.config import DEFAULT_ARM
 from manus.named_poses import NamedPose, named_poses
-from manus.scene import default_scene
 from manus_stack.bench.reach_set import BenchGoal
-from schemas.goals import ReachRequest
-from schemas.planning import PlanError, Trajectory
+from schemas.goals import JointGoal, NamedGoal, ObjectGoal, PoseGoal, Search
+from schemas.planning import PlanError, PlanRequest, Trajectory
 from services.planner.config import PlannerConfig
-from services.planner.errors import PlanningError
-from services.planner.reach import plan_reach
+from services.planner.core import PlannerCore
 
 
 class Outcome(NamedTuple):
@@ -54,19 +53,25 @@ class Planning:
     """The default scene, the shipped poses and the planner's settings, ready to plan."""
 
     def __init__(self, config: PlannerConfig | None = None) -> None:
-        self.config = config or PlannerConfig(scene="default")
-        self.model = CollisionModel(default_scene(), DEFAULT_ARM)
-        self.poses: dict[str, NamedPose] = named_poses("")
+        self.config = config or PlannerConfig(scene="default", poses="")
+        self.core = PlannerCore(self.config)
+        assert self.core.collision is not None
+        self.model: CollisionModel = self.core.collision
+        self.poses: dict[str, NamedPose] = named_poses(self.config.poses)
+
+    def request(self, goal: BenchGoal, start: np.ndarray, seed: int = 1) -> PlanRequest:
+        """The plan request of ``goal`` from ``start`` [rad] with ``seed``."""
+        motion = goal.goal
+        if isinstance(motion, JointGoal | PoseGoal | NamedGoal | ObjectGoal):
+            motion = dataclasses.replace(motion, search=Search(seed=seed))
+        return PlanRequest(motion, start=[float(v) for v in start], preview_dt=0.0)
 
     def plan(self, goal: BenchGoal, start: np.ndarray, seed: int = 1) -> Outcome:
         """Plan ``goal`` from ``start`` with ``seed``, timed."""
-        request = ReachRequest(goal=goal.goal, seed=seed, preview_dt=0.0)
+        request = self.request(goal, start, seed)
         started = time.perf_counter()
-        try:
-            trajectory = plan_reach(request, start, self.config, self.model, self.poses)
-        except PlanningError as exc:
-            return Outcome(goal, start, time.perf_counter() - started, None, exc.error)
-        return Outcome(goal, start, time.perf_counter() - started, trajectory, None)
+        reply = self.core.plan(request)
+        return Outcome(goal, start, time.perf_counter() - started, reply.trajectory, reply.error)
 
     def run_set(self, goals: list[BenchGoal], seed: int = 1) -> list[Outcome]:
         """Every goal in file order, each from its start (see the module docstring)."""

@@ -32,7 +32,16 @@ import yaml
 
 from manus.errors import ManusError
 from manus.yaml_fields import FieldReader, join
-from schemas.goals import Goal, GoalKind, LineFrame
+from schemas.goals import (
+    JointGoal,
+    LineFrame,
+    LineMotion,
+    NamedGoal,
+    ObjectGoal,
+    PoseGoal,
+    Tolerance,
+)
+from schemas.motion import Motion
 from schemas.planning import PLAN_ERROR_REASONS
 
 AREAS = (
@@ -64,7 +73,7 @@ class BenchGoal:
         id: its name.
         area: one of :data:`AREAS`.
         start: a named pose, or the id of an earlier feasible entry.
-        goal: the goal message.
+        goal: the goal (a goal motion of :mod:`schemas.goals`).
         refused: the reason it must be refused with ('' when feasible).
         why: why it is infeasible, in words.
         line: its line in the file.
@@ -73,7 +82,7 @@ class BenchGoal:
     id: str
     area: str
     start: str
-    goal: Goal
+    goal: Motion
     refused: str = ""
     why: str = ""
     line: int = 0
@@ -137,30 +146,30 @@ def load_goal_set(path: Path | None = None) -> list[BenchGoal]:
     return out
 
 
-def _goal(reader: FieldReader, fields: dict[str, yaml.Node], key: str, path: str) -> Goal:
+def _goal(reader: FieldReader, fields: dict[str, yaml.Node], key: str, path: str) -> Motion:
     node = fields[key]
     where = join(path, key)
-    options = {
-        "free_axis": "free_axis" in fields and str(fields["free_axis"].value).lower() == "true",
-        "position_tolerance": _option(reader, fields, path, "tolerance_mm") * 1e-3,
-        "angle_tolerance": math.radians(_option(reader, fields, path, "tolerance_deg")),
-    }
+    tolerance = Tolerance(
+        position=_option(reader, fields, path, "tolerance_mm") * 1e-3,
+        angle=math.radians(_option(reader, fields, path, "tolerance_deg")),
+        free_axis="free_axis" in fields and str(fields["free_axis"].value).lower() == "true",
+    )
     if key == "pose":
         v = reader.vector(node, where, 6)
-        return Goal(kind=GoalKind.POSE, xyz=_m(v[:3]), ypr=_rad(v[3:]), **options)
+        return PoseGoal(xyz=_m(v[:3]), ypr=_rad(v[3:]), tolerance=tolerance)
     if key == "joints":
-        return Goal(kind=GoalKind.JOINTS, joints=_rad(reader.vector(node, where, 6)))
+        return JointGoal(joints=_rad(reader.vector(node, where, 6)))
     if key == "named":
-        return Goal(kind=GoalKind.NAMED, name=str(node.value))
+        return NamedGoal(name=str(node.value))
     if key == "object":
         items = reader.items(node, where)
         if len(items) != 7:
             raise reader.fail(node, where, "must be [NAME, X, Y, Z, YAW, PITCH, ROLL]")
         name = reader.text(items[0], f"{where}[0]")
         v = [reader.number(n, f"{where}[{k + 1}]") for k, n in enumerate(items[1:])]
-        return Goal(kind=GoalKind.OBJECT, name=name, xyz=_m(v[:3]), ypr=_rad(v[3:]), **options)
+        return ObjectGoal(name=name, xyz=_m(v[:3]), ypr=_rad(v[3:]), tolerance=tolerance)
     frame = LineFrame.TOOL if key == "line_tool" else LineFrame.BASE
-    return Goal(kind=GoalKind.LINE, xyz=_m(reader.vector(node, where)), frame=frame)
+    return LineMotion(xyz=_m(reader.vector(node, where)), frame=frame)
 
 
 def _option(reader: FieldReader, fields: dict[str, yaml.Node], path: str, key: str) -> float:

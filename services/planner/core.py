@@ -23,7 +23,8 @@ from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, star
 from manus.validity import checker_for
 from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
-from schemas.planning import Motion, PlanReply, PlanRequest, Trajectory
+from schemas.motion import Motion
+from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner.config import PlannerConfig
 from services.planner.errors import PlanningError, refuse

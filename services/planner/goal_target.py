@@ -1,4 +1,4 @@
-"""A :class:`schemas.goals.Goal` as the planner aims at it: a joint configuration, or a
+"""A goal (:mod:`schemas.goals`) as the planner aims at it: a joint configuration, or a
 gripper pose in the base frame with its tolerances.
 
 ``named`` goals are looked up in the named poses (:mod:`manus.named_poses`), ``object``
@@ -16,7 +16,7 @@ import numpy as np
 from manus.named_poses import NamedPose, NamedPoseError, find_pose
 from manus.orientation import matrix_to_ypr, pose_matrix
 from manus.scene import Scene
-from schemas.goals import Goal, GoalKind
+from schemas.goals import JointGoal, NamedGoal, ObjectGoal, TargetGoal
 from services.planner.errors import refuse
 
 
@@ -50,23 +50,20 @@ def describe_pose(T: np.ndarray) -> str:
     )
 
 
-def resolve_target(goal: Goal, scene: Scene | None, poses: dict[str, NamedPose]) -> Target:
-    """The :class:`Target` of ``goal`` (``line`` goals are :mod:`.line`'s).
+def resolve_target(goal: TargetGoal, scene: Scene | None, poses: dict[str, NamedPose]) -> Target:
+    """The :class:`Target` of ``goal``.
 
     Raises:
-        PlanningError: ``invalid``: a field the kind needs is missing, the name is
-            unknown, or the object is not in the scene.
+        PlanningError: ``invalid``: a value not finite, the name unknown, or the object
+            not in the scene.
     """
-    kind = goal.kind
-    if kind == GoalKind.JOINTS:
-        if goal.joints is None:
-            raise refuse("invalid", "a joints goal needs `joints` (6 DH angles)")
+    if isinstance(goal, JointGoal):
         q = np.array(goal.joints, dtype=float)
         if not np.isfinite(q).all():
             raise refuse("invalid", f"joints goal: `joints` must be finite, got {goal.joints}")
-        deg = ", ".join(f"{v:.1f}" for v in np.degrees(q))
+        deg = ", ".join(f"{v:.1f}" for v in np.degrees(q) + 0.0)
         return Target(f"joints ({deg}) deg", joints=q)
-    if kind == GoalKind.NAMED:
+    if isinstance(goal, NamedGoal):
         try:
             named = find_pose(poses, goal.name)
         except NamedPoseError as exc:
@@ -79,26 +76,21 @@ def resolve_target(goal: Goal, scene: Scene | None, poses: dict[str, NamedPose])
         return Target(
             label, None, T, named.position_tolerance, named.angle_tolerance, named.free_axis
         )
-    if kind in (GoalKind.POSE, GoalKind.OBJECT):
-        T = _pose_of(goal)
-        label = f"pose {describe_pose(T)}"
-        if kind == GoalKind.OBJECT:
-            frame = object_frame(goal.name, scene)
-            T = frame @ T
-            label = (
-                f"object {goal.name!r} offset {describe_pose(_pose_of(goal))}: {describe_pose(T)}"
-            )
-        return Target(label, None, T, goal.position_tolerance, goal.angle_tolerance, goal.free_axis)
-    raise refuse("invalid", f"a {kind} goal is not a target (it is planned by its own planner)")
+    T = _pose(goal.kind, goal.xyz, goal.ypr)
+    label = f"pose {describe_pose(T)}"
+    if isinstance(goal, ObjectGoal):
+        label = f"object {goal.name!r} offset {describe_pose(T)}"
+        T = object_frame(goal.name, scene) @ T
+        label = f"{label}: {describe_pose(T)}"
+    tol = goal.tolerance
+    return Target(label, None, T, tol.position, tol.angle, tol.free_axis)
 
 
-def _pose_of(goal: Goal) -> np.ndarray:
-    if goal.xyz is None or goal.ypr is None:
-        raise refuse("invalid", f"a {goal.kind} goal needs `xyz` and `ypr`")
-    values = [*goal.xyz, *goal.ypr]
+def _pose(kind: str, xyz: list[float], ypr: list[float]) -> np.ndarray:
+    values = [*xyz, *ypr]
     if not all(math.isfinite(v) for v in values):
-        raise refuse("invalid", f"{goal.kind} goal: `xyz` and `ypr` must be finite, got {values}")
-    return pose_matrix(np.array(goal.xyz), (goal.ypr[0], goal.ypr[1], goal.ypr[2]))
+        raise refuse("invalid", f"{kind} goal: `xyz` and `ypr` must be finite, got {values}")
+    return pose_matrix(np.array(xyz), (ypr[0], ypr[1], ypr[2]))
 
 
 def object_frame(name: str, scene: Scene | None) -> np.ndarray:

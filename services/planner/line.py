@@ -27,7 +27,7 @@ from manus.config import ArmConfig
 from manus.errors import KinematicsError
 from manus.kinematics import BRANCHES, branch_of, fk, ik_all, ik_batch, wrap
 from manus.orientation import ypr_to_matrix
-from schemas.goals import Goal, LineFrame
+from schemas.goals import LineFrame, LineMotion
 from services.planner.config import PlannerConfig
 from services.planner.errors import PlanningError, refuse
 from services.planner.goal_target import describe_pose
@@ -71,14 +71,12 @@ class Line(NamedTuple):
     label: str
 
 
-def end_pose(goal: Goal, T0: np.ndarray) -> np.ndarray:
+def end_pose(goal: LineMotion, T0: np.ndarray) -> np.ndarray:
     """The line's end pose [m], (4, 4), from the start pose ``T0``.
 
     Raises:
-        PlanningError: ``invalid``: no ``xyz``, or values not finite.
+        PlanningError: ``invalid``: values not finite.
     """
-    if goal.xyz is None:
-        raise refuse("invalid", "a line goal needs `xyz` (its end, or the displacement)")
     values = [*goal.xyz, *(goal.ypr or [])]
     if not all(math.isfinite(v) for v in values):
         raise refuse("invalid", f"line goal: `xyz` and `ypr` must be finite, got {values}")

@@ -18,15 +18,23 @@ from typing import Any
 
 import numpy as np
 
-from manus.collision import CollisionModel
 from manus.config import load_arm_config
-from manus.named_poses import NamedPoseError, named_poses
-from manus.scene import scene_from_setting
-from schemas.goals import Goal, GoalKind, LineFrame, ReachRequest
-from schemas.planning import Trajectory
+from manus.named_poses import NamedPoseError
+from schemas.goals import (
+    JointGoal,
+    LineFrame,
+    LineMotion,
+    NamedGoal,
+    ObjectGoal,
+    PoseGoal,
+    Search,
+    Tolerance,
+)
+from schemas.motion import Motion
+from schemas.planning import PlanRequest, Trajectory
 from services.planner.config import PlannerConfig
-from services.planner.errors import refuse
-from services.planner.reach import plan_reach
+from services.planner.core import PlannerCore
+from services.planner.errors import PlanningError, refuse
 
 POSE_METAVAR = ("X", "Y", "Z", "YAW", "PITCH", "ROLL")
 """A pose on the command line: position [mm], then yaw, pitch, roll [deg]."""
@@ -84,32 +92,38 @@ def add_goal_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--poses", default="", help="named poses file (default: $MANUS_POSES)")
 
 
-def goal_from_args(args: argparse.Namespace) -> Goal | None:
-    """The goal the options ask for (None: no goal option given).
+def goal_from_args(args: argparse.Namespace) -> Motion | None:
+    """The goal motion the options ask for (None: no goal option given).
 
     Raises:
         PlanningError: ``invalid``: a number out of range.
     """
-    tolerances: dict[str, Any] = {
-        "position_tolerance": args.tolerance_mm * 1e-3,
-        "angle_tolerance": math.radians(args.tolerance_deg),
-        "free_axis": args.free_axis,
-    }
     try:
+        search = Search(
+            seed=args.seed,
+            budget=args.budget,
+            speed=args.speed,
+            interpolation="quintic" if args.quintic else "cubic",
+        )
+        tolerance = Tolerance(
+            position=args.tolerance_mm * 1e-3,
+            angle=math.radians(args.tolerance_deg),
+            free_axis=args.free_axis,
+        )
         if args.to_pose is not None:
             xyz, ypr = _pose(args.to_pose)
-            return Goal(kind=GoalKind.POSE, xyz=xyz, ypr=ypr, **tolerances)
+            return PoseGoal(xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
         if args.to_joints is not None:
-            return Goal(kind=GoalKind.JOINTS, joints=[math.radians(v) for v in args.to_joints])
+            return JointGoal(joints=[math.radians(v) for v in args.to_joints], search=search)
         if args.to is not None:
-            return Goal(kind=GoalKind.NAMED, name=args.to)
+            return NamedGoal(name=args.to, search=search)
         if args.to_object is not None:
             name, *numbers = args.to_object
             xyz, ypr = _pose([_number(v) for v in numbers])
-            return Goal(kind=GoalKind.OBJECT, name=name, xyz=xyz, ypr=ypr, **tolerances)
+            return ObjectGoal(name=name, xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
         if args.approach is not None:
-            return Goal(
-                kind=GoalKind.LINE, xyz=[0.0, 0.0, args.approach * 1e-3], frame=LineFrame.TOOL
+            return LineMotion(
+                xyz=[0.0, 0.0, args.approach * 1e-3], frame=LineFrame.TOOL, speed=args.speed
             )
     except ValueError as exc:  # a SchemaError: a field out of its range
         raise refuse("invalid", str(exc)) from exc
@@ -127,27 +141,26 @@ def _pose(values: list[float]) -> tuple[list[float], list[float]]:
     return [v * 1e-3 for v in values[:3]], [math.radians(v) for v in values[3:]]
 
 
-def run_goal(args: argparse.Namespace, goal: Goal) -> int:
-    """Plan ``goal`` from ``args.start_joints``; print the trajectory as JSON."""
-    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
+def run_goal(args: argparse.Namespace, motion: Motion) -> int:
+    """Plan ``motion`` from ``args.start_joints``; print the trajectory as JSON."""
+    config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene, poses=args.poses)
     try:
-        poses = named_poses(args.poses)
+        core = PlannerCore(config)
     except NamedPoseError as exc:
         raise refuse("invalid", str(exc)) from exc
-    scene = scene_from_setting(config.scene)
-    model = None if scene is None else CollisionModel(scene, config.arm)
-    request = ReachRequest(
-        goal=goal,
-        seed=args.seed,
-        budget=args.budget,
-        speed=args.speed,
-        interpolation="quintic" if args.quintic else "cubic",
+    request = PlanRequest(
+        motion,
+        start=[math.radians(v) for v in args.start_joints],
         preview_dt=0.06 if args.preview else 0.0,
     )
-    start = np.radians(np.asarray(args.start_joints, dtype=float))
-    trajectory = plan_reach(request, start, config, model, poses)
-    out = trajectory_json(trajectory, start, request.interpolation, args.preview)
-    out["goal"] = goal.to_dict()
+    reply = core.plan(request)
+    if reply.error is not None:
+        raise PlanningError(reply.error)
+    trajectory = reply.trajectory
+    assert trajectory is not None
+    interpolation = "quintic" if trajectory.accelerations else "cubic"
+    out = trajectory_json(trajectory, np.asarray(request.start), interpolation, args.preview)
+    out["goal"] = motion.to_dict()
     sys.stdout.write(json.dumps(out) + "\n")
     if trajectory.clearance is not None:
         c = trajectory.clearance

@@ -9,11 +9,13 @@ uniform time stretch that brings every joint's exact peak speed and acceleration
 those limits (:func:`~services.planner.spline.time_stretch`).
 
 A spline rounds the corners of the path, so it can leave what was proven: the curve is
-checked again, whole (joint limits by exact extremes, the scene by
+checked again, whole (joint limits by exact extremes, the arm's work area, the scene by
 :func:`manus.sweep.sweep`). Where it fails, the stretch's midpoint (on the straight
 path) becomes one more knot, so that the curve hugs the path there, up to
 :data:`MAX_INSERTIONS` times; if the curve still fails, every knot gets zero velocity:
-each stretch is then exactly its straight motion (the arm stops at each waypoint).
+each stretch is then exactly its straight motion (the arm stops at each waypoint), which
+is checked for the joint limits and the work area here and swept by the planner's shared
+stage (:meth:`services.planner.planner.Planner.plan`), like a path of two waypoints.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
 from manus.sweep import sweep
@@ -53,7 +54,6 @@ class Timed(NamedTuple):
         knots: the knot positions [rad], shape (n, 6).
         velocities: the knot velocities [rad/s], shape (n, 6).
         accelerations: knot accelerations [rad/s^2], shape (n, 6) (quintic), else None.
-        clearance: the smallest clearance along it (None: no scene).
         notes: what was done, for the user.
     """
 
@@ -61,7 +61,6 @@ class Timed(NamedTuple):
     knots: np.ndarray
     velocities: np.ndarray
     accelerations: np.ndarray | None
-    clearance: Clearance | None
     notes: list[str]
 
 
@@ -110,9 +109,9 @@ def fit(
     if smooth and len(knots) > 2:
         for _ in range(MAX_INSERTIONS + 1):
             timed = _timed(knots, arm, speed, quintic, stop=False)
-            bad, problem, clearance = _check(timed, arm, model, work)
+            bad, problem = _check(timed[0], arm, model, work)
             if bad < 0:
-                return Timed(*timed, clearance, notes)
+                return Timed(*timed, notes)
             knots = np.insert(knots, bad + 1, 0.5 * (knots[bad] + knots[bad + 1]), axis=0)
         notes.append(
             f"the arm stops at each waypoint: a spline through them {problem} even with "
@@ -120,10 +119,10 @@ def fit(
         )
         knots = _without_inserted(knots)
     timed = _timed(knots, arm, speed, quintic, stop=True)
-    bad, problem, clearance = _check(timed, arm, model, work)
+    bad, problem = _check(timed[0], arm, None, work)
     if bad >= 0:
         return Unfit(problem)
-    return Timed(*timed, clearance, notes)
+    return Timed(*timed, notes)
 
 
 def _without_inserted(knots: np.ndarray) -> np.ndarray:
@@ -178,18 +177,13 @@ def within_limits(curve: PiecewisePolynomial, arm: ArmConfig, speed: float) -> f
 
 
 def _check(
-    timed: tuple[PiecewisePolynomial, np.ndarray, np.ndarray, np.ndarray | None],
+    curve: PiecewisePolynomial,
     arm: ArmConfig,
     model: CollisionModel | None,
     work: WorkArea | None,
-) -> tuple[int, str, Clearance | None]:
-    """The first failing segment (-1: none), what fails there, and the smallest
-    clearance."""
-    curve = timed[0]
-    if work is not None:
-        seg, problem = work_area_problem(curve, work)
-        if seg >= 0:
-            return seg, f"leaves the arm's work area ({problem})", None
+) -> tuple[int, str]:
+    """The first failing segment of ``curve`` (-1: none) and what fails there: a joint
+    limit, the work area, the scene (``model``; None: not swept here)."""
     ex = curve.extremes(0)
     lower, upper = arm.lower_array, arm.upper_array
     beyond = (ex.low < lower).any(axis=1) | (ex.high > upper).any(axis=1)
@@ -197,19 +191,21 @@ def _check(
         seg = int(np.argmax(beyond))
         j = int(np.argmax((ex.low[seg] < lower) | (ex.high[seg] > upper)))
         value = ex.low[seg, j] if ex.low[seg, j] < lower[j] else ex.high[seg, j]
-        return seg, f"takes joint {j + 1} to {math.degrees(value):.1f} deg, beyond its limit", None
+        return seg, f"takes joint {j + 1} to {math.degrees(value):.1f} deg, beyond its limit"
+    if work is not None:
+        seg, problem = work_area_problem(curve, work)
+        if seg >= 0:
+            return seg, f"leaves the arm's work area ({problem})"
     if model is None:
-        return -1, "", None
+        return -1, ""
     speed = curve.extremes(1)
     peaks = np.maximum(np.abs(speed.low), np.abs(speed.high))
-    found = sweep(model, curve.times, peaks, curve.evaluate)
-    bad = found.violation
+    bad = sweep(model, curve.times, peaks, curve.evaluate).violation
     if bad is None:
-        return -1, "", found.worst
-    seg = int(
-        np.clip(np.searchsorted(curve.times, bad.time, side="right") - 1, 0, len(curve.h) - 1)
-    )
-    return seg, f"brings the {bad.describe()} at t = {bad.time:.2f} s", found.worst
+        return -1, ""
+    after = int(np.searchsorted(curve.times, bad.time, side="right"))
+    where = min(max(after - 1, 0), len(curve.h) - 1)
+    return where, f"brings the {bad.describe()} at t = {bad.time:.2f} s"
 
 
 def work_area_problem(curve: PiecewisePolynomial, work: WorkArea) -> tuple[int, str]:
