@@ -14,7 +14,7 @@ arm's own work area.
 The start and the goal states are judged by the ``exact`` check (they may lie closer to
 something than the fast check's bounds can prove), everything else by the ``fast`` one;
 a motion from or to one of them that the fast check cannot even begin (its bound there
-below the floor) is proven by the exact one.
+below the floor) is proven by the exact one (at most :data:`EXACT_MOTIONS` per search).
 """
 
 from __future__ import annotations
@@ -29,6 +29,10 @@ SLACK_M = 0.001
 
 AREA_PADDING_M = 0.003
 """Margin kept inside the arm's work area away from the ends [m]."""
+
+EXACT_MOTIONS = 24
+"""Most motions from or to an end a search proves with the exact check (the rest of its
+motions are the fast check's)."""
 
 
 class Floors:
@@ -54,17 +58,26 @@ class Floors:
         self.fast, self.exact, self.work = fast, exact, work
         self.padding = padding
         self._ends = {np.asarray(q, dtype=float).tobytes() for q in ends}
+        self._known: dict[bytes, tuple[float, float, bool]] = {}
+        self.exact_left = EXACT_MOTIONS
+        """Exact motion checks this search may still make."""
 
     def _margin(self, q: np.ndarray) -> tuple[float, float, bool]:
         """The smallest clearance margin at ``q`` [m], the work-area margin [m] (the
-        elbow's counted as a length along the forearm), and whether ``q`` is an end."""
-        end = q.tobytes() in self._ends
+        elbow's counted as a length along the forearm), and whether ``q`` is an end (each
+        configuration computed once: a search asks its tree's again and again)."""
+        key = q.tobytes()
+        found = self._known.get(key)
+        if found is not None:
+            return found
+        end = key in self._ends
         margin = (self.exact if end else self.fast).margins(q).tightest
         area = np.inf
         if self.work is not None:
             a, elbow = self.work.margins(q[None])
             area = min(float(a[0]), float(elbow[0]) * self.work.arm.l3)
-        return margin, area, end
+        found = self._known[key] = (margin, area, end)
+        return found
 
     def state(self, q: np.ndarray) -> bool:
         """Whether ``q`` [rad] may be on a path."""
@@ -85,9 +98,13 @@ class Floors:
         floor = max(min(ma, mb, self.padding) - SLACK_M, 0.0)
         if self.fast.motion(qa, qb, floor):
             return True
-        if (end_a and self.fast.margins(qa).tightest < floor) or (
-            end_b and self.fast.margins(qb).tightest < floor
+        # An end the fast bound cannot even leave: the exact check (a few of them per
+        # search: each costs milliseconds).
+        if self.exact_left > 0 and (
+            (end_a and self.fast.margins(qa).tightest < floor)
+            or (end_b and self.fast.margins(qb).tightest < floor)
         ):
+            self.exact_left -= 1
             return self.exact.motion(qa, qb, floor)
         return False
 

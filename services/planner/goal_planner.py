@@ -142,7 +142,7 @@ class GoalPlanner(Planner[TargetGoal]):
             arm,
             options.speed,
             quintic=options.interpolation == "quintic",
-            model=model,
+            valid=None if model is None else fast.valid_many,
             work=self.work,
         )
         if isinstance(timed, Unfit):

@@ -9,25 +9,25 @@ uniform time stretch that brings every joint's exact peak speed and acceleration
 those limits (:func:`~services.planner.spline.time_stretch`).
 
 A spline rounds the corners of the path, so it can leave what was proven: the curve is
-checked again, whole (joint limits by exact extremes, the arm's work area, the scene by
-:func:`manus.sweep.sweep`). Where it fails, the stretch's midpoint (on the straight
-path) becomes one more knot, so that the curve hugs the path there, up to
-:data:`MAX_INSERTIONS` times; if the curve still fails, every knot gets zero velocity:
-each stretch is then exactly its straight motion (the arm stops at each waypoint), which
-is checked for the joint limits and the work area here and swept by the planner's shared
-stage (:meth:`services.planner.planner.Planner.plan`), like a path of two waypoints.
+checked again, whole (joint limits by exact extremes, the arm's work area, and the
+fast conservative check at samples no more than :data:`SAMPLE_M` of any point's travel
+apart). Where it fails, the stretch's midpoint (on the straight path) becomes one more
+knot, so that the curve hugs the path there, up to :data:`MAX_INSERTIONS` times; if the
+curve still fails, every knot gets zero velocity: each stretch is then exactly its
+straight motion (the arm stops at each waypoint). The exact, continuous sweep of the
+final curve (:func:`manus.sweep.sweep`) is the planner's shared stage
+(:meth:`services.planner.planner.Planner.plan`), after this.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
-from manus.collision import CollisionModel
 from manus.config import ArmConfig
-from manus.sweep import sweep
 from services.planner.spline import (
     PiecewisePolynomial,
     clamped_cubic_velocities,
@@ -43,7 +43,15 @@ MIN_SEGMENT_S = 0.2
 """Shortest time between two knots [s]."""
 
 WORK_STEP_M = 0.002
-"""Largest gripper travel between two samples of the work-area check [m]."""
+"""Largest change of the work-area margin between two samples of a curve [m]."""
+
+SAMPLE_M = 0.004
+"""Largest travel of any point of the arm between two samples of the spline's check [m]
+(the final sweep, exact and continuous, is the planner's shared stage)."""
+
+SAMPLE_LEVERS = np.array([1.0, 1.0, 0.6, 0.3, 0.3, 0.2])
+"""Farthest any point of the arm is from each joint's axis [m] (generous bounds: the
+gripper is at most 0.99 m from the shoulder)."""
 
 
 class Timed(NamedTuple):
@@ -87,7 +95,7 @@ def fit(
     speed: float,
     *,
     quintic: bool,
-    model: CollisionModel | None,
+    valid: Callable[[np.ndarray], np.ndarray] | None,
     work: WorkArea | None = None,
     smooth: bool = True,
 ) -> Timed | Unfit:
@@ -99,7 +107,8 @@ def fit(
         arm: joint limits, speed and acceleration limits.
         speed: fraction of the speed and acceleration limits to use (0, 1].
         quintic: quintic segments instead of the cubic spline.
-        model: the collision model to sweep the curve through (None: no scene).
+        valid: which of many configurations [rad], (m, 6), keep every clearance (the fast
+            check, batched: (m,) bool); None: no scene.
         work: the arm's work area to keep all along (None: not kept).
         smooth: try the spline first (False: stop at each waypoint at once).
     """
@@ -109,7 +118,7 @@ def fit(
     if smooth and len(knots) > 2:
         for _ in range(MAX_INSERTIONS + 1):
             timed = _timed(knots, arm, speed, quintic, stop=False)
-            bad, problem = _check(timed[0], arm, model, work)
+            bad, problem = _check(timed[0], arm, valid, work)
             if bad < 0:
                 return Timed(*timed, notes)
             knots = np.insert(knots, bad + 1, 0.5 * (knots[bad] + knots[bad + 1]), axis=0)
@@ -179,11 +188,12 @@ def within_limits(curve: PiecewisePolynomial, arm: ArmConfig, speed: float) -> f
 def _check(
     curve: PiecewisePolynomial,
     arm: ArmConfig,
-    model: CollisionModel | None,
+    valid: Callable[[np.ndarray], np.ndarray] | None,
     work: WorkArea | None,
 ) -> tuple[int, str]:
     """The first failing segment of ``curve`` (-1: none) and what fails there: a joint
-    limit, the work area, the scene (``model``; None: not swept here)."""
+    limit, the work area, a clearance at one of the samples :func:`samples` takes
+    (``valid``; None: not checked here)."""
     ex = curve.extremes(0)
     lower, upper = arm.lower_array, arm.upper_array
     beyond = (ex.low < lower).any(axis=1) | (ex.high > upper).any(axis=1)
@@ -196,32 +206,39 @@ def _check(
         seg, problem = work_area_problem(curve, work)
         if seg >= 0:
             return seg, f"leaves the arm's work area ({problem})"
-    if model is None:
+    if valid is None:
         return -1, ""
+    segment, Q = samples(curve, SAMPLE_LEVERS, SAMPLE_M)
+    ok = valid(Q)
+    if ok.all():
+        return -1, ""
+    k = int(np.argmin(ok))
+    return int(
+        segment[k]
+    ), f"comes too close to something at t = {float(curve.times[segment[k]]):.2f} s"
+
+
+def samples(
+    curve: PiecewisePolynomial, levers: np.ndarray, step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations along ``curve`` no more than ``step`` [m] apart for a point whose
+    speed is at most the joint speeds times ``levers`` [m], shape (6,): each sample's
+    segment (m,) and the configurations [rad] (m, 6), every knot included."""
     speed = curve.extremes(1)
-    peaks = np.maximum(np.abs(speed.low), np.abs(speed.high))
-    bad = sweep(model, curve.times, peaks, curve.evaluate).violation
-    if bad is None:
-        return -1, ""
-    after = int(np.searchsorted(curve.times, bad.time, side="right"))
-    where = min(max(after - 1, 0), len(curve.h) - 1)
-    return where, f"brings the {bad.describe()} at t = {bad.time:.2f} s"
+    peaks = np.maximum(np.abs(speed.low), np.abs(speed.high))  # (S, 6)
+    counts = np.maximum(1, np.ceil((peaks @ levers) * curve.h / step)).astype(np.int64)
+    segment = np.repeat(np.arange(len(counts)), counts + 1)
+    starts = np.repeat(np.cumsum(counts + 1) - counts - 1, counts + 1)
+    within = np.arange(int((counts + 1).sum())) - starts
+    ts = curve.times[segment] + curve.h[segment] * within / counts[segment]
+    return segment, curve.evaluate(ts)
 
 
 def work_area_problem(curve: PiecewisePolynomial, work: WorkArea) -> tuple[int, str]:
     """The first segment of ``curve`` whose gripper leaves the arm's work area (or whose
-    elbow straightens too far), sampled every :data:`WORK_STEP_M` of the gripper's
-    travel bound; (-1, "") when clear."""
-    speed = curve.extremes(1)
-    peaks = np.maximum(np.abs(speed.low), np.abs(speed.high))  # (S, 6)
-    rate = peaks @ work.levers  # gripper speed bound per segment [m/s]
-    counts = np.maximum(1, np.ceil(rate * curve.h / WORK_STEP_M)).astype(np.int64)
-    segment = np.repeat(np.arange(len(counts)), counts + 1)
-    within = np.arange(int((counts + 1).sum())) - np.repeat(
-        np.cumsum(counts + 1) - counts - 1, counts + 1
-    )
-    ts = curve.times[segment] + curve.h[segment] * within / counts[segment]
-    Q = curve.evaluate(ts)
+    elbow straightens too far), sampled every :data:`WORK_STEP_M` of the area margin's
+    change bound; (-1, "") when clear."""
+    segment, Q = samples(curve, work.levers, WORK_STEP_M)
     area, elbow = work.margins(Q)
     bad = (area < WORK_STEP_M) | (elbow < 0.0)
     if not bad.any():

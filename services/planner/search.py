@@ -10,8 +10,9 @@ joint configurations from the start to one of the goal states, around everything
    motions are valid is :class:`~services.planner.floors.Floors`' business (the scene
    with a padding, the arm's work area).
 3. **Simplification**: OMPL's shortcuts (partial shortcuts, vertex reduction, collapsing
-   close vertices), then a greedy pass of our own (from each vertex, the farthest one it
-   sees).
+   close vertices), then two passes of our own: from each vertex, the farthest one it
+   sees (:func:`greedy_shortcut`); from each vertex, a straight motion to the goal state
+   that makes the path shortest (:func:`nearer_goal`).
 
 **Determinism.** OMPL draws every random number from generators seeded, as each is
 created, by one process-wide seed generator, which :func:`ompl.util.RNG.setSeed`
@@ -48,8 +49,17 @@ DIRECT_TRIES = 4
 BOX_MARGIN = math.pi / 2
 """How far beyond the range the start and the goals span each joint may go [rad]."""
 
-SIMPLIFY_ROUNDS = 3
-"""Rounds of OMPL's shortcutting."""
+SIMPLIFY_ROUNDS = 5
+"""Most rounds of OMPL's shortcutting (it stops earlier when a round changes nothing)."""
+
+RANGE = 1.0
+"""Longest motion the search adds in one step [rad] (measured: docs/reach.md)."""
+
+SEARCHES = 1
+"""Independent searches per plan, the shortest path kept (measured: docs/reach.md)."""
+
+SEED_STRIDE = 1_000_003
+"""Seed step between the searches of one plan."""
 
 _LOCK = threading.Lock()
 """One search at a time in a process: OMPL's seed generator is process-wide."""
@@ -64,14 +74,17 @@ class SearchSettings(NamedTuple):
         padding: margin kept beyond the clearances away from the start and goal [m].
         planner: the OMPL planner's name (``RRTConnect``; others for measurements).
         range: longest motion the planner adds in one step [rad] (0: OMPL's default,
-            a fifth of the search box's diagonal).
+            a fifth of the search box's diagonal; :data:`RANGE` by default).
+        searches: independent searches (seeds derived from ``seed``), the shortest path
+            kept (:data:`SEARCHES` by default).
     """
 
     seed: int = 1
     budget: int = 3000
     padding: float = 0.005
     planner: str = PLANNER
-    range: float = 0.0
+    range: float = RANGE
+    searches: int = SEARCHES
 
 
 class Found(NamedTuple):
@@ -173,13 +186,27 @@ class _Search:
         return self.iterations > self.settings.budget
 
     def run(self) -> Found | NotFound:
+        """:attr:`SearchSettings.searches` searches, each with its own seed derived from
+        the request's; the shortest path found (the first search's progress if none)."""
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)  # reseeding after the first search logs an error
+        best: Found | NotFound | None = None
+        used = 0
         try:
-            ou.RNG.setSeed(self.settings.seed)
-            return self._solve()
+            for k in range(self.settings.searches):
+                ou.RNG.setSeed(self.settings.seed + SEED_STRIDE * k)
+                self.iterations = 0
+                found = self._solve()
+                used += self.iterations
+                if (
+                    isinstance(found, Found)
+                    and (not isinstance(best, Found) or _length(found.path) < _length(best.path))
+                ) or best is None:
+                    best = found
         finally:
             ou.setLogLevel(level)
+        assert best is not None
+        return best._replace(iterations=min(used, self.settings.budget * self.settings.searches))
 
     def _solve(self) -> Found | NotFound:
         space = ob.RealVectorStateSpace(6)
@@ -219,6 +246,7 @@ class _Search:
                 break
         waypoints = np.array([_array(path.getState(i)) for i in range(path.getStateCount())])
         waypoints = greedy_shortcut(waypoints, floors.motion)
+        waypoints = nearer_goal(waypoints, self.goals, floors.motion)
         end = int(np.argmin(np.abs(self.goals - waypoints[-1]).max(axis=1)))
         return Found(waypoints, end, self.iterations)
 
@@ -267,3 +295,29 @@ def greedy_shortcut(
         kept.append(j)
         i = j
     return np.asarray(path[kept])
+
+
+def nearer_goal(
+    path: np.ndarray, goals: np.ndarray, clear: Callable[[np.ndarray, np.ndarray], bool]
+) -> np.ndarray:
+    """``path`` ending at whichever goal state makes it shortest: from each waypoint, a
+    straight motion to any goal state (``clear``) that shortens the whole path replaces
+    the rest of it (the search reaches the goal state it happens to connect to first)."""
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    walked = np.concatenate([[0.0], np.cumsum(steps)])
+    best, best_length = path, float(walked[-1])
+    for i in range(len(path) - 1):
+        gaps = np.linalg.norm(goals - path[i], axis=1)
+        for k in np.argsort(gaps, kind="stable"):
+            total = float(walked[i] + gaps[k])
+            if total >= best_length - 1e-9:
+                break
+            if clear(path[i], goals[k]):
+                best, best_length = np.vstack([path[: i + 1], goals[k]]), total
+                break
+    return np.asarray(best)
+
+
+def _length(path: np.ndarray) -> float:
+    """Joint-space length of a path of waypoints [rad]."""
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())

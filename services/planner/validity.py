@@ -73,6 +73,10 @@ class Validity(Protocol):
         """The tightest check at ``q`` [rad] (which body, which object, how far)."""
         ...
 
+    def valid_many(self, Q: np.ndarray) -> np.ndarray:
+        """Which of the configurations ``Q`` [rad], (m, 6), keep every clearance, (m,)."""
+        ...
+
 
 class CoalValidity:
     """:class:`Validity` from the exact collision model (Coal), with a cache of the
@@ -136,6 +140,9 @@ class CoalValidity:
     def explain(self, q: np.ndarray) -> Clearance:
         return self.model.clearance(np.asarray(q, dtype=float))
 
+    def valid_many(self, Q: np.ndarray) -> np.ndarray:
+        return np.array([self.margins(q).tightest >= 0.0 for q in np.atleast_2d(Q)])
+
 
 class FastValidity:
     """:class:`Validity` from the compiled conservative check of ``model``
@@ -160,6 +167,9 @@ class FastValidity:
     def explain(self, q: np.ndarray) -> Clearance:
         return self.model.clearance(np.asarray(q, dtype=float))
 
+    def valid_many(self, Q: np.ndarray) -> np.ndarray:
+        return np.asarray(self.checker.is_valid_batch(np.atleast_2d(Q)))
+
 
 class FreeSpace:
     """The :class:`Validity` without a scene (scene ``none``): every configuration and
@@ -173,3 +183,6 @@ class FreeSpace:
 
     def explain(self, q: np.ndarray) -> Clearance:
         raise AssertionError("nothing to explain without a scene")  # pragma: no cover
+
+    def valid_many(self, Q: np.ndarray) -> np.ndarray:
+        return np.ones(len(np.atleast_2d(Q)), dtype=bool)

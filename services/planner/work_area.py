@@ -10,8 +10,9 @@ the arm stops part way. The values are the arm's (:class:`manus.config.ArmConfig
 A configuration's *area margin* is the smaller of the gripper's height above the floor
 and its distance beyond the cylinder [m]; its *elbow margin* how far q3 is from
 straight, less the margin [rad]. Motions are proven by samples and a travel bound: the
-gripper moves no further than the joint moves times the joints' levers to it
-(:attr:`WorkArea.levers`), and q3 moves linearly along a straight joint motion.
+gripper's height and distance from the base axis change no more than the joint moves
+times the joints' levers to it (:attr:`WorkArea.levers`; joint 1 changes neither), and
+q3 moves linearly along a straight joint motion.
 """
 
 from __future__ import annotations
@@ -56,16 +57,11 @@ class WorkArea:
     def __init__(self, arm: ArmConfig) -> None:
         self.arm = arm
         # Farthest the gripper frame can be from each joint's axis: the link lengths
-        # beyond it (a bound for every configuration).
+        # beyond it (a bound for every configuration). Joint 1 turns about the vertical
+        # base axis, which moves neither the gripper's height nor its distance from that
+        # axis: the area margin does not depend on it.
         self.levers = np.array(
-            [
-                arm.l1 + arm.l2 + arm.l3 + arm.l4,
-                arm.l2 + arm.l3 + arm.l4,
-                arm.l3 + arm.l4,
-                arm.l4,
-                arm.l4,
-                0.0,
-            ]
+            [0.0, arm.l2 + arm.l3 + arm.l4, arm.l3 + arm.l4, arm.l4, arm.l4, 0.0]
         )
 
     def margins(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +109,8 @@ class WorkArea:
         if not _elbow_clear(qa[2], qb[2], self.arm.stretched_margin):
             return False
         delta = qb - qa
-        travel = float(np.abs(delta) @ self.levers)  # gripper travel bound over s in [0, 1]
+        # How far the gripper's height and distance from the base axis can change.
+        travel = float(np.abs(delta) @ self.levers)
         n = max(1, math.ceil(travel / STEP_M))
         s = np.linspace(0.0, 1.0, n + 1)
         area, _ = self.margins(qa + s[:, None] * delta)
