@@ -22,7 +22,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bridge": ("services.can_bridge.main", "the CAN bridge: owns the bus and the 60 ms cycle"),
     "guardian": ("services.guardian.main", "stop the arm when a sync goes unanswered (CAN only)"),
     "planner": ("services.planner.main", "the planner service: via points -> joint trajectories"),
-    "plan": ("services.planner.plan_cli", "plan a via-point file; prints the trajectory as JSON"),
+    "plan": (
+        "manus_stack.commands.plan",
+        "plan a via-point file or a goal; prints the trajectory as JSON",
+    ),
     "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),
     "sequencer": ("services.sequencer.main", "the sequencer service: tasks, the supervisor API"),
     "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),

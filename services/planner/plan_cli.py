@@ -1,5 +1,5 @@
 """``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON
-(``manus plan --to-pose ...`` and the other goals: :mod:`.reach_cli`).
+(the ``manus plan`` command is :mod:`manus_stack.commands.plan`, which adds the goals).
 
 The trajectory is checked against the scene (``--scene``); the smallest clearance and
 where it occurs go into the JSON (``clearance``) and on one line of standard error.
@@ -25,8 +25,7 @@ from schemas.collision import ClearanceReport
 from schemas.planning import PlanRequest, ViaPointPath
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
-from services.planner.errors import PlanningError, refuse
-from services.planner.reach_cli import add_goal_arguments, goal_from_args, run_goal
+from services.planner.errors import PlanningError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -53,7 +52,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--arm-config", help="arm geometry/limits JSON (default: thesis values)")
     add_scene_argument(parser)
-    add_goal_arguments(parser)
 
 
 def add_scene_argument(parser: argparse.ArgumentParser) -> None:
@@ -91,19 +89,7 @@ def _mm(a: list[Any]) -> list[Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan ``args.file`` (or the goal the options name) from ``args.start_joints``;
-    print JSON."""
-    goal = goal_from_args(args)
-    if goal is not None:
-        if args.file is not None:
-            raise refuse(
-                "invalid", f"give a via-point file or a goal option, not both ({args.file})"
-            )
-        return run_goal(args, goal)
-    if args.file is None:
-        raise refuse(
-            "invalid", "give a via-point file or a goal (--to-pose, --to-joints, --to, ...)"
-        )
+    """Plan ``args.file`` from ``args.start_joints``; print JSON."""
     config = PlannerConfig(arm=load_arm_config(args.arm_config), scene=args.scene)
     motion = ViaPointPath(
         path=load_path(args.file),

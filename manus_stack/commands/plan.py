@@ -20,6 +20,7 @@ import numpy as np
 
 from manus.config import load_arm_config
 from manus.named_poses import NamedPoseError
+from manus_stack.pose_args import POSE_HELP, POSE_ORDER, add_pose_argument, pose_values
 from schemas.goals import (
     JointGoal,
     LineFrame,
@@ -32,24 +33,37 @@ from schemas.goals import (
 )
 from schemas.motion import Motion
 from schemas.planning import PlanRequest, Trajectory
+from services.planner import plan_cli
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
 from services.planner.errors import PlanningError, refuse
 
-POSE_METAVAR = ("X", "Y", "Z", "YAW", "PITCH", "ROLL")
-"""A pose on the command line: position [mm], then yaw, pitch, roll [deg]."""
+GOAL_OPTIONS = ("to_pose", "to_joints", "to", "to_object", "approach")
+"""The goal options (at most one)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``manus plan FILE``'s arguments, the goal options and the search's settings."""
+    plan_cli.add_arguments(parser)
+    add_goal_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan the goal the options name, else ``args.file``; print JSON."""
+    goal = goal_from_args(args)
+    if goal is None:
+        if args.file is None:
+            raise refuse("invalid", "give a via-point file or a goal (--to-pose, --to, ...)")
+        return plan_cli.run(args)
+    if args.file is not None:
+        raise refuse("invalid", f"give a via-point file or a goal, not both ({args.file})")
+    return run_goal(args, goal)
 
 
 def add_goal_arguments(parser: argparse.ArgumentParser) -> None:
     """The goal options (one of them) and the search's settings."""
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument(
-        "--to-pose",
-        nargs=6,
-        type=float,
-        metavar=POSE_METAVAR,
-        help="goal: gripper pose in the base frame [mm, deg] (as `manus kin fk` prints it)",
-    )
+    add_pose_argument(parser, "--to-pose", help_text=f"goal: {POSE_HELP}")
+    group = parser
     group.add_argument(
         "--to-joints", nargs=6, type=float, metavar="Q", help="goal: DH joint angles [deg]"
     )
@@ -59,7 +73,7 @@ def add_goal_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--to-object",
         nargs=7,
-        metavar=("NAME", *POSE_METAVAR),
+        metavar=("NAME", *POSE_ORDER),
         help="goal: a gripper pose in a scene object's frame [mm, deg]",
     )
     group.add_argument(
@@ -96,8 +110,13 @@ def goal_from_args(args: argparse.Namespace) -> Motion | None:
     """The goal motion the options ask for (None: no goal option given).
 
     Raises:
-        PlanningError: ``invalid``: a number out of range.
+        PlanningError: ``invalid``: more than one goal, or a number out of range.
     """
+    given = [
+        f"--{name.replace('_', '-')}" for name in GOAL_OPTIONS if getattr(args, name) is not None
+    ]
+    if len(given) > 1:
+        raise refuse("invalid", f"give one goal, got {', '.join(given)}")
     try:
         search = Search(
             seed=args.seed,
@@ -110,8 +129,9 @@ def goal_from_args(args: argparse.Namespace) -> Motion | None:
             angle=math.radians(args.tolerance_deg),
             free_axis=args.free_axis,
         )
-        if args.to_pose is not None:
-            xyz, ypr = _pose(args.to_pose)
+        pose = pose_values(args, "--to-pose")
+        if pose is not None:
+            xyz, ypr = _pose(pose)
             return PoseGoal(xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
         if args.to_joints is not None:
             return JointGoal(joints=[math.radians(v) for v in args.to_joints], search=search)
