@@ -29,6 +29,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "controller": ("services.controller.main", "the controller service: tracking, gripper loop"),
     "sequencer": ("services.sequencer.main", "the sequencer service: tasks, the supervisor API"),
     "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),
+    "reach": ("manus_stack.commands.reach", "move to a goal (pose, joints, named, object, line)"),
+    "move-to": ("manus_stack.commands.move_to", "move to a named pose (home, drink, ...)"),
     "jog": ("manus_stack.commands.jog", "drive the arm from the keyboard (live control)"),
     "task": ("services.sequencer.task_cli", "pause, resume, cancel or show the running task"),
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
