@@ -65,7 +65,9 @@ def goal_from_spec(spec: Any) -> Motion:
     if len(kinds) != 1:
         raise GoalSpecError(f"give exactly one of {', '.join(KINDS)} (found {kinds or 'none'})")
     try:
-        return _motion(kinds[0], spec)
+        motion = _motion(kinds[0], spec)
+        # Decoding checks every field's range, as the planner's queryable will.
+        return type(motion).from_dict(motion.to_dict())
     except SchemaError as exc:  # a value out of its range
         raise GoalSpecError(str(exc)) from exc
 

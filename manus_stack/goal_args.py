@@ -88,35 +88,41 @@ def goal_from_args(args: argparse.Namespace) -> Motion | None:
     if len(given) > 1:
         raise refuse("invalid", f"give one goal, got {', '.join(given)}")
     try:
-        search = Search(
-            seed=args.seed,
-            budget=args.budget,
-            speed=args.speed,
-            interpolation="quintic" if getattr(args, "quintic", False) else "cubic",
-        )
-        tolerance = Tolerance(
-            position=args.tolerance_mm * 1e-3,
-            angle=math.radians(args.tolerance_deg),
-            free_axis=args.free_axis,
-        )
-        pose = pose_values(args, "--to-pose")
-        if pose is not None:
-            xyz, ypr = _pose(pose)
-            return PoseGoal(xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
-        if args.to_joints is not None:
-            return JointGoal(joints=[math.radians(v) for v in args.to_joints], search=search)
-        if args.to is not None:
-            return NamedGoal(name=args.to, search=search)
-        if args.to_object is not None:
-            name, *numbers = args.to_object
-            xyz, ypr = _pose([_number(v) for v in numbers])
-            return ObjectGoal(name=name, xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
-        if args.approach is not None:
-            return LineMotion(
-                xyz=[0.0, 0.0, args.approach * 1e-3], frame=LineFrame.TOOL, speed=args.speed
-            )
+        motion = _goal(args)
+        # Decoding checks every field's range, as the planner's queryable will.
+        return None if motion is None else type(motion).from_dict(motion.to_dict())
     except ValueError as exc:  # a SchemaError: a field out of its range
         raise refuse("invalid", str(exc)) from exc
+
+
+def _goal(args: argparse.Namespace) -> Motion | None:
+    search = Search(
+        seed=args.seed,
+        budget=args.budget,
+        speed=args.speed,
+        interpolation="quintic" if getattr(args, "quintic", False) else "cubic",
+    )
+    tolerance = Tolerance(
+        position=args.tolerance_mm * 1e-3,
+        angle=math.radians(args.tolerance_deg),
+        free_axis=args.free_axis,
+    )
+    pose = pose_values(args, "--to-pose")
+    if pose is not None:
+        xyz, ypr = _pose(pose)
+        return PoseGoal(xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
+    if args.to_joints is not None:
+        return JointGoal(joints=[math.radians(v) for v in args.to_joints], search=search)
+    if args.to is not None:
+        return NamedGoal(name=args.to, search=search)
+    if args.to_object is not None:
+        name, *numbers = args.to_object
+        xyz, ypr = _pose([_number(v) for v in numbers])
+        return ObjectGoal(name=name, xyz=xyz, ypr=ypr, tolerance=tolerance, search=search)
+    if args.approach is not None:
+        return LineMotion(
+            xyz=[0.0, 0.0, args.approach * 1e-3], frame=LineFrame.TOOL, speed=args.speed
+        )
     return None
 
 
