@@ -197,8 +197,8 @@ class LinePlanner(Planner[LineMotion]):
                 raise refuse(
                     "zone",
                     f"{line.label}: by {line.along[seg + 1] * 1e3:.0f} mm of "
-                    f"{line.along[-1] * 1e3:.0f} mm the line leaves the arm's own work area "
-                    f"({problem}): the arm refuses to go there",
+                    f"{line.along[-1] * 1e3:.0f} mm the line reaches the edge of the arm's own "
+                    f"work area ({problem}): the arm refuses to go beyond it",
                 )
             if scene.collision is not None:
                 self._sweep(scene.collision, curve, line.along, line.label)
