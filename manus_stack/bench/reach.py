@@ -6,6 +6,8 @@
   reason the set names, and how fast.
 - ``quality``: per feasible goal, each seed's joint path length (the knots' polyline,
   Euclidean in joint space) over the shortest of its seeds.
+- ``planner_service``: the same plans through ``manus planner`` in its own process, over
+  a loopback router (:mod:`manus_stack.bench.reach_service`).
 - ``lockstep``: a sample of the feasible goals (every second one; ``--quick``: every
   sixth) run on the simulator in lock-step and judged on its truth
   (:mod:`manus_stack.bench.reach_lockstep`).
@@ -28,6 +30,7 @@ from manus.config import DEFAULT_ARM
 from manus.validity import checker_for
 from manus_stack.bench.reach_lockstep import execute
 from manus_stack.bench.reach_run import Outcome, Planning, path_length, stats_ms
+from manus_stack.bench.reach_service import round_trips
 from manus_stack.bench.reach_set import load_goal_set
 
 TARGET = (
@@ -54,6 +57,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         "first_pass_s": round(first_s, 2),
         "in_process": _in_process(runs),
         "quality": _quality(runs),
+        "planner_service": round_trips(planning, base, 1 if quick else 3),
         "lockstep": _lockstep(planning, base, 6 if quick else 2),
         "validity": _validity(planning, 500 if quick else 2000),
         "target": TARGET,

@@ -55,8 +55,13 @@ SIMPLIFY_ROUNDS = 5
 RANGE = 1.0
 """Longest motion the search adds in one step [rad] (measured: docs/reach.md)."""
 
-SEARCHES = 1
-"""Independent searches per plan, the shortest path kept (measured: docs/reach.md)."""
+SEARCHES = 3
+"""Most independent searches per plan, the shortest path kept (measured: docs/reach.md):
+more only while the path found is a detour (:data:`DETOUR`)."""
+
+DETOUR = 1.3
+"""A path longer than this times the straight joint-space distance to the nearest goal
+state is a detour: another search is made (up to :data:`SEARCHES`)."""
 
 SEED_STRIDE = 1_000_003
 """Seed step between the searches of one plan."""
@@ -75,8 +80,8 @@ class SearchSettings(NamedTuple):
         planner: the OMPL planner's name (``RRTConnect``; others for measurements).
         range: longest motion the planner adds in one step [rad] (0: OMPL's default,
             a fifth of the search box's diagonal; :data:`RANGE` by default).
-        searches: independent searches (seeds derived from ``seed``), the shortest path
-            kept (:data:`SEARCHES` by default).
+        searches: most independent searches (seeds derived from ``seed``; more only for
+            a detour), the shortest path kept (:data:`SEARCHES` by default).
     """
 
     seed: int = 1
@@ -186,10 +191,14 @@ class _Search:
         return self.iterations > self.settings.budget
 
     def run(self) -> Found | NotFound:
-        """:attr:`SearchSettings.searches` searches, each with its own seed derived from
-        the request's; the shortest path found (the first search's progress if none)."""
+        """A search; while its path is longer than :data:`DETOUR` times the straight
+        distance to the nearest goal state (a detour: another search may find a shorter
+        way), up to :attr:`SearchSettings.searches` in all, each with its own seed
+        derived from the request's; the shortest path found (the first search's
+        progress if none)."""
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)  # reseeding after the first search logs an error
+        direct = float(np.linalg.norm(self.goals - self.start, axis=1).min())
         best: Found | NotFound | None = None
         used = 0
         try:
@@ -203,10 +212,12 @@ class _Search:
                     and (not isinstance(best, Found) or _length(found.path) < _length(best.path))
                 ) or best is None:
                     best = found
+                if not isinstance(best, Found) or _length(best.path) <= DETOUR * direct:
+                    break
         finally:
             ou.setLogLevel(level)
         assert best is not None
-        return best._replace(iterations=min(used, self.settings.budget * self.settings.searches))
+        return best._replace(iterations=used)
 
     def _solve(self) -> Found | NotFound:
         space = ob.RealVectorStateSpace(6)
