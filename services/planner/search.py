@@ -206,7 +206,7 @@ class _Search:
                 ou.RNG.setSeed(self.settings.seed + SEED_STRIDE * k)
                 self.iterations = 0
                 found = self._solve()
-                used += self.iterations
+                used += min(self.iterations, self.settings.budget)
                 if (
                     isinstance(found, Found)
                     and (not isinstance(best, Found) or _length(found.path) < _length(best.path))
