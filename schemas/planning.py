@@ -67,7 +67,8 @@ class PlanErrorReason(StrEnum):
     GOAL_COLLISION = "goal_collision"
     """every configuration that reaches the goal is too close to something (named)"""
     ZONE = "zone"
-    """the goal lies inside a keep-out zone or outside the keep-in zone"""
+    """the goal lies inside a keep-out zone or outside the keep-in zone, or outside the
+    arm's own work area"""
     NO_PATH = "no_path"
     """no collision-free path was found within the search budget"""
 

@@ -16,7 +16,8 @@ import sys
 import time
 from typing import Any
 
-from manus.node import Node, QueryError, freeze_startup_heap
+from manus.node import Node, QueryError
+from manus.process import freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus_stack.bench.reach_run import Outcome, Planning, stats_ms
 from manus_stack.up import free_port
