@@ -77,6 +77,17 @@ def test_a_paused_goal_is_planned_again_and_still_ends_at_the_goal() -> None:
     assert np.linalg.norm(reached - fk(drink, DEFAULT_ARM)[:3, 3]) < 0.005
 
 
+def test_a_goal_from_the_folded_pose_is_not_stopped_by_the_guard_near_the_shoulder() -> None:
+    # Folded, the gripper's motor is 20 mm from the shoulder (10 mm needed): the guard's
+    # slow zone. The trajectory's first counts, slowed, must not all become zero.
+    rig = TaskLockStep(SimConfig(start_pose="folded"))
+    rig.start_arm()
+    assert rig.submit(task('reach = "home"')).accepted
+    worst, what, contacts = run_judged(rig)
+    assert rig.seq.state == "succeeded", rig.seq.reason
+    assert contacts == 0 and worst >= 0.0, what
+
+
 def test_a_goal_that_cannot_be_reached_is_refused_and_nothing_moves() -> None:
     rig = TaskLockStep(SimConfig(start_pose="unfolded"))
     rig.start_arm()
