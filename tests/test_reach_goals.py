@@ -22,7 +22,7 @@ from services.planner.errors import PlanningError
 from services.planner.goal_planner import validity_of
 from services.planner.goal_states import goal_states
 from services.planner.goal_target import Target, resolve_target
-from services.planner.work_area import WorkArea, gripper_positions
+from services.planner.work_area import STEP_M, WorkArea, gripper_positions
 
 UNFOLDED = np.radians(UNFOLDED_Q_DEG)
 MODEL = CollisionModel(default_scene(), DEFAULT_ARM)
@@ -226,3 +226,25 @@ def test_the_work_area_gripper_positions_are_the_forward_kinematics() -> None:
     assert fk(low, DEFAULT_ARM)[2, 3] < DEFAULT_ARM.work_floor_z
     assert not WORK.motion(UNFOLDED, low, 0.0)
     assert WORK.motion(UNFOLDED, np.radians([30, 30, -30, 0, -60, 0]), 0.0)
+
+
+def test_the_compiled_work_area_agrees_with_dense_samples() -> None:
+    rng = np.random.default_rng(1)
+    Q = rng.uniform(DEFAULT_ARM.lower_array, DEFAULT_ARM.upper_array, (200, 6))
+    area, elbow = WORK.margins(Q)
+    tight = [WORK.tightest(q) for q in Q]
+    np.testing.assert_allclose(tight, np.minimum(area, elbow * DEFAULT_ARM.l3), atol=1e-12)
+    # A motion the bisection proves keeps the floor at 400 samples along it; it refuses
+    # some, and those it refuses come within a step of the floor or cross it.
+    proven = refused = 0
+    for qa, far in zip(Q[:100], Q[100:], strict=True):
+        qb = qa + 0.3 * (far - qa)
+        dense = WORK.margins(qa + np.linspace(0.0, 1.0, 400)[:, None] * (qb - qa))
+        floor = 0.01
+        if WORK.motion(qa, qb, floor):
+            proven += 1
+            assert dense[0].min() >= floor - 1e-9 and dense[1].min() >= 0.0
+        else:
+            refused += 1
+            assert dense[0].min() < floor + STEP_M or dense[1].min() < 1e-6
+    assert proven > 10 and refused > 10

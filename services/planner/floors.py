@@ -71,11 +71,15 @@ class Floors:
         if found is not None:
             return found
         end = key in self._ends
-        margin = (self.exact if end else self.fast).margins(q).tightest
+        # Away from the ends a margin above the padding counts as the padding: neither
+        # the state's validity nor a motion's floor changes (cheaper).
+        if end:
+            margin = self.exact.margins(q).tightest
+        else:
+            margin = self.fast.margins(q, self.padding).tightest
         area = np.inf
         if self.work is not None:
-            a, elbow = self.work.margins(q[None])
-            area = min(float(a[0]), float(elbow[0]) * self.work.arm.l3)
+            area = self.work.tightest(q)
         found = self._known[key] = (margin, area, end)
         return found
 
@@ -101,8 +105,8 @@ class Floors:
         # An end the fast bound cannot even leave: the exact check (a few of them per
         # search: each costs milliseconds).
         if self.exact_left > 0 and (
-            (end_a and self.fast.margins(qa).tightest < floor)
-            or (end_b and self.fast.margins(qb).tightest < floor)
+            (end_a and self.fast.margins(qa, floor).tightest < floor)
+            or (end_b and self.fast.margins(qb, floor).tightest < floor)
         ):
             self.exact_left -= 1
             return self.exact.motion(qa, qb, floor)

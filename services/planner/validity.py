@@ -30,6 +30,7 @@ called invalid (a motion that grazes its floor more closely than that is refused
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -38,6 +39,14 @@ from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.travel import BodyPoints
 from manus.validity import MOTION_FLOOR_M, checker_for
+
+_PROBES = np.array([0.5, 0.25, 0.75])
+"""Where :meth:`FastValidity.motion` looks first, as fractions of the motion."""
+
+MOTION_CAP_M = 0.05
+""":meth:`FastValidity.motion` computes no margin more than this above its floor [m]:
+each step of its advancement is cheaper (measured: a fifth less time per plan), no step
+longer than this."""
 
 RESOLUTION_M = 0.001
 """Shortest stretch of a motion (of any point's travel bound) [m] that is halved again;
@@ -60,8 +69,10 @@ class Margins(NamedTuple):
 class Validity(Protocol):
     """The geometry behind the planners (see the module docstring)."""
 
-    def margins(self, q: np.ndarray) -> Margins:
-        """Per-body margins and the tightest margin at ``q`` [rad], shape (6,)."""
+    def margins(self, q: np.ndarray, cap: float = math.inf) -> Margins:
+        """Per-body margins and the tightest margin at ``q`` [rad], shape (6,); those
+        above ``cap`` [m] may be given as ``cap`` (cheaper: the pairs that cannot come
+        under it are skipped)."""
         ...
 
     def motion(self, qa: np.ndarray, qb: np.ndarray, floor: float) -> bool:
@@ -98,7 +109,7 @@ class CoalValidity:
         self.computed = 0
         """Configurations whose distances were computed (not taken from the cache) [-]."""
 
-    def margins(self, q: np.ndarray) -> Margins:
+    def margins(self, q: np.ndarray, cap: float = math.inf) -> Margins:
         q = np.asarray(q, dtype=float)
         key = q.tobytes()
         found = self._cache.get(key)
@@ -157,12 +168,18 @@ class FastValidity:
         self.model = model
         self.checker = checker_for(model)
 
-    def margins(self, q: np.ndarray) -> Margins:
-        found = self.checker.margins(q)
+    def margins(self, q: np.ndarray, cap: float = math.inf) -> Margins:
+        found = self.checker.margins(q, cap)
         return Margins(np.maximum(found.free, 0.0), float(found.tight))
 
     def motion(self, qa: np.ndarray, qb: np.ndarray, floor: float) -> bool:
-        return bool(self.checker.motion_valid(qa, qb, max(floor, MOTION_FLOOR_M)).ok)
+        floor = max(floor, MOTION_FLOOR_M)
+        # A bound under the floor at one of a few samples refuses at once: most refused
+        # motions (a search tries many) cost one batched call, not the advancement.
+        samples = qa + _PROBES[:, None] * (np.asarray(qb) - qa)
+        if bool((self.checker.margins_batch(samples, floor).tight < floor).any()):
+            return False
+        return bool(self.checker.motion_valid(qa, qb, floor, floor + MOTION_CAP_M).ok)
 
     def explain(self, q: np.ndarray) -> Clearance:
         return self.model.clearance(np.asarray(q, dtype=float))
@@ -175,7 +192,7 @@ class FreeSpace:
     """The :class:`Validity` without a scene (scene ``none``): every configuration and
     motion is clear, as in a via-point plan without a scene."""
 
-    def margins(self, q: np.ndarray) -> Margins:
+    def margins(self, q: np.ndarray, cap: float = math.inf) -> Margins:
         return Margins(np.full(1, np.inf), np.inf)
 
     def motion(self, qa: np.ndarray, qb: np.ndarray, floor: float) -> bool:

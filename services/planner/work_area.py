@@ -9,7 +9,7 @@ the arm stops part way. The values are the arm's (:class:`manus.config.ArmConfig
 
 A configuration's *area margin* is the smaller of the gripper's height above the floor
 and its distance beyond the cylinder [m]; its *elbow margin* how far q3 is from
-straight, less the margin [rad]. Motions are proven by samples and a travel bound: the
+straight, less the margin [rad]. Motions are proven by bisection and a travel bound: the
 gripper's height and distance from the base axis change no more than the joint moves
 times the joints' levers to it (:attr:`WorkArea.levers`; joint 1 changes neither), and
 q3 moves linearly along a straight joint motion.
@@ -24,13 +24,14 @@ import numpy as np
 
 from manus.config import ArmConfig
 from manus.kinematics import gripper_position
+from services.planner.work_area_kernels import area_margin, area_motion
 
 STRAIGHT_Q3 = math.pi / 2
 """q3 at which the upper arm and the forearm are aligned (the elbow straight) [rad]."""
 
 STEP_M = 0.004
-"""Largest gripper travel between two samples of a motion [m] (between two samples the
-margin is at least their mean less half of it)."""
+"""Shortest stretch of a motion a proof halves [m] of gripper travel (on a stretch the
+margin is at least its ends' mean less half its travel)."""
 
 
 class AreaMargin(NamedTuple):
@@ -63,6 +64,11 @@ class WorkArea:
         self.levers = np.array(
             [0.0, arm.l2 + arm.l3 + arm.l4, arm.l3 + arm.l4, arm.l4, arm.l4, 0.0]
         )
+        self._geometry = np.array(
+            [arm.l1, arm.l2, arm.l3, arm.l4, arm.work_floor_z, arm.work_base_radius]
+        )
+        # Compile (or load) the kernels now: a plan never does.
+        area_motion(np.zeros(6), np.full(6, 0.1), 0.0, self.levers, self._geometry, STEP_M)
 
     def margins(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Area margins [m] and elbow margins [rad] of configurations ``Q`` [rad], (n, 6)
@@ -102,19 +108,24 @@ class WorkArea:
         """Whether the straight joint motion ``qa`` -> ``qb`` [rad] keeps the area margin
         at or above ``floor`` [m] and the elbow margin at or above 0 all along.
 
-        The area margin is computed at samples no more than :data:`STEP_M` of gripper
-        travel apart (all at once); between two samples it is at least their mean less
-        half the travel between them (no point of the gripper moves further)."""
+        The area margin is proven by bisection (compiled,
+        :func:`.work_area_kernels.area_motion`): on a stretch it is at least its ends'
+        mean less half the gripper's travel bound there (no point of the gripper moves
+        further); a stretch that bound leaves unproven is halved down to :data:`STEP_M`
+        of travel."""
         qa, qb = np.asarray(qa, dtype=float), np.asarray(qb, dtype=float)
         if not _elbow_clear(qa[2], qb[2], self.arm.stretched_margin):
             return False
-        delta = qb - qa
-        # How far the gripper's height and distance from the base axis can change.
-        travel = float(np.abs(delta) @ self.levers)
-        n = max(1, math.ceil(travel / STEP_M))
-        s = np.linspace(0.0, 1.0, n + 1)
-        area, _ = self.margins(qa + s[:, None] * delta)
-        return bool(((area[:-1] + area[1:] - travel / n) / 2.0 >= floor).all())
+        return bool(area_motion(qa, qb, floor, self.levers, self._geometry, STEP_M))
+
+    def tightest(self, q: np.ndarray) -> float:
+        """The smaller of the area margin [m] and the elbow margin as a length along the
+        forearm [m] at ``q`` [rad] (6,) (< 0: out): one configuration, compiled."""
+        q = np.asarray(q, dtype=float)
+        area = area_margin(q, self._geometry)
+        bend = abs(math.remainder(float(q[2]) - STRAIGHT_Q3, 2 * math.pi))
+        elbow = (bend - self.arm.stretched_margin) * self.arm.l3
+        return min(area, elbow)
 
     def curve_problem(self, Q: np.ndarray, step: float) -> str | None:
         """The first configuration of ``Q`` [rad], (n, 6), sampled along a trajectory no
