@@ -6,21 +6,27 @@ joint configurations from the start to one of the goal states, around everything
    nearest goal states; the first that is clear is the path (most goals need no search).
 2. **Search**: OMPL's RRTConnect (:data:`PLANNER`; chosen by measurement, docs/reach.md)
    in the box the start and goals span, widened by :data:`BOX_MARGIN` and cut to the
-   joint limits; every goal state is a goal (``GoalStates``). Which configurations and
-   motions are valid is :class:`~services.planner.floors.Floors`' business (the scene
-   with a padding, the arm's work area).
-3. **Simplification**: OMPL's shortcuts (partial shortcuts, vertex reduction, collapsing
-   close vertices), then two passes of our own: from each vertex, the farthest one it
-   sees (:func:`greedy_shortcut`); from each vertex, a straight motion to the goal state
-   that makes the path shortest (:func:`nearer_goal`).
+   joint limits. First toward the nearest goal states only (within :data:`NEAR_GOALS`
+   times the nearest one's joint distance; a third of the budget), then, if that finds
+   nothing, toward every goal state with the rest of the budget: RRTConnect connects to
+   whichever goal state its trees meet first, often a far IK branch. Which
+   configurations and motions are valid is :class:`~services.planner.floors.Floors`'
+   business (the scene with a padding, the arm's work area).
+3. **Shortening** each path found (:mod:`.shortcuts`).
+4. **Shorter paths**: while the path is longer than :data:`DETOUR` times the straight
+   distance to the nearest goal state (it goes around something), up to
+   :data:`SEARCHES` searches in all: each one for a path shorter than the best so far,
+   within its informed set (:class:`~services.planner.informed.Informed`), with
+   :data:`IMPROVE_BUDGET` iterations; the shortest path is kept, and shortened once more
+   with a finer rope.
 
 **Determinism.** OMPL draws every random number from generators seeded, as each is
 created, by one process-wide seed generator, which :func:`ompl.util.RNG.setSeed`
 reseeds (OMPL logs an error when that happens after the first seeds were drawn; it is
-silenced here). Each search reseeds it with the request's seed and creates its planner,
-sampler and simplifier afresh, under :data:`_LOCK` (a live shell plans on several
-threads): the same start, goals, scene and seed give the same path, bit for bit. The
-search stops after a number of iterations (``budget``), never after a time, so a slow
+silenced here). Each search reseeds it with a seed derived from the request's and
+creates its planner, sampler and simplifier afresh, under :data:`_LOCK` (a live shell
+plans on several threads): the same start, goals, scene and seed give the same path, bit
+for bit. Every search stops after a number of iterations, never after a time, so a slow
 machine finds the same path, later.
 """
 
@@ -37,6 +43,14 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from services.planner.floors import Floors
+from services.planner.informed import Informed
+from services.planner.shortcuts import (
+    FINAL_ROPE_RAD,
+    ROPE_RAD,
+    path_length,
+    shorten,
+    simplify,
+)
 from services.planner.validity import Validity
 from services.planner.work_area import WorkArea
 
@@ -49,19 +63,30 @@ DIRECT_TRIES = 4
 BOX_MARGIN = math.pi / 2
 """How far beyond the range the start and the goals span each joint may go [rad]."""
 
-SIMPLIFY_ROUNDS = 5
-"""Most rounds of OMPL's shortcutting (it stops earlier when a round changes nothing)."""
-
 RANGE = 1.0
 """Longest motion the search adds in one step [rad] (measured: docs/reach.md)."""
 
-SEARCHES = 3
-"""Most independent searches per plan, the shortest path kept (measured: docs/reach.md):
-more only while the path found is a detour (:data:`DETOUR`)."""
+NEAR_GOALS = 1.2
+"""The first search goes to the goal states within this times the nearest one's joint
+distance from the start."""
+
+NEAR_BUDGET = 300
+"""Most iterations of the first search (at most a third of the budget); then every goal
+state is a goal."""
+
+STOP_AFTER_FAILED = 2
+"""Searches for a shorter path that find none before the plan stops looking."""
+
+SEARCHES = 6
+"""Most searches per plan: the first and those for a shorter path (measured:
+docs/reach.md); more only while the path is a detour (:data:`DETOUR`)."""
 
 DETOUR = 1.3
 """A path longer than this times the straight joint-space distance to the nearest goal
-state is a detour: another search is made (up to :data:`SEARCHES`)."""
+state is a detour: another search looks for a shorter one (up to :data:`SEARCHES`)."""
+
+IMPROVE_BUDGET = 400
+"""Most iterations of each search for a shorter path."""
 
 SEED_STRIDE = 1_000_003
 """Seed step between the searches of one plan."""
@@ -80,8 +105,8 @@ class SearchSettings(NamedTuple):
         planner: the OMPL planner's name (``RRTConnect``; others for measurements).
         range: longest motion the planner adds in one step [rad] (0: OMPL's default,
             a fifth of the search box's diagonal; :data:`RANGE` by default).
-        searches: most independent searches (seeds derived from ``seed``; more only for
-            a detour), the shortest path kept (:data:`SEARCHES` by default).
+        searches: most searches (the first and those for a shorter path, seeds derived
+            from ``seed``; :data:`SEARCHES` by default, 1: the first path, shortened).
     """
 
     seed: int = 1
@@ -170,8 +195,16 @@ class _Motions(ob.MotionValidator):  # type: ignore[misc]
         return self.floors.motion(_array(s1), _array(s2))
 
 
+class _Problem(NamedTuple):
+    """One OMPL problem: its space, the goal states, and what is valid in it."""
+
+    si: ob.SpaceInformation
+    space: ob.RealVectorStateSpace
+    goal: ob.GoalStates
+
+
 class _Search:
-    """One OMPL search, its objects created afresh (see the module docstring)."""
+    """The searches of one plan, their objects created afresh (see the module docstring)."""
 
     def __init__(
         self,
@@ -184,98 +217,151 @@ class _Search:
     ) -> None:
         self.start, self.goals, self.floors, self.settings = start, goals, floors, settings
         self.lo, self.hi = lo, hi
-        self.iterations = 0
+        self.iterations = 0  # of the running search
+        self.cap = settings.budget  # its budget
+        self.used = 0  # of every search
 
     def _budget(self) -> bool:
         self.iterations += 1
-        return self.iterations > self.settings.budget
+        return self.iterations > self.cap
 
     def run(self) -> Found | NotFound:
-        """A search; while its path is longer than :data:`DETOUR` times the straight
-        distance to the nearest goal state (a detour: another search may find a shorter
-        way), up to :attr:`SearchSettings.searches` in all, each with its own seed
-        derived from the request's; the shortest path found (the first search's
-        progress if none)."""
+        """The first path, then shorter ones while it is a detour (see the module
+        docstring); the shortest, shortened once more (the first search's progress if
+        none was found)."""
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)  # reseeding after the first search logs an error
-        direct = float(np.linalg.norm(self.goals - self.start, axis=1).min())
-        best: Found | NotFound | None = None
-        used = 0
         try:
-            for k in range(self.settings.searches):
-                ou.RNG.setSeed(self.settings.seed + SEED_STRIDE * k)
-                self.iterations = 0
-                found = self._solve()
-                used += min(self.iterations, self.settings.budget)
-                if (
-                    isinstance(found, Found)
-                    and (not isinstance(best, Found) or _length(found.path) < _length(best.path))
-                ) or best is None:
-                    best = found
-                if not isinstance(best, Found) or _length(best.path) <= DETOUR * direct:
+            ou.RNG.setSeed(self.settings.seed)
+            best = self._first()
+            if not isinstance(best, Found):
+                return best
+            direct = float(np.linalg.norm(self.goals - self.start, axis=1).min())
+            failed = 0
+            for k in range(1, self.settings.searches):
+                length = path_length(best.path)
+                if length <= DETOUR * direct or failed >= STOP_AFTER_FAILED:
                     break
+                ou.RNG.setSeed(self.settings.seed + SEED_STRIDE * k)
+                found = self._shorter(Informed(self.start, self.goals, length))
+                if isinstance(found, Found) and path_length(found.path) < length:
+                    best = found
+                else:
+                    failed += 1
+            return self._final(best)._replace(iterations=self.used)
         finally:
             ou.setLogLevel(level)
-        assert best is not None
-        return best._replace(iterations=used)
 
-    def _solve(self) -> Found | NotFound:
+    def _first(self) -> Found | NotFound:
+        """Toward the nearest goal states with a third of the budget, then toward all."""
+        budget = self.settings.budget
+        gaps = np.linalg.norm(self.goals - self.start, axis=1)
+        near = self.goals[gaps <= NEAR_GOALS * gaps.min()]
+        if len(near) < len(self.goals):
+            found = self._solve(near, self.lo, self.hi, min(NEAR_BUDGET, budget // 3), None)
+            if isinstance(found, Found):
+                return found
+        return self._solve(self.goals, self.lo, self.hi, budget - self.used, None)
+
+    def _shorter(self, informed: Informed) -> Found | NotFound | None:
+        """A search for a path shorter than ``informed.length`` (None: no goal state is
+        near enough to end one)."""
+        if len(informed.goals) == 0:
+            return None
+        lo, hi = informed.box(self.lo, self.hi)
+        return self._solve(informed.goals, lo, hi, IMPROVE_BUDGET, informed)
+
+    def _problem(
+        self, goals: np.ndarray, lo: np.ndarray, hi: np.ndarray, informed: Informed | None
+    ) -> _Problem:
         space = ob.RealVectorStateSpace(6)
         bounds = ob.RealVectorBounds(6)
         for j in range(6):
-            bounds.setLow(j, float(self.lo[j]))
-            bounds.setHigh(j, float(self.hi[j]))
+            bounds.setLow(j, float(lo[j]))
+            bounds.setHigh(j, float(hi[j]))
         space.setBounds(bounds)
         si = ob.SpaceInformation(space)
         floors = self.floors
-        si.setStateValidityChecker(lambda s: floors.state(_array(s)))
-        motions = _Motions(si, floors)
-        si.setMotionValidator(motions)
+        if informed is None:
+            si.setStateValidityChecker(lambda s: floors.state(_array(s)))
+        else:
+
+            def valid(s: ob.State) -> bool:
+                q = _array(s)
+                return informed.contains(q) and floors.state(q)
+
+            si.setStateValidityChecker(valid)
+        si.setMotionValidator(_Motions(si, floors))
         si.setup()
-        pdef = ob.ProblemDefinition(si)
-        pdef.addStartState(_state(space, self.start))
         goal = ob.GoalStates(si)
-        for q in self.goals:
+        for q in goals:
             goal.addState(_state(space, q))
-        pdef.setGoal(goal)
-        planner = _planner(self.settings.planner, si)
+        return _Problem(si, space, goal)
+
+    def _solve(
+        self,
+        goals: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        budget: int,
+        informed: Informed | None,
+    ) -> Found | NotFound:
+        """One OMPL search to ``goals`` in ``lo`` .. ``hi`` [rad] within ``budget``
+        iterations, its path shortened (:mod:`.shortcuts`)."""
+        problem = self._problem(goals, lo, hi, informed)
+        pdef = ob.ProblemDefinition(problem.si)
+        pdef.addStartState(_state(problem.space, self.start))
+        pdef.setGoal(problem.goal)
+        planner = _planner(self.settings.planner, problem.si)
         if self.settings.range > 0.0:
             planner.setRange(self.settings.range)
         planner.setProblemDefinition(pdef)
         planner.setup()
+        self.iterations, self.cap = 0, budget
         status = planner.solve(ob.PlannerTerminationCondition(self._budget))
-        exact = status.getStatus() == ob.PlannerStatus.EXACT_SOLUTION
-        if not exact:
-            return self._not_found(pdef, planner, si)
+        self.used += min(self.iterations, budget)
+        if status.getStatus() != ob.PlannerStatus.EXACT_SOLUTION:
+            return self._not_found(pdef, planner, problem.si)
         path = pdef.getSolutionPath()
-        simplifier = og.PathSimplifier(si, goal)
-        for _ in range(SIMPLIFY_ROUNDS):
-            changed = simplifier.partialShortcutPath(path)
-            changed = simplifier.reduceVertices(path) or changed
-            changed = simplifier.collapseCloseVertices(path) or changed
-            if not changed:
-                break
-        waypoints = np.array([_array(path.getState(i)) for i in range(path.getStateCount())])
-        waypoints = greedy_shortcut(waypoints, floors.motion)
-        waypoints = nearer_goal(waypoints, self.goals, floors.motion)
+        simplify(problem.si, problem.goal, path, ROPE_RAD)
+        return self._found(_waypoints(path))
+
+    def _final(self, best: Found) -> Found:
+        """The path kept, shortened once more with a finer rope."""
+        if len(best.path) <= 2:
+            return best
+        problem = self._problem(self.goals, self.lo, self.hi, None)
+        path = og.PathGeometric(problem.si, [_state(problem.space, q) for q in best.path])
+        simplify(problem.si, problem.goal, path, FINAL_ROPE_RAD)
+        found = self._found(_waypoints(path))
+        return found if path_length(found.path) < path_length(best.path) else best
+
+    def _found(self, waypoints: np.ndarray) -> Found:
+        waypoints = shorten(waypoints, self.goals, self.floors.motion)
         end = int(np.argmin(np.abs(self.goals - waypoints[-1]).max(axis=1)))
-        return Found(waypoints, end, self.iterations)
+        return Found(waypoints, end, self.used)
 
     def _not_found(
-        self, pdef: ob.ProblemDefinition, planner: ob.Planner, si: ob.SpaceInformation
+        self,
+        pdef: ob.ProblemDefinition,
+        planner: ob.Planner,
+        si: ob.SpaceInformation,
     ) -> NotFound:
         data = ob.PlannerData(si)
         planner.getPlannerData(data)
         tags = [data.getVertex(i).getTag() for i in range(data.numVertices())]
         states = (tags.count(1), tags.count(2))
-        closest, distance, k = self.start, math.inf, 0
+        closest = self.start
         if pdef.hasApproximateSolution():
             path = pdef.getSolutionPath()
             closest = _array(path.getState(path.getStateCount() - 1))
         gaps = np.linalg.norm(self.goals - closest, axis=1)
         k = int(np.argmin(gaps))
-        distance = float(gaps[k])
-        return NotFound(min(self.iterations, self.settings.budget), states, closest, distance, k)
+        return NotFound(self.used, states, closest, float(gaps[k]), k)
+
+
+def _waypoints(path: og.PathGeometric) -> np.ndarray:
+    return np.array([_array(path.getState(i)) for i in range(path.getStateCount())])
 
 
 def _state(space: ob.RealVectorStateSpace, q: np.ndarray) -> ob.State:
@@ -290,45 +376,3 @@ def _planner(name: str, si: ob.SpaceInformation) -> ob.Planner:
     if make is None:
         raise ValueError(f"no OMPL geometric planner named {name!r}")
     return make(si)
-
-
-def greedy_shortcut(
-    path: np.ndarray, clear: Callable[[np.ndarray, np.ndarray], bool]
-) -> np.ndarray:
-    """From each kept waypoint, jump to the farthest later one it reaches in a straight
-    motion (``clear``), shape (m, 6) with m <= n; the ends are kept."""
-    kept = [0]
-    i = 0
-    while i < len(path) - 1:
-        j = len(path) - 1
-        while j > i + 1 and not clear(path[i], path[j]):
-            j -= 1
-        kept.append(j)
-        i = j
-    return np.asarray(path[kept])
-
-
-def nearer_goal(
-    path: np.ndarray, goals: np.ndarray, clear: Callable[[np.ndarray, np.ndarray], bool]
-) -> np.ndarray:
-    """``path`` ending at whichever goal state makes it shortest: from each waypoint, a
-    straight motion to any goal state (``clear``) that shortens the whole path replaces
-    the rest of it (the search reaches the goal state it happens to connect to first)."""
-    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
-    walked = np.concatenate([[0.0], np.cumsum(steps)])
-    best, best_length = path, float(walked[-1])
-    for i in range(len(path) - 1):
-        gaps = np.linalg.norm(goals - path[i], axis=1)
-        for k in np.argsort(gaps, kind="stable"):
-            total = float(walked[i] + gaps[k])
-            if total >= best_length - 1e-9:
-                break
-            if clear(path[i], goals[k]):
-                best, best_length = np.vstack([path[: i + 1], goals[k]]), total
-                break
-    return np.asarray(best)
-
-
-def _length(path: np.ndarray) -> float:
-    """Joint-space length of a path of waypoints [rad]."""
-    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
