@@ -9,7 +9,9 @@ and ``JogState`` in ``schemas/supervisor.schema.json``). It
    ``--seconds``: unitless deflections in -1..1 (scaled by the level), in the base or
    the gripper frame, or joint speeds with ``--joints``,
 3. releases (a zero command) and prints the controller's ``controller/jog_state`` as it
-   changes: level, whether the jog runs, why it is slowed or stopped, the gripper.
+   changes: level, whether the jog runs (``state``), what holds it back (``limits``: the
+   level's speed cap, a joint limit, a singularity, the collision guard) or why it
+   stopped (``cause``), the gripper.
 
     python examples/jog.py --connect tcp/127.0.0.1:7447 --level 2 --x 0.5 --seconds 2
     python examples/jog.py --frame gripper --z -0.3 --gripper 0.5
@@ -92,17 +94,19 @@ class Watch:
         self.states.put(msgpack.unpackb(sample.payload.to_bytes(), raw=False))
 
     def drain(self) -> None:
+        """Decide on the typed fields (state, cause, limits); print the words with them."""
         while not self.states.empty():
             state = self.states.get()
-            self.ran = self.ran or state["active"]
-            if "refused" in state["reason"]:
+            self.ran = self.ran or state["state"] == "running"
+            if state["state"] == "stopped" and state["cause"] in ("bad_command", "not_ready"):
                 self.refused = state["reason"]
-            key = (state["level"], state["active"], state["reason"])
+            limits = tuple((lim["kind"], lim["object"]) for lim in state["limits"])
+            key = (state["level"], state["state"], state["cause"], limits)
             if key != self._shown:  # print changes only
                 self._shown = key
                 xyz = [round(v * 1000.0, 1) for v in state["actual_xyz"]]
-                running = "jogging" if state["active"] else "stopped"
-                print(f"level {state['level']}/{state['levels']} {running} xyz_mm {xyz} "
+                doing = "jogging" if state["state"] == "running" else state["state"]
+                print(f"level {state['level']}/{state['levels']} {doing} xyz_mm {xyz} "
                       f"{state['reason']}", flush=True)  # fmt: skip
 
 

@@ -38,8 +38,8 @@ from manus.errors import ConfigError
 ARM_USERS = ("controller", "can_bridge", "guardian", "simulator", "router-base")
 """Zenoh users of the arm computer's router (``router-base``: the base router's link)."""
 
-BASE_USERS = ("planner", "sequencer", "recorder", "supervisor")
-"""Zenoh users of the base computer's router."""
+BASE_USERS = ("planner", "sequencer", "recorder", "supervisor", "panel")
+"""Zenoh users of the base computer's router (``panel``: ``manus panel``, docs/panel.md)."""
 
 ROUTER_NAMES: Mapping[str, tuple[str, ...]] = {
     "router-arm": ("manus-arm", "localhost", "127.0.0.1"),

@@ -3,29 +3,27 @@
 The arm's bodies are the URDF's collision geometry (:func:`manus.urdf.collision_shapes`),
 loaded with Pinocchio into a :class:`pinocchio.GeometryModel`; the scene's objects and
 keep-out zones are added to it as fixed bodies (placed through the mount), and
-:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call. Each
-class's clearance is baked into the fixed body as Coal's swept-sphere radius, so a
-pair's distance is its margin and the call's answer (the closest pair) is the tightest
-check; :meth:`CollisionModel.probe` asks one small geometry model per moving body, which
-gives each body its own margin. The keep-in workspace is checked apart, exactly, from
-each body's convex cover (its end points or corners and a radius): a concave margin over
-a convex body is smallest at one of those points.
+:func:`pinocchio.computeDistances` gives every pair's distance with Coal in one call.
+Which pairs it checks, and with which clearance, is :mod:`manus.collision_pairs`: each
+class's clearance is baked into the partner as Coal's swept-sphere radius, so a pair's
+distance is its margin and the call's answer (the closest pair) is the tightest check;
+:meth:`CollisionModel.probe` asks one small geometry model per moving body, which gives
+each body its own margin. The keep-in workspace is checked apart, exactly, from each
+body's convex cover (:mod:`manus.body_cover`: its end points or corners and a radius): a
+concave margin over a convex body is smallest at one of those points. Pairs that no
+configuration can bring within their clearance (an object beyond the sphere about the
+shoulder that holds the body) are left out.
 
-Every check is one :class:`manus.clearance.Check`: an arm body, what it is checked
-against, the class (``person``, ``chair``, ``environment``, ``self`` or ``zone``) and
-the clearance that class requires. A configuration's *margin* per check is distance minus clearance;
-negative means violated.
+A configuration's *margin* per check is distance minus clearance; negative means
+violated.
 
-Self-collision pairs are declared once, in :data:`SELF_PAIRS`: the gripper, its motor,
-the wrist and the forearm against the arm's base (column and shoulder). Adjacent bodies
-are excluded, and so is everything between the upper arm and the forearm-wrist-gripper
-chain: the DH model puts them in one plane (folded, on one line), while on the arm the
-forearm and the gripper fold beside the upper arm, so their distance in this model says
-nothing about the arm. Pairs that no configuration can bring within their clearance (an
-object beyond the sphere about the shoulder that holds the body) are left out. The
-``column`` and the ``shoulder`` do not move (the shoulder turns about its own axis), so
-their distances to the scene are checked once, when the model is built
-(:meth:`CollisionModel.base_overlaps`), not per configuration.
+Objects the arm holds (:class:`manus.held.HeldBody`) are bodies of the arm on joint 6,
+placed in the gripper frame (:meth:`CollisionModel.holding` gives the model with another
+set); their pairs are :mod:`manus.collision_pairs`'s. A held body and an arm body that
+moves both close a pair's gap: in the per-body margins (:meth:`CollisionModel.probe`,
+:meth:`CollisionModel.pair_margins`, what bounds each body's travel) such a pair counts
+half its margin for each of the two, and a pair with a body on the held body's own
+joint (the gripper's: their distance never changes) bounds neither.
 
 :func:`manus.sweep.sweep` checks a whole motion through
 :meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
@@ -38,36 +36,24 @@ keep-in zones), with the pairs that cannot come near the motion set aside
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import coal
 import numpy as np
 import pinocchio as pin
 
+from manus.body_cover import BodyCover
 from manus.clearance import Check, Clearance, Probe
+from manus.collision_pairs import STATIC_BODIES, build_pairs
 from manus.config import ArmConfig
+from manus.held import HeldBody, HeldError
 from manus.scene import Primitive, Scene, SceneError
-from manus.shapes import coal_shape, cover, fresh_guesses, inner_distances, partner_boxes
-from manus.urdf import FINGER_THICKNESS, build_urdf, collision_shapes
+from manus.shapes import coal_shape, fresh_guesses, partner_boxes
+from manus.urdf import FINGER_THICKNESS, GRIPPER_FRAME, Shape, build_urdf, collision_shapes
 
-SELF_PAIRS: tuple[tuple[str, str], ...] = (
-    ("gripper", "column"),
-    ("gripper", "shoulder"),
-    ("gripper_motor", "column"),
-    ("gripper_motor", "shoulder"),
-    ("wrist", "column"),
-    ("forearm", "column"),
-)
-"""Self-collision pairs (arm body, arm body), the only place they are declared."""
-
-GRIPPER_BODIES = ("gripper", "gripper_motor")
-"""The bodies a zone with ``links: gripper`` applies to."""
-
-STATIC_BODIES = ("column", "shoulder")
-"""Bodies whose distance to the scene does not depend on the joint angles."""
-
-
-_ONES3 = np.ones(3)
+_GRIPPER_BOX = ("gripper", "gripper+self")
+"""The gripper box and its copy inflated by the self clearance (sized to the opening)."""
 
 
 class CollisionModel:
@@ -82,11 +68,23 @@ class CollisionModel:
         cfg: arm geometry (passed explicitly, as the kinematics take it).
         opening: gripper opening the gripper box is sized for [m] (default: fully open,
             the planner's choice: it does not know the opening a move will have).
+        held: the objects the arm holds.
+
+    Raises:
+        HeldError: a held object named like an arm body, or given twice.
     """
 
-    def __init__(self, scene: Scene | None, cfg: ArmConfig, opening: float | None = None) -> None:
+    def __init__(
+        self,
+        scene: Scene | None,
+        cfg: ArmConfig,
+        opening: float | None = None,
+        held: Sequence[HeldBody] = (),
+    ) -> None:
         self.cfg = cfg
         self.scene = scene
+        self.held = tuple(held)
+        """The objects the arm holds (their bodies follow the arm's in :attr:`shapes`)."""
         urdf = build_urdf(self.cfg)
         self.model = pin.buildModelFromXML(urdf)
         self.data = self.model.createData()
@@ -95,113 +93,56 @@ class CollisionModel:
         # Pinocchio names them <link>_<k>, in URDF order: give them the shapes' names.
         for obj, shape in zip(gm.geometryObjects, self.shapes, strict=True):
             obj.name = shape.name
+        self.shapes += [self._add_held(gm, body) for body in self.held]
         self.body_index = {s.name: i for i, s in enumerate(self.shapes)}
-        self._gripper_box = gm.geometryObjects[self.body_index["gripper"]].geometry
-        self.checks: list[Check] = []
-        self._keep_in_bodies: list[tuple[Check, Primitive, list[int]]] = []
-        self._static: list[tuple[int, int, Check]] = []
-        pairs = self._self_pairs(gm, scene.clearance["self"] if scene is not None else 0.01)
-        if scene is not None:
-            pairs += self._scene_pairs(gm, scene)
-            self._keep_in_zones(scene)
+        built = build_pairs(gm, self.shapes, scene, self.held)
+        # The gripper box, and its inflated copy if a held body is checked against it.
+        self._gripper_boxes = [o.geometry for o in gm.geometryObjects if o.name in _GRIPPER_BOX]
         self.geom = gm
-        self._covers = [cover(s) for s in self.shapes]
-        self._holding: dict[int, float] = {}
-        self._prepare_points()
+        self.moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
+        """Bodies whose distances depend on the joint angles (indices into shapes)."""
+        self.keep_in_bodies = built.keep_in
+        """Per keep-in zone: its check, the zone in the base frame, the bodies it holds."""
+        self.cover = BodyCover(self.model, gm, self.shapes, self.moving, built.keep_in)
+        self.extent = self.cover.extent
+        """Farthest any body point is from its joint's origin [m] (a coarse speed bound)."""
+        self._static = built.static
         # Pairs no configuration can bring within their clearance are left out.
-        reachable = [self._can_meet(first, second) for first, second in pairs]
-        pairs = [p for p, keep in zip(pairs, reachable, strict=True) if keep]
-        self.checks = [c for c, keep in zip(self.checks, reachable, strict=True) if keep]
+        reachable = [self._can_meet(first, second) for first, second in built.pairs]
+        pairs = [p for p, keep in zip(built.pairs, reachable, strict=True) if keep]
+        self.checks: list[Check] = [
+            c for c, keep in zip(built.checks, reachable, strict=True) if keep
+        ]
         for first, second in pairs:
             gm.addCollisionPair(pin.CollisionPair(first, second))
         self.geom_data = fresh_guesses(pin.GeometryData(gm))
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
+        self._held_rows = self._held_pairs(pairs, built.mutual)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
-        self._no_margin = np.full(len(self._moving), math.inf)
+        self._no_margin = np.full(len(self.moving), math.inf)
         self._set_aside = self._no_margin
         self._inactive: list[tuple[Any, int]] = []
         # Built on the first restrict (the sweep's): a third of building a model, which
         # the controller's guard never needs.
         self._partner_boxes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self._no_reach = np.zeros((6, len(self._moving)))
+        self._no_reach = np.zeros((6, len(self.moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()
         if overlaps:
             raise SceneError(overlaps[0])
         self.set_opening(self.cfg.gripper_max if opening is None else opening)
 
-    def _self_pairs(self, gm: Any, required: float) -> list[tuple[int, int]]:
-        """The pairs of :data:`SELF_PAIRS`. Each clearance is baked into the other body
-        as Coal's swept-sphere radius, so every pair's distance is its margin and
-        computeDistances' argmin the tightest; the self pairs' bodies get inflated
-        copies (the originals face the scene)."""
-        pairs: list[tuple[int, int]] = []
-        copies: dict[str, int] = {}
-        for a, b in SELF_PAIRS:
-            if b not in copies:
-                original = gm.geometryObjects[self.body_index[b]]
-                geometry = original.geometry.clone()
-                geometry.setSweptSphereRadius(required)
-                copies[b] = gm.addGeometryObject(
-                    pin.GeometryObject(
-                        f"{b}+self", original.parentJoint, original.placement, geometry
-                    )
-                )
-            pairs.append((self.body_index[a], copies[b]))
-            self.checks.append(Check(a, b, "self", required))
-        return pairs
-
-    def _scene_pairs(self, gm: Any, scene: Scene) -> list[tuple[int, int]]:
-        """The scene's objects and keep-out zones as fixed bodies (their clearance as
-        swept-sphere radius) and their pairs with the arm's moving bodies; the static
-        bodies' pairs go to :meth:`base_overlaps`."""
-        to_base = np.linalg.inv(scene.mount)
-        fixed = [(o.name, o.cls, o.body, scene.clearance[o.cls], "all") for o in scene.objects]
-        fixed += [
-            (z.name, "zone", z.body, z.clearance, z.links)
-            for z in scene.zones
-            if z.kind == "keep_out"
-        ]
-        pairs: list[tuple[int, int]] = []
-        for name, cls, body, required, links in fixed:
-            geometry, pose = coal_shape(body)
-            geometry.setSweptSphereRadius(required)
-            placement = pin.SE3(to_base @ pose)
-            index = gm.addGeometryObject(pin.GeometryObject(name, 0, placement, geometry))
-            for i, shape in enumerate(self.shapes):
-                if links == "gripper" and shape.name not in GRIPPER_BODIES:
-                    continue
-                check = Check(shape.name, name, cls, required)
-                if shape.name in STATIC_BODIES:
-                    self._static.append((i, index, check))
-                else:
-                    pairs.append((i, index))
-                    self.checks.append(check)
-        return pairs
-
-    def _keep_in_zones(self, scene: Scene) -> None:
-        to_base = np.linalg.inv(scene.mount)
-        for zone in scene.zones:
-            if zone.kind == "keep_in":
-                bodies = [
-                    i
-                    for i, arm_body in enumerate(self.shapes)
-                    if zone.links == "all" or arm_body.name in GRIPPER_BODIES
-                ]
-                check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
-                body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
-                self._keep_in_bodies.append((check, body, bodies))
-
     # --- configuration queries ----------------------------------------------------------
 
     def set_opening(self, opening: float) -> None:
         """Size the gripper box for ``opening`` [m] (clamped to 0..gripper_max)."""
         opening = min(max(opening, 0.0), self.cfg.gripper_max)
-        half = self._gripper_box.halfSide.copy()
-        half[0] = opening / 2.0 + FINGER_THICKNESS
-        self._gripper_box.halfSide = half
-        self._gripper_box.computeLocalAABB()
+        for box in self._gripper_boxes:
+            half = box.halfSide.copy()
+            half[0] = opening / 2.0 + FINGER_THICKNESS
+            box.halfSide = half
+            box.computeLocalAABB()
         self.opening = opening
 
     def margins(self, q: np.ndarray) -> np.ndarray:
@@ -220,7 +161,8 @@ class CollisionModel:
     def keep_in_margins(self) -> list[tuple[float, Check]]:
         """For each keep-in zone: the smallest inner distance of its bodies to its boundary
         minus its clearance, at the configuration of the last :meth:`margins` call."""
-        return [(margin, check) for margin, check, _ in self._keep_in_at(self._world_points())]
+        world = self.cover.world(self.data)
+        return [(margin, check) for margin, check, _ in self.cover.keep_in_at(world)]
 
     def clearance(self, q: np.ndarray, time: float = 0.0) -> Clearance:
         """The tightest check at ``q``."""
@@ -270,8 +212,8 @@ class CollisionModel:
         False: cheaper); and the tightest check."""
         q = np.asarray(q, dtype=float)
         free, tight, tight_row = self.pair_margins(q)
-        points = self._world_points()
-        for margin, check, per_body in self._keep_in_at(points):
+        points = self.cover.world(self.data)
+        for margin, check, per_body in self.cover.keep_in_at(points):
             np.minimum(free, per_body, out=free)
             if margin < tight:
                 tight, tight_row, keep_in = margin, -2, check
@@ -282,7 +224,7 @@ class CollisionModel:
         else:
             check = Check("", "", "self", 0.0)
         best = Clearance(tight, tight + check.required, check, time, q)
-        reaches = self._reach_at(points) if reach else self._no_reach
+        reaches = self.cover.reach(points) if reach else self._no_reach
         return Probe(best, np.maximum(free, 0.0, out=free), reaches)
 
     def pair_margins(self, q: np.ndarray) -> tuple[np.ndarray, float, int]:
@@ -303,6 +245,8 @@ class CollisionModel:
             free[b] = margin
             if margin < tight:
                 tight, tight_row = margin, rows[k]
+        for b, held_rows in self._held_rows:
+            free[b] = self._held_free(b, held_rows, free)
         return np.minimum(free, self._set_aside, out=free), tight, tight_row
 
     def restrict(self, lo: np.ndarray, hi: np.ndarray, near: float) -> np.ndarray:
@@ -316,7 +260,7 @@ class CollisionModel:
         Returns:
             per moving body, the least margin of its set-aside pairs [m] (inf: none).
         """
-        aside = np.full(len(self._moving), math.inf)
+        aside = np.full(len(self.moving), math.inf)
         if not self._partner_boxes:
             self._partner_boxes = [partner_boxes(gm) for _, gm, _, _ in self._live]
         for (b, _, gd, _), (fixed, box_lo, box_hi) in zip(
@@ -339,48 +283,29 @@ class CollisionModel:
         self._inactive.clear()
         self._set_aside = self._no_margin
 
-    def _world_points(self) -> np.ndarray:
-        """The bodies' cover points in the base frame at the last :meth:`margins`, (n, 3)."""
-        oMi = self.data.oMi
-        H = np.array([m.homogeneous for m in oMi])
-        self._joints_now = H
-        Hp = H[self._point_joint]
-        return np.asarray((Hp[:, :3, :] @ self._points1)[:, :, 0])
+    def holding(self, held: Sequence[HeldBody]) -> CollisionModel:
+        """This model (scene, arm, gripper opening) with the arm holding ``held``."""
+        return CollisionModel(self.scene, self.cfg, self.opening, held)
 
-    def _reach_at(self, world: np.ndarray) -> np.ndarray:
-        """Per joint and moving body, the farthest point of the body from the joint's axis
-        (0 for a body the joint does not move) [m], shape (6, moving bodies)."""
-        H = self._joints_now[1:]
-        origins, axes = H[:, :3, 3], H[:, :3, 2]  # (6, 3) each
-        # |d|^2 - (d . z)^2 with d = p - o, expanded so that one product does the work.
-        wo_wz = world @ np.hstack((origins.T, axes.T))  # (n, 12)
-        squared = (world * world) @ _ONES3  # (n,): numpy's sum over a short axis is slow
-        d2 = squared[:, None] - 2.0 * wo_wz[:, :6] + (origins * origins) @ _ONES3
-        along = wo_wz[:, 6:] - (origins * axes) @ _ONES3
-        radial = np.sqrt(np.maximum(d2 - along * along, 0.0)).T  # (6, n)
-        radial = np.where(self._beyond_mask, radial + self._radii, 0.0)
-        per_body = np.maximum.reduceat(radial, self._body_starts, axis=1)
-        return np.asarray(per_body[:, self._moving])
-
-    def _keep_in_at(self, world: np.ndarray) -> list[tuple[float, Check, np.ndarray]]:
-        """Per keep-in zone: its tightest margin [m], the check naming the body, and each
-        moving body's margin to it [m] (inf: a body the zone does not hold)."""
-        out = []
-        for check, zone, rows in self._keep_in:
-            inner = self._outside.copy()
-            inside = inner_distances(zone, world[rows].T)
-            inner[rows] = inside - self._radii[rows] - check.required
-            k = int(np.argmin(inner))
-            body = self.shapes[int(self._point_body[k])].name
-            per_body = np.minimum.reduceat(inner, self._body_starts)[self._moving]
-            out.append((float(inner[k]), check._replace(body=body), per_body))
-        return out
+    def _add_held(self, gm: Any, body: HeldBody) -> Shape:
+        """Put ``body`` on joint 6 of ``gm``, where the gripper frame holds it."""
+        if any(o.name == body.name for o in gm.geometryObjects):
+            raise HeldError(f"held object {body.name!r}: an arm body (or held object) has its name")
+        if body.shape not in ("box", "sphere", "cylinder", "capsule"):
+            raise HeldError(f"held object {body.name!r}: no {body.shape!r} shape")
+        frame = self.model.frames[self.model.getFrameId(GRIPPER_FRAME)]
+        M = pin.SE3(frame.placement.homogeneous @ body.placement())
+        geometry, _ = coal_shape(Primitive(body.shape, body.size, np.eye(4)))
+        gm.addGeometryObject(pin.GeometryObject(body.name, frame.parentJoint, M, geometry))
+        rpy = pin.rpy.matrixToRpy(M.rotation)
+        return Shape(body.name, f"link{frame.parentJoint}", body.shape, body.size,
+                     tuple(M.translation), tuple(rpy))  # fmt: skip
 
     def _can_meet(self, body: int, other: int) -> bool:
         """Whether ``other`` (fixed, its clearance included) reaches into the sphere about
         the shoulder that holds ``body`` in every configuration (the joint placements'
         lengths up to the body, plus its own extent)."""
-        radius = self._holding_radius(body)
+        radius = self.cover.holding_radius(body, self.geom.geometryObjects[body].parentJoint)
         fixed = self.geom.geometryObjects[other]
         if fixed.parentJoint != 0:
             return True  # another arm body (a self pair)
@@ -395,26 +320,43 @@ class CollisionModel:
         )
         return bool(gap <= 0.0)
 
-    def _holding_radius(self, body: int) -> float:
-        """The radius of the sphere about the shoulder that holds ``body`` in every
-        configuration [m] (computed once per body)."""
-        if body in self._holding:
-            return self._holding[body]
-        obj = self.geom.geometryObjects[body]
-        rows = self._point_body == body
-        radius = sum(
-            float(np.linalg.norm(self.model.jointPlacements[k].translation))
-            for k in range(1, obj.parentJoint + 1)
-        )
-        radius += float((np.linalg.norm(self._points[rows], axis=1) + self._radii[rows]).max())
-        self._holding[body] = radius
-        return radius
+    def _held_free(self, b: int, rows: list[tuple[int, int, bool]], free: np.ndarray) -> float:
+        """Held body ``b``'s margin for bounding its travel (:data:`_held_rows` ``rows``),
+        lowering its mutual partners' in ``free`` to their half."""
+        gd = self._per_body[b][1]
+        active = gd.activeCollisionPairs
+        low = math.inf
+        for k, c, rigid in rows:
+            if not active[k] or rigid:
+                continue  # set aside (:meth:`restrict`), or a distance that never changes
+            margin = gd.distanceResults[k].min_distance
+            if c >= 0:  # both move: each may close half the gap
+                margin = 0.5 * margin if margin > 0.0 else margin
+                free[c] = min(free[c], margin)
+            low = min(low, margin)
+        return min(low, float(self._set_aside[b]))
+
+    def _held_pairs(
+        self, pairs: list[tuple[int, int]], mutual: dict[tuple[int, int], tuple[int, bool]]
+    ) -> list[tuple[int, list[tuple[int, int, bool]]]]:
+        """Per held body (its position in :attr:`moving`): each of its pairs as (index in
+        its own geometry model, mutual partner's position in :attr:`moving` or -1, rigid)."""
+        position = {body: b for b, body in enumerate(self.moving)}
+        held = {self.body_index[h.name] for h in self.held}
+        out = []
+        for b, (_, _, rows) in enumerate(self._per_body):
+            if self.moving[b] in held:
+                found = [mutual.get(pairs[k], (-1, False)) for k in rows]
+                out.append(
+                    (b, [(j, -1 if c < 0 else position[c], r) for j, (c, r) in enumerate(found)])
+                )
+        return out
 
     def _split(self, pairs: list[tuple[int, int]]) -> list[tuple[Any, Any, list[int]]]:
         """One geometry model per moving body with its pairs, for per-body margins: the
         body, then its partners; with the rows of :attr:`checks` of its pairs."""
         out = []
-        for b in self._moving:
+        for b in self.moving:
             gm = pin.GeometryModel()
             gm.addGeometryObject(self.geom.geometryObjects[b])
             rows = []
@@ -425,36 +367,6 @@ class CollisionModel:
                     rows.append(k)
             out.append((gm, fresh_guesses(pin.GeometryData(gm)), rows))
         return out
-
-    def _prepare_points(self) -> None:
-        """Stack every body's cover points in its joint's frame (for reach and keep-in)."""
-        points, radii, joints, bodies = [], [], [], []
-        for i, (local, radius) in enumerate(self._covers):
-            obj = self.geom.geometryObjects[i]
-            M = obj.placement
-            points.append(local @ M.rotation.T + M.translation)
-            radii += [radius] * len(local)
-            joints += [obj.parentJoint] * len(local)
-            bodies += [i] * len(local)
-        self._points = np.vstack(points)
-        self._radii = np.array(radii)
-        self.extent = float(np.linalg.norm(self._points, axis=1).max() + self._radii.max())
-        """Farthest any body point is from its joint's origin [m] (a coarse speed bound)."""
-        self._point_joint = np.array(joints)
-        self._point_body = np.array(bodies)
-        self._rows_by_joint = [
-            (j, np.flatnonzero(self._point_joint == j)) for j in sorted(set(joints))
-        ]
-        self._beyond_mask = np.array([self._point_joint >= j for j in range(1, self.model.njoints)])
-        self._outside = np.full(len(self._points), math.inf)
-        self._points1 = np.c_[self._points, np.ones(len(self._points))][:, :, None]
-        self._body_starts = np.searchsorted(self._point_body, np.arange(len(self.shapes)))
-        self._moving = [i for i, s in enumerate(self.shapes) if s.name not in STATIC_BODIES]
-        """Arm bodies whose distances depend on the joint angles (indices into shapes)."""
-        self._keep_in = [
-            (check, zone, np.flatnonzero(np.isin(self._point_body, bodies)))
-            for check, zone, bodies in self._keep_in_bodies
-        ]
 
 
 def _line_of(scene: Scene, name: str) -> int:

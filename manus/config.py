@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -214,6 +215,20 @@ UNFOLDED_Q_DEG = (0.0, 30.0, -30.0, 0.0, -60.0, 0.0)
 FOLDED_Q_DEG = (0.0, -90.0, -90.0, 0.0, -90.0, 0.0)
 """The compact folded pose (upper arm up, forearm down, gripper at about (160, 105, 80) mm)
 used by the simulator's fold-in procedure and the named pose `folded` [deg]."""
+
+FOLDED_WITHIN_DEG = 5.0
+"""An arm whose every joint is this close to :data:`FOLDED_Q_DEG` stands folded [deg]."""
+
+
+_FOLDED_RAD = tuple(math.radians(v) for v in FOLDED_Q_DEG)
+_FOLDED_WITHIN_RAD = math.radians(FOLDED_WITHIN_DEG)
+
+
+def is_folded(q: Sequence[float]) -> bool:
+    """The DH joint angles ``q`` [rad], 6 values, are the folded pose (within
+    :data:`FOLDED_WITHIN_DEG` per joint)."""
+    return all(abs(a - b) <= _FOLDED_WITHIN_RAD for a, b in zip(q, _FOLDED_RAD, strict=True))
+
 
 DEFAULT_ARM = ArmConfig()
 """The thesis arm with the default limits (shared, immutable)."""

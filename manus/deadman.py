@@ -30,6 +30,24 @@ def judged_at(stamp_ns: int, last_ns: int | None, cycle_ns: int) -> int:
     return min(stamp_ns, last_ns + cycle_ns)
 
 
+class Echo:
+    """The newest heartbeat's echo: the joint state it refers to and who sent it.
+
+    Attributes:
+        ns: stamp of the joint state the newest heartbeat echoes [ns] (None: none yet).
+        source: its sender (``Heartbeat.source``: its ``alive/<source>`` token).
+    """
+
+    def __init__(self) -> None:
+        self.ns: int | None = None
+        self.source = ""
+
+    def heard(self, ref_stamp_ns: int, source: str) -> None:
+        """A heartbeat echoing the joint state stamped ``ref_stamp_ns`` [ns]: kept if newer."""
+        if self.ns is None or ref_stamp_ns > self.ns:
+            self.ns, self.source = ref_stamp_ns, source
+
+
 class RecentStates:
     """The stamps of the newest joint states, for the credit of :func:`echo_too_old`.
 

@@ -82,7 +82,6 @@ def fast_sweep(
         tolerance: how far below the smallest margin the stretches may be [m].
     """
     fast = checker_for(model)
-    arm_bodies = len(model._moving)
     peaks = np.abs(np.asarray(qd_peaks, dtype=float))
     speed = peaks @ fast.levers()  # (S, B): the fastest any point can move anywhere [m/s]
     T = _start(np.asarray(times, dtype=float), speed.max(axis=1))
@@ -103,8 +102,8 @@ def fast_sweep(
             exact[float(T[k])] = probe.best
             if worst is None or probe.best.margin < worst.margin:
                 worst = probe.best
-            # Coal's margins bound the arm's own bodies; a held body keeps its bound.
-            free[k, :arm_bodies] = np.maximum(free[k, :arm_bodies], probe.free)
+            # Coal's margins are lower bounds too, body by body (held ones included).
+            free[k] = np.maximum(free[k], probe.free)
             tight[k] = max(tight[k], min(probe.best.margin, float(free[k].min())))
         assert worst is not None
         floor = max(worst.margin - tolerance, 0.0)

@@ -75,3 +75,9 @@ def encoder_increments_to_dh_list(de: Sequence[float]) -> list[float]:
     """DH increments (or rates) from six motor increments (or rates), as plain floats."""
     e1, e2, e3, e4, e5, e6 = de
     return [e1 + 0.0, 0.0 - e2, e3 - e2, e4 + 0.0, e5 + 0.0, e6 + 0.0]
+
+
+def dh_increments_to_encoder_list(dq: Sequence[float]) -> list[float]:
+    """Motor increments (or rates) from six DH increments (or rates), as plain floats."""
+    d1, d2, d3, d4, d5, d6 = dq
+    return [d1 + 0.0, 0.0 - d2, d3 - d2, d4 + 0.0, d5 + 0.0, d6 + 0.0]

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from manus.validity_kernels import jit, margins, pose
+from manus.distance_bounds import jit
+from manus.validity_kernels import margins, pose
 
 
 @jit

@@ -8,7 +8,11 @@ The arm takes one signed byte per joint and per 20 ms: joint increments in 0.1 d
 (docs/protocol.md, Encoder map) is applied here through :mod:`manus.joint_map`, never
 copied.
 
-Rounding a wanted rate to one of 21 speeds is the arm's defining limitation, so the
+This is the arm's speed table, shared by the bridge (which turns SI velocities into the
+0x374's bytes at the CAN edge, and what the arm executes back into SI) and the
+controller (which must choose one of the speeds itself: its dead-beat law and its
+Cartesian rounding decide which, knowing the reference the bridge never sees). Rounding a
+wanted rate to one of 21 speeds is the arm's defining limitation, so the
 quantizer is a replaceable piece (:class:`Quantizer`): :class:`RoundingQuantizer` is the
 thesis's nearest integer, :class:`ErrorFeedbackQuantizer` carries the rounding residual
 to the next call so that the running mean of the counts equals the wanted rate.
@@ -23,7 +27,11 @@ from typing import Protocol
 import numpy as np
 
 from manus.errors import ManusError
-from manus.joint_map import dh_increments_to_encoder, encoder_increments_to_dh
+from manus.joint_map import (
+    dh_increments_to_encoder,
+    encoder_increments_to_dh,
+    encoder_increments_to_dh_list,
+)
 from manus.protocol import GRIPPER_INC_MAX, JOINT_INC_MAX
 
 COUNT_RAD_S: float = math.radians(5.0)
@@ -70,6 +78,12 @@ def counts_to_joint_rates(counts: np.ndarray) -> np.ndarray:
     """DH joint rates [rad/s], shape (6,), that motor counts, shape (6,), produce."""
     c = _vector6(counts, "motor counts")
     return np.asarray(encoder_increments_to_dh(c) * COUNT_RAD_S)
+
+
+def step_rates(counts: Sequence[int]) -> list[float]:
+    """:func:`counts_to_joint_rates` on six plain integers (every cycle: the controller's
+    command, the bridge's applied speeds): the same products, a zero rate is +0.0."""
+    return [r * COUNT_RAD_S for r in encoder_increments_to_dh_list(counts)]
 
 
 def saturate(counts: np.ndarray, limit: float = float(JOINT_COUNT_MAX)) -> np.ndarray:

@@ -37,7 +37,7 @@ def cover(shape: Shape) -> tuple[np.ndarray, float]:
     """Points (k, 3) in the body's own frame and a radius whose hull covers the body."""
     if shape.kind == "sphere":
         return np.zeros((1, 3)), shape.size[0]
-    if shape.kind == "cylinder":
+    if shape.kind in ("cylinder", "capsule"):  # a capsule's exactly, a cylinder's over
         h = shape.size[1] / 2.0
         return np.array([[0.0, 0.0, -h], [0.0, 0.0, h]]), shape.size[0]
     hx, hy, hz = (v / 2.0 for v in shape.size)

@@ -378,7 +378,7 @@ def straight_motion_problem(
     bad = found.violation
     if bad is None:
         return None
-    start = ", ".join(f"{v:.0f}" for v in np.degrees(a))
+    start = ", ".join(str(round(v)) for v in np.degrees(a))  # no "-0"
     return (
         f"{what} from ({start}) deg would bring the {bad.describe()} "
         f"{bad.time * 100:.0f} % of the way"

@@ -40,22 +40,23 @@ class BodyPoints:
         pm = model.model
         self._placements = [pm.jointPlacements[j].homogeneous for j in range(pm.njoints)]
         self._parents = [int(pm.parents[j]) for j in range(pm.njoints)]
-        self.moving = np.array(model._moving)
+        cover = model.cover
+        self.moving = np.array(model.moving)
         """Indices into ``model.shapes`` of the bodies the joints move, shape (B,)."""
-        self.names = [model.shapes[i].name for i in model._moving]
-        kept = np.flatnonzero(np.isin(model._point_body, self.moving))  # sorted by body
-        self._points = model._points[kept]
+        self.names = [model.shapes[i].name for i in model.moving]
+        kept = np.flatnonzero(np.isin(cover.point_body, self.moving))  # sorted by body
+        self._points = cover.points[kept]
         self._points1 = np.c_[self._points, np.ones(len(kept))]
-        self._radii = model._radii[kept]
-        joint = model._point_joint[kept]
+        self._radii = cover.radii[kept]
+        joint = cover.point_joint[kept]
         self._groups = [(int(j), np.flatnonzero(joint == j)) for j in np.unique(joint)]
-        self.starts = np.searchsorted(model._point_body[kept], self.moving)
+        self.starts = np.searchsorted(cover.point_body[kept], self.moving)
         """Where each moving body's cover points start, shape (B,)."""
         self._keep_in = [
             (check, zone, np.flatnonzero(np.isin(kept, rows)))
-            for check, zone, rows in model._keep_in
+            for check, zone, rows in cover.keep_in
         ]
-        joint_of = np.array([model.geom.geometryObjects[i].parentJoint for i in model._moving])
+        joint_of = np.array([model.geom.geometryObjects[i].parentJoint for i in model.moving])
         self.moves = np.array(
             [joint_of >= j for j in range(1, pm.njoints)], dtype=float
         )  # (6, B): 1 where joint j moves body b

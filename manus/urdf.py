@@ -72,6 +72,9 @@ frame (the fingertips) [m]."""
 FINGER_THICKNESS = 0.015
 """Thickness of one finger [m]: the gripper box is the opening plus two of these wide."""
 
+GRIPPER_FRAME = "gripper_frame"
+"""The link of the gripper pose (fixed to ``link6``): what held objects attach to."""
+
 
 def collision_shapes(cfg: ArmConfig | None = None, opening: float | None = None) -> list[Shape]:
     """The arm's collision bodies for the geometry of ``cfg``.
@@ -188,10 +191,10 @@ def build_urdf(cfg: ArmConfig | None = None) -> str:
     lines += [
         '  <joint name="gripper_fixed" type="fixed">',
         f'    <parent link="{previous}"/>',
-        '    <child link="gripper_frame"/>',
+        f'    <child link="{GRIPPER_FRAME}"/>',
         f'    <origin xyz="{_f(a_last)} 0 {_f(d_last)}" rpy="{_f(alpha_last)} 0 0"/>',
         "  </joint>",
-        '  <link name="gripper_frame"/>',
+        f'  <link name="{GRIPPER_FRAME}"/>',
         "</robot>",
         "",
     ]

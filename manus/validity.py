@@ -11,10 +11,12 @@ configuration invalid that Coal finds clear (by at most a few millimetres of mar
 near an obstacle: ``manus bench validity`` counts how often).
 
 The pairs checked are exactly the model's (:attr:`CollisionModel.checks`) and its
-keep-in zones (the same cover points and radii as the model). A body held by the arm
-(issue 28) is added to a link with :meth:`ValidityChecker.add_body`. Built from a model,
-so a changed scene means a new model and a new checker (:func:`checker_for` keeps one
-per model); a changed gripper opening of the model is followed on the next call.
+keep-in zones (the same cover points and radii as the model), the objects the arm holds
+included (:attr:`CollisionModel.held`: bodies of the model like the arm's, their pairs
+with the arm's moving bodies shared the same way, :mod:`manus.validity_kernels`). Built
+from a model, so a changed scene or held object means a new model and a new checker
+(:func:`checker_for` keeps one per model); a changed gripper opening of the model is
+followed on the next call.
 
 First use compiles the kernels (or loads them from numba's cache, next to this module's
 source): :meth:`ValidityChecker.__init__` does it, so build the checker at a service's
@@ -32,7 +34,8 @@ import numpy as np
 from manus import motion_kernels
 from manus import validity_kernels as k
 from manus.clearance import Check
-from manus.collision import STATIC_BODIES, CollisionModel
+from manus.collision import CollisionModel
+from manus.collision_pairs import STATIC_BODIES
 from manus.config import ArmConfig
 from manus.validity_parts import (
     Piece,
@@ -42,7 +45,7 @@ from manus.validity_parts import (
     primitive_arrays,
     primitive_box,
 )
-from manus.validity_scene import fixed_obstacles, static_shapes
+from manus.validity_scene import obstacles, static_shapes
 
 MOTION_FLOOR_M = 0.0005
 """Along a motion, a configuration whose margin bound is below this [m] ends the proof:
@@ -118,36 +121,12 @@ class ValidityChecker:
         self._shape_of: list[tuple[str, tuple[float, ...], np.ndarray]] = [
             self._shape(i) for i in moving
         ]
-        self._prims, self._others, self._applies = fixed_obstacles(model, self.bodies)
+        self._obstacles = obstacles(model, self.bodies)
+        self._others = self._obstacles.others
         self._opening = model.opening
         self._build()
 
     # --- building ----------------------------------------------------------------------------
-
-    def add_body(
-        self,
-        name: str,
-        joint: int,
-        kind: str,
-        size: tuple[float, ...],
-        placement: np.ndarray,
-        *,
-        self_partners: tuple[str, ...] = STATIC_BODIES,
-    ) -> None:
-        """Add a body to joint ``joint``'s link (a held object): ``kind`` ``box`` (sizes
-        x, y, z [m]), ``cylinder`` (radius, length [m]) or ``sphere`` (radius [m]),
-        placed by ``placement`` (4x4) in the joint's frame. It is checked against every
-        scene object and zone (a gripper zone too: it is held by the gripper) and, with
-        the ``self`` clearance, against ``self_partners``. The Coal model does not know
-        it: its exact distances stay those of the arm alone."""
-        if name in self.bodies or any(s.name == name for s in self.model.shapes):
-            raise ValueError(f"body {name!r} exists already")
-        self.bodies.append(name)
-        self._joint_of.append(joint)
-        self._shape_of.append((kind, tuple(size), np.asarray(placement, dtype=float)))
-        row = [cls != "self" or other in self_partners for other, cls, _ in self._others]
-        self._applies = np.vstack((self._applies, np.array(row, dtype=np.bool_)))
-        self._build()
 
     def _shape(self, index: int) -> tuple[str, tuple[float, ...], np.ndarray]:
         shape = self.model.shapes[index]
@@ -196,27 +175,30 @@ class ValidityChecker:
             cover_local,
             cover_r,
         )
-        o_kind, o_R, o_t, o_s = primitive_arrays(self._prims)
+        found = self._obstacles
+        o_kind, o_R, o_t, o_s = primitive_arrays(found.prims)
         req = np.array([r for _, _, r in self._others]) + SLACK_M
-        zones = self.model._keep_in_bodies
+        zones = self.model.keep_in_bodies
         zk, zR, zt, zs = primitive_arrays([z for _, z, _ in zones])
         holds = np.zeros((len(zones), len(cover_body)), dtype=np.bool_)
-        arm_names = {s.name for s in self.model.shapes}
         for z, (_, _, members) in enumerate(zones):
             names = {self.model.shapes[i].name for i in members}
-            for i, name in enumerate(cover_names):
-                # A held body (not the arm's own) is in every zone: the gripper holds it.
-                holds[z, i] = name in names or name not in arm_names
+            holds[z] = [name in names for name in cover_names]
         z_req = np.array([c.required for c, _, _ in zones]) + SLACK_M
         self._zone_checks = [c for c, _, _ in zones]
-        boxes = np.array([primitive_box(p) for p in self._prims]).reshape(-1, 2, 3)
+        moving = found.partner >= 0
+        boxes = np.array([primitive_box(p) for p in found.prims]).reshape(-1, 2, 3)
+        boxes[moving] = [np.full(3, -math.inf), np.full(3, math.inf)]  # placed per configuration
+        local = np.array([np.eye(4) if m else np.zeros((4, 4)) for m in moving]).reshape(-1, 4, 4)
+        for o in np.flatnonzero(moving):
+            local[o] = found.prims[o].pose
         self._scene = (
             o_kind,
             o_R,
             o_t,
             o_s,
             req,
-            self._applies,
+            found.applies,
             zk,
             zR,
             zt,
@@ -224,6 +206,10 @@ class ValidityChecker:
             z_req,
             holds,
             boxes,
+            found.partner,
+            found.rigid,
+            found.joint.astype(np.int64),
+            local,
         )
         n, B, m = len(pieces), len(self.bodies), len(cover_body)
         self._scratch = (
@@ -280,6 +266,7 @@ class ValidityChecker:
             gripper = self.bodies.index("gripper")
             index = self.model.body_index["gripper"]
             self._shape_of[gripper] = self._shape(index)
+            self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover
             self._build()
 
     # --- questions -------------------------------------------------------------------------

@@ -4,7 +4,8 @@ convex pieces, their keep-in cover points, and scene primitives as kernel obstac
 A piece is ``box(half) + disk(rc) + ball(rs)`` about its centre (the disk across its
 third axis): a cylinder is cut along its axis into pieces no longer than
 :data:`PIECE_M` (each ``half = (0, 0, h)``, ``rc = r``: exactly the cylinder's slice), a
-sphere is one piece (``rs = r``), a box is cut along each side longer than
+sphere is one piece (``rs = r``), a capsule is cut like a cylinder with ``rs = r`` instead
+(each slice a capsule: exactly the capsule's), a box is cut along each side longer than
 :data:`PIECE_M`. The pieces' union is the body: no inflation, so a pair's bound is exact
 whenever the separating direction found is the true one.
 """
@@ -16,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manus import validity_kernels as k
+from manus import distance_bounds as k
 from manus.collision import CollisionModel
 from manus.scene import Primitive
 from manus.shapes import cover
@@ -53,28 +54,30 @@ def _piece(center: np.ndarray, axes: np.ndarray, half: np.ndarray, rc: float, rs
 
 
 def body_pieces(kind: str, size: tuple[float, ...], placement: np.ndarray) -> list[Piece]:
-    """The pieces of a ``cylinder`` (radius, length), ``sphere`` (radius,) or ``box``
-    (x, y, z) [m] placed by ``placement`` (4x4) in its joint's frame."""
+    """The pieces of a ``cylinder`` or ``capsule`` (radius, length), ``sphere``
+    (radius,) or ``box`` (x, y, z) [m] placed by ``placement`` (4x4) in its joint's
+    frame."""
     R, t = placement[:3, :3], placement[:3, 3]
     axes = R.T.copy()  # rows: the body's axes in the joint frame
     if kind == "sphere":
         return [_piece(t.copy(), np.eye(3), np.zeros(3), 0.0, size[0])]
-    if kind == "cylinder":
+    if kind in ("cylinder", "capsule"):
         radius, length = size
         n = max(1, math.ceil(length / PIECE_M))
         h = length / (2 * n)
+        disk, ball = (radius, 0.0) if kind == "cylinder" else (0.0, radius)
         return [
             _piece(
                 t + R[:, 2] * (-length / 2 + (2 * i + 1) * h),
                 axes,
                 np.array([0, 0, h]),
-                radius,
-                0.0,
+                disk,
+                ball,
             )
             for i in range(n)
         ]
     if kind != "box":
-        raise ValueError(f"no pieces for a {kind!r} body (box, cylinder or sphere)")
+        raise ValueError(f"no pieces for a {kind!r} body (box, cylinder, capsule or sphere)")
     counts = [max(1, math.ceil(side / PIECE_M)) for side in size]
     halves = np.array([side / (2 * n) for side, n in zip(size, counts, strict=True)])
     out = []

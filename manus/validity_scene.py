@@ -1,23 +1,45 @@
 """What the fast validity check (:mod:`manus.validity`) keeps the arm's bodies clear of:
 the arm's fixed base (column and shoulder, with the ``self`` clearance), the scene's
-objects and keep-out zones (with their class's clearance), in the base frame, and which
-(body, thing) pairs the collision model checks (exactly its :attr:`CollisionModel.checks`).
+objects and keep-out zones (with their class's clearance), in the base frame; the arm's
+moving bodies a held object keeps the ``self`` clearance from (*movers*, placed by the
+kernels at each configuration); and which (body, thing) pairs the collision model checks
+(exactly its :attr:`CollisionModel.checks`).
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from manus.collision import STATIC_BODIES, CollisionModel
+from manus.collision import CollisionModel
+from manus.collision_pairs import STATIC_BODIES
 from manus.scene import Primitive
 
 
-def fixed_obstacles(
-    model: CollisionModel, bodies: list[str]
-) -> tuple[list[Primitive], list[tuple[str, str, float]], np.ndarray]:
-    """Every fixed thing a body may be checked against, placed in the base frame, with
-    its (name, class, clearance [m]), and which (body, thing) pairs the model checks
-    (bool, (len(bodies), things))."""
+class Obstacles(NamedTuple):
+    """What the bodies are checked against (O things).
+
+    Attributes:
+        prims: each thing, placed in the base frame (a mover: in its joint's frame).
+        others: each thing's (name, class, clearance [m]).
+        applies: which (body, thing) pairs the model checks, bool (B, O).
+        partner: a mover's body (index into the bodies), -1 for a fixed thing, (O,).
+        rigid: a mover on the joint of every body checked against it (their distance
+            never changes), bool (O,).
+        joint: a mover's joint (0: fixed), (O,).
+    """
+
+    prims: list[Primitive]
+    others: list[tuple[str, str, float]]
+    applies: np.ndarray
+    partner: np.ndarray
+    rigid: np.ndarray
+    joint: np.ndarray
+
+
+def obstacles(model: CollisionModel, bodies: list[str]) -> Obstacles:
+    """Every thing a body of ``bodies`` may be checked against (see :class:`Obstacles`)."""
     scene = model.scene
     prims: list[Primitive] = []
     others: list[tuple[str, str, float]] = []
@@ -38,11 +60,32 @@ def fixed_obstacles(
             if zone.kind == "keep_out":
                 prims.append(_in_base(zone.body, to_base))
                 others.append((zone.name, "zone", zone.clearance))
+    fixed = len(prims)
+    joints = [0] * fixed
+    for name in dict.fromkeys(c.other for c in model.checks if c.cls == "self"):
+        if name not in STATIC_BODIES:  # an arm body a held body is checked against
+            i = model.body_index[name]
+            obj = model.geom.geometryObjects[i]
+            size = model.shapes[i].size
+            if name == "gripper":
+                size = tuple(2.0 * float(v) for v in obj.geometry.halfSide)  # the opening
+            prims.append(Primitive(model.shapes[i].kind, size, obj.placement.homogeneous))
+            others.append((name, "self", scene.clearance["self"] if scene is not None else 0.01))
+            joints.append(int(obj.parentJoint))
     checked = {(c.body, c.other) for c in model.checks}
     applies = np.array(
         [[(b, o[0]) in checked for o in others] for b in bodies], dtype=np.bool_
     ).reshape(len(bodies), len(others))
-    return prims, others, applies
+    partner = np.array([-1] * fixed + [bodies.index(o[0]) for o in others[fixed:]])
+    joint_of = [int(model.geom.geometryObjects[model.body_index[b]].parentJoint) for b in bodies]
+    rigid = np.array(
+        [
+            o >= fixed and all(joint_of[b] == joints[o] for b in np.flatnonzero(applies[:, o]))
+            for o in range(len(others))
+        ],
+        dtype=np.bool_,
+    )
+    return Obstacles(prims, others, applies, partner.astype(np.int64), rigid, np.array(joints))
 
 
 def static_shapes(model: CollisionModel) -> list[tuple[str, tuple[float, ...], np.ndarray, int]]:

@@ -19,7 +19,10 @@ on a key that is not among them.
 
 Handlers take ``(core, message, t_ns)``: ``t_ns`` is the receive time (live), the
 delivery time (lock-step) or the log time (replay); cores that take their time from the
-message's stamp ignore it.
+message's stamp ignore it. Two more events reach a core through its map, not around it:
+a payload of an input that does not decode (``Input.bad``: ``(core, error, t_ns)``) and
+a liveliness token ``alive/<service>`` that vanished (``Wiring.token_gone``:
+``(core, service, t_ns)``).
 """
 
 from __future__ import annotations
@@ -46,6 +49,11 @@ ReplyHook = Callable[[Endpoint, Message, Message, float], Message]
 """(queryable, request, reply, seconds taken) -> the reply to send."""
 
 
+BAD_PAYLOAD = "the payload does not decode"
+"""What an input's ``bad`` handler is told of a payload that does not decode (live and
+in a replay alike)."""
+
+
 class WiringError(ManusError):
     """A wiring map that does not fit the endpoint table, or an output it does not know."""
 
@@ -58,11 +66,14 @@ class Input(Generic[C, M, O]):
         endpoint: the publication subscribed.
         handle: ``(core, message, t_ns) -> outputs``.
         locked: live, run under the node lock (serialised with the other inputs).
+        bad: ``(core, error, t_ns) -> outputs`` for a payload that does not decode (None:
+            the node only counts it).
     """
 
     endpoint: Topic[M]
     handle: Callable[[C, M, int], O]
     locked: bool = True
+    bad: Callable[[C, str, int], O] | None = None
 
 
 @dataclass(frozen=True)
@@ -92,7 +103,8 @@ class Wiring(Generic[C, O]):
         answers: owned queryables -> core methods.
         outputs: the publications the core may return; default: every publication the
             service owns in the endpoint table.
-        idle: the value a core method returns when it has nothing to say.
+        token_gone: ``(core, service, t_ns) -> outputs`` when the liveliness token
+            ``alive/<service>`` vanishes (None: the core does not watch tokens).
 
     Raises:
         WiringError: an endpoint not in the table, an input that is not a publication,
@@ -104,6 +116,7 @@ class Wiring(Generic[C, O]):
     inputs: tuple[Input[C, Any, O], ...] = ()
     answers: tuple[Answer[C, Any, Any, O], ...] = ()
     outputs: tuple[Topic[Any], ...] | None = None
+    token_gone: Callable[[C, str, int], O] | None = None
     _outputs: dict[str, Endpoint] = field(default_factory=dict, init=False, repr=False)
     _inputs: dict[str, Input[C, Any, O]] = field(default_factory=dict, init=False, repr=False)
     _answers: dict[str, Answer[C, Any, Any, O]] = field(
@@ -218,6 +231,21 @@ class Wiring(Generic[C, O]):
             return [(ans.endpoint.trace(TRACE_PARTS[1]), reply), *self.published(out)]
         return []
 
+    def feed_bad(self, core: C, suffix: str, error: str, t_ns: int) -> Publications:
+        """A payload on input ``suffix`` that does not decode, handed to ``core`` as the
+        live shell would (nothing when the input has no ``bad`` handler)."""
+        inp = self._inputs.get(suffix)
+        if inp is None or inp.bad is None:
+            return []
+        return self.published(inp.bad(core, error, t_ns))
+
+    def feed_token_gone(self, core: C, service: str, t_ns: int) -> Publications:
+        """The token ``alive/<service>`` vanished, handed to ``core`` as the live shell
+        would (nothing when the map has no ``token_gone``)."""
+        if self.token_gone is None:
+            return []
+        return self.published(self.token_gone(core, service, t_ns))
+
     def publishers(self, node: Any) -> Callable[[O], None]:
         """Declare a publisher per output on a live ``manus.node.Node``; returns the
         function that publishes what a core returned (checked by :meth:`published`)."""
@@ -240,7 +268,9 @@ class Wiring(Generic[C, O]):
         publish: Callable[[O], None] | None = None,
     ) -> Callable[[O], None]:
         """Declare the map on a live ``manus.node.Node``: a publisher per output, a
-        subscription per input, a (mirrored) queryable per answer.
+        subscription per input, a (mirrored) queryable per answer, the inputs' ``bad``
+        handlers (``node.on_bad_payload``, under the node lock) and ``token_gone``
+        (``node.watch_liveliness``).
 
         Callbacks may run as soon as a subscription is declared, before this returns: a
         shell whose ``sink`` publishes through the returned function declares the
@@ -281,6 +311,24 @@ class Wiring(Generic[C, O]):
                 _answer_callback(core, ans, deliver, clock, on_reply),
                 locked=ans.locked,
             )
+        bad = {node.keys(i.endpoint): i for i in self.inputs if i.bad is not None}
+        if bad:
+
+            def on_bad_payload(key: str) -> None:
+                inp = bad.get(key)
+                if inp is not None and inp.bad is not None:
+                    with node.lock:
+                        deliver(inp.bad(core, BAD_PAYLOAD, clock()))
+
+            node.on_bad_payload = on_bad_payload
+        token_gone = self.token_gone
+        if token_gone is not None:
+
+            def on_alive(service: str, alive: bool) -> None:  # called under the node lock
+                if not alive:
+                    deliver(token_gone(core, service, clock()))
+
+            node.watch_liveliness(on_alive)
         return publish
 
 

@@ -3,8 +3,8 @@
 A deterministic core (no clock, no threads): :meth:`WorldModel.observe` takes a
 :class:`~schemas.objects.Perception` (one frame of a perception source) and returns the
 :class:`~schemas.objects.WorldUpdate` messages to publish. Every change is a diff from
-the version before it, applied by :func:`apply_update`, the same function a follower
-uses, so the diffs rebuild the model's set exactly; the whole set goes out every
+the version before it, applied by :func:`manus.world_follower.apply_update`, the same
+function a follower uses, so the diffs rebuild the model's set exactly; the whole set goes out every
 ``full_every_ms`` (judged on the frames' stamps) for followers that start late or missed
 a diff (MoveIt's planning scene does the same with its diffs and full scenes).
 
@@ -20,7 +20,13 @@ Rules (docs/objects.md):
   ``jump_tolerance`` is a jump: kept (perception is the stack's only view of the world)
   and reported in the update (:class:`~schemas.objects.ObjectJump`);
 - a malformed perception message is refused whole and nothing changes; the refusal is
-  counted and named in the next update.
+  counted and named in the next update;
+- :meth:`WorldModel.attach` moves an object from the world to a link of the arm (its
+  pose then in the link's frame, with the arm bodies and scene objects it may touch),
+  :meth:`WorldModel.detach` back into the world where it is, each a diff like any other
+  (MoveIt's attached objects). An attached object is the arm's: perception neither
+  moves it nor removes it, and it is never stale; once detached, its stamp is the
+  release's, so a frame captured before the release does not move it back.
 
 The model's time is the newest frame stamp it has seen: its updates depend on the
 perception stream alone, so a replay of a recording reproduces them whatever the other
@@ -32,9 +38,14 @@ computers' synchronised clocks live, the simulated clock in lock-step).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
-from manus.errors import ConfigError, ManusError
+import numpy as np
+
+from manus.errors import ConfigError
+from manus.orientation import matrix_to_ypr, pose_matrix
+from manus.world_follower import FULL, WorldError, apply_update
 from schemas.objects import (
     SIZE_COUNTS,
     ObjectJump,
@@ -44,12 +55,8 @@ from schemas.objects import (
     WorldUpdate,
 )
 
-FULL = -1
-"""``WorldUpdate.base_version`` of an update that carries the whole set."""
-
-
-class WorldError(ManusError, ValueError):
-    """A perception message the world model refuses, or a diff that does not apply."""
+ARM = "arm"
+"""``WorldObject.source`` of an object attached or detached since its last observation."""
 
 
 @dataclass(frozen=True)
@@ -127,34 +134,6 @@ def check_perception(msg: Perception, max_objects: int = 10_000) -> None:
         raise WorldError(f"{where}: {len(msg.objects)} objects, at most {max_objects}")
 
 
-def apply_update(
-    objects: dict[str, WorldObject], version: int, update: WorldUpdate
-) -> dict[str, WorldObject]:
-    """The object set after ``update`` (a new dict; ``objects`` is not changed).
-
-    Args:
-        objects: the set a follower holds, at ``version``.
-        version: its version.
-        update: a diff from ``version``, or a whole set (``base_version`` -1).
-
-    Raises:
-        WorldError: a diff from another version than ``version`` (wait for a whole set).
-    """
-    if update.base_version == FULL:
-        return {o.id: o for o in update.objects}
-    if update.base_version != version:
-        raise WorldError(
-            f"world update {update.version} applies to version {update.base_version}, but "
-            f"version {version} is held: wait for the next whole set"
-        )
-    out = dict(objects)
-    for name in update.removed:
-        out.pop(name, None)
-    for obj in update.objects:
-        out[obj.id] = obj
-    return out
-
-
 class WorldModel:
     """The objects, their versions and their ages (see the module docstring).
 
@@ -195,8 +174,8 @@ class WorldModel:
         jumps: list[ObjectJump] = []
         for seen in msg.objects:
             old = self.objects.get(seen.id)
-            if old is not None and msg.stamp_ns < old.stamp_ns:
-                continue  # an older frame than the one it was last seen in
+            if old is not None and (msg.stamp_ns < old.stamp_ns or old.link):
+                continue  # an older frame than the one it was last seen in, or held
             new = WorldObject(
                 id=seen.id,
                 cls=seen.cls,
@@ -214,9 +193,79 @@ class WorldModel:
                 if jump is not None:
                     jumps.append(jump)
             changed[new.id] = new
-        removed = [name for name in dict.fromkeys(msg.removed) if name in self.objects]
+        removed = [
+            name
+            for name in dict.fromkeys(msg.removed)
+            if name in self.objects and not self.objects[name].link
+        ]
         changed.update(self._staling(exclude={*changed, *removed}))
         return self._emit(list(changed.values()), removed, jumps)
+
+    def attach(
+        self,
+        object_id: str,
+        link: str,
+        grip: np.ndarray,
+        stamp_ns: int,
+        touch_links: Sequence[str],
+        touch_objects: Sequence[str] = (),
+    ) -> list[WorldUpdate]:
+        """Attach ``object_id`` to ``link`` at ``grip`` (its pose in the link's frame,
+        (4, 4)) from ``stamp_ns`` on (the time of the grasp), with the arm bodies and
+        scene objects it may touch; attached already to ``link``: held anew. Returns the
+        diff (and the whole set when due).
+
+        Raises:
+            WorldError: no such object, or attached to another link.
+        """
+        obj = self._get(object_id)
+        if obj.link and obj.link != link:
+            raise WorldError(f"object {object_id!r} is attached to {obj.link!r}: detach it first")
+        return self._place(obj, grip, stamp_ns, link, list(touch_links), list(touch_objects))
+
+    def detach(self, object_id: str, pose: np.ndarray, stamp_ns: int) -> list[WorldUpdate]:
+        """Put the attached ``object_id`` back into the world at ``pose`` (chair frame,
+        (4, 4)) from ``stamp_ns`` on (the time of the release). Returns the diff.
+
+        Raises:
+            WorldError: no such object, or not attached.
+        """
+        obj = self._get(object_id)
+        if not obj.link:
+            raise WorldError(f"object {object_id!r} is not attached to the arm")
+        return self._place(obj, pose, stamp_ns, "", [], [])
+
+    def _place(
+        self,
+        obj: WorldObject,
+        pose: np.ndarray,
+        stamp_ns: int,
+        link: str,
+        touch_links: list[str],
+        touch_objects: list[str],
+    ) -> list[WorldUpdate]:
+        self._advance(stamp_ns)
+        placed = replace(
+            obj,
+            xyz=[float(v) for v in pose[:3, 3]],
+            ypr=list(matrix_to_ypr(pose[:3, :3])),
+            stamp_ns=max(stamp_ns, obj.stamp_ns),
+            source=ARM,
+            stale=False,
+            link=link,
+            touch_links=touch_links,
+            touch_objects=touch_objects,
+        )
+        return self._emit([placed], [], [])
+
+    def pose(self, object_id: str) -> np.ndarray:
+        """``object_id``'s pose (4, 4): in the chair frame, or attached, in its link's.
+
+        Raises:
+            WorldError: no such object.
+        """
+        obj = self._get(object_id)
+        return pose_matrix(obj.xyz, (obj.ypr[0], obj.ypr[1], obj.ypr[2]))
 
     # -- readings -----------------------------------------------------------------------------
 
@@ -233,15 +282,15 @@ class WorldModel:
         return max(0.0, (now - obj.stamp_ns) / 1e9)
 
     def stale_reason(self, object_id: str, now_ns: int | None = None) -> str:
-        """Why a plan to ``object_id`` is refused at ``now_ns`` ('' when it is fresh): its
-        age, who saw it last and the limit.
+        """Why a plan to ``object_id`` is refused at ``now_ns`` ('' when it is fresh or
+        attached): its age, who saw it last and the limit.
 
         Raises:
             WorldError: no such object.
         """
         obj = self._get(object_id)
         age = self.age_s(object_id, now_ns)
-        if age <= self.config.stale_after_s:
+        if age <= self.config.stale_after_s or obj.link:
             return ""
         return (
             f"object {object_id!r} ({obj.cls}) was last observed {age:.1f} s ago by "
@@ -293,7 +342,7 @@ class WorldModel:
         return {
             o.id: replace(o, stale=True)
             for o in self.objects.values()
-            if o.id not in exclude and not o.stale and self._is_stale(o.stamp_ns)
+            if o.id not in exclude and not o.stale and not o.link and self._is_stale(o.stamp_ns)
         }
 
     def _jump(self, old: WorldObject, new: WorldObject) -> ObjectJump | None:

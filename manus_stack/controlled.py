@@ -55,7 +55,7 @@ class ControlledArm:
         self._results: list[GoalResult] = []
         self._scanned = 0
         self.ls.attach(WIRING, self.core)
-        self.ls.watch_tokens(lambda service, t: WIRING.published(self.core.on_token_gone(service)))
+        self.ls.watch_tokens(lambda service, t: WIRING.feed_token_gone(self.core, service, t))
 
     def start(self, timeout_s: float = 10.0) -> JointState:
         """Run until the bridge is running and the controller has a valid joint state."""

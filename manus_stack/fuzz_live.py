@@ -13,6 +13,8 @@ import random
 from dataclasses import dataclass, field
 from typing import Any
 
+import zenoh
+
 from manus.errors import SchemaError
 from manus_stack.fuzz import KINDS, payloads
 from schemas import endpoints as ep
@@ -65,14 +67,25 @@ def fuzz_live(node: Any, seed: int, per_endpoint: int, query_timeout: float = 1.
         done.sent[suffix] = len(batch)
         if part == "request":
             for data in batch:
-                replies = list(node.session.get(keys(suffix), payload=data, timeout=query_timeout))
+                replies = list(
+                    node.session.get(
+                        keys(suffix),
+                        payload=data,
+                        timeout=query_timeout,
+                        congestion_control=zenoh.CongestionControl.BLOCK,  # as the samples
+                    )
+                )
                 if not replies:
                     done.unanswered[suffix] = done.unanswered.get(suffix, 0) + 1
                 for reply in replies:
                     if reply.err is not None:
                         done.refused[suffix] = done.refused.get(suffix, 0) + 1
         else:
-            pub = node.session.declare_publisher(keys(suffix))
+            # blocking, as every publisher of the stack: a burst under load waits for room
+            # in the router's queue rather than being dropped before anyone counts it
+            pub = node.session.declare_publisher(
+                keys(suffix), congestion_control=zenoh.CongestionControl.BLOCK
+            )
             for data in batch:
                 pub.put(data)
             pub.undeclare()

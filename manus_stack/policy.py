@@ -13,7 +13,9 @@ computer's router by its certificate and user name) gets exactly what it owns:
   ``disabled/<itself>/**`` only: it cannot make the sequencer believe a dead controller lives;
 - ``query`` on the queryables open to it (``Endpoint.clients``; by default every
   identity);
-- everybody may subscribe, watch tokens and receive (``egress``).
+- everybody may subscribe, watch tokens and receive (``egress``);
+- an identity that acts for another on some keys only (:data:`DELEGATES`: the panel for
+  the supervisor) gets the other's rights on those keys and nothing else.
 
 A router enforces this for its own clients; the link from the other computer's router
 (subject ``router-<other>``) gets the union of what that computer's identities own, so a
@@ -35,11 +37,13 @@ from pathlib import Path
 from typing import Any
 
 from manus.certs import ARM_USERS, BASE_USERS
+from manus_stack.panel.keys import PANEL_KEYS
 from schemas.endpoints import (
     ALIVE,
     ANYONE,
     DISABLED,
     EACH_SERVICE,
+    SUPERVISOR,
     TABLE,
     TRACE_PARTS,
     WHERE,
@@ -59,6 +63,13 @@ COMPUTERS: dict[str, tuple[str, ...]] = {
 
 EVERYBODY_READS = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query")
 
+DELEGATES: dict[str, tuple[str, tuple[Endpoint, ...]]] = {
+    "panel": (SUPERVISOR, PANEL_KEYS),
+}
+"""identity -> (whom it acts for, on which keys): ``manus panel`` (docs/panel.md) publishes
+and queries as the supervisor does, on the keys it uses only (not the scene, the flight
+recorder's trigger or a replay's control); it holds no liveliness token."""
+
 
 def _key(suffix: str) -> str:
     return f"**/{suffix}"
@@ -66,6 +77,17 @@ def _key(suffix: str) -> str:
 
 def permissions(identity: str) -> dict[str, list[str]]:
     """Message kind -> key expressions ``identity`` may send (ingress), from the table."""
+    if identity in DELEGATES:
+        principal, keys = DELEGATES[identity]
+        own = {_key(k) for k in keys}
+        full = permissions(principal)
+        return {
+            "put": [k for k in full["put"] if k in own],
+            "declare_queryable": [],
+            "reply": [],
+            "query": [k for k in full["query"] if k in own],
+            "liveliness_token": [],
+        }
     put: list[str] = []
     declare: list[str] = []
     query: list[str] = []

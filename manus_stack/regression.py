@@ -1,36 +1,37 @@
 """Replay-based regression checks: a recording's inputs through a service core, its
-outputs compared with the recorded ones, bit for bit.
+outputs compared with the recorded ones (:mod:`manus_stack.comparison`): structure,
+strings and integers (every command count) exactly, floats within a stated tolerance
+(NumPy's vectorised maths, OpenBLAS and glibc's libm round differently on different
+CPUs; on one machine the outputs are the same bit for bit).
 
 A check reads the recording in log-time order, feeds each input of the service to a
 fresh core (as its shell would), and compares every output with the recorded message
-of the same channel and rank, as encoded bytes. It reports the first difference (the
-one caused by the earliest input): channel, rank, field path, both values. Outputs on
-both sides are counted; one side running out is a difference too.
+of the same channel and rank. It reports the first difference (the one caused by the
+earliest input): channel, rank, field path, both values. Outputs on both sides are
+counted; one side running out is a difference too.
 
 Inputs and outputs are those of the service's wiring map (:mod:`manus.wiring`), fed
 through :meth:`~manus.wiring.Wiring.feed` as its live shell would: its subscriptions and
 its queryables' mirrored requests in; its publications and mirrored replies out.
 
-- ``planner``: joint states, perception frames, plan requests and scene updates in, plan
-  and scene replies and the world model's updates out (``compute_ms`` is wall time and is
-  not compared).
+- ``planner``: joint states, perception frames, plan requests, scene updates and attach
+  requests in, plan, scene and attach replies and the world model's updates out
+  (``compute_ms`` is wall time and is not compared).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
-  stream (a ``jog`` payload that does not decode goes to ``ControllerCore.on_bad_jog``, as
-  the live shell does), the scene, the liveliness tokens that vanished (as the controller
+  stream (a ``jog`` payload that does not decode goes to its input's ``bad`` handler, as
+  the live shell does), the scene, the world model's updates (what the arm holds), the
+  liveliness tokens that vanished (as the controller
   took them: its ``controller/token_gone`` records) and the controller's query requests
   in; commands, feedback, results, the jog's state and the query replies out.
 
 The recording must hold the service's whole life (a core starts empty): lock-step
 recordings do (:mod:`manus_stack.recordings`); a live recording does if the recorder
-started before the service (``manus up`` and ``manus demo`` start it first). A live
-recording also holds the liveliness changes (``liveliness`` channel): when it shows the
-service's process (its ``where/<service>/<host>/<pid>`` token) appear, only what was
-recorded while that first process was alive is compared, from its token's appearance
-(services declare it once they listen) to its disappearance (a restarted service is a
-new core). Inputs are fed up to the service's last recorded output: whether it saw the
-ones after it (as it stopped, or as the recorder stopped) the recording cannot tell. In
-a live recording a query and a joint state that arrive together may be recorded in the
-other order than the service saw them.
+started before the service (``manus up`` and ``manus demo`` start it first). Of a live
+recording, only the life of the service's first process is compared
+(:mod:`manus_stack.service_window`). Inputs are fed up to the service's last recorded
+output: whether it saw the ones after it (as it stopped, or as the recorder stopped) the
+recording cannot tell. In a live recording a query and a joint state that arrive
+together may be recorded in the other order than the service saw them.
 """
 
 from __future__ import annotations
@@ -38,22 +39,19 @@ from __future__ import annotations
 import bisect
 import dataclasses
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-import msgpack
-
+from manus.wiring import BAD_PAYLOAD
+from manus_stack.comparison import CPU_ROUNDING, CheckResult, Comparer, plain
+from manus_stack.service_window import Window, service_window
 from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.endpoints import LIVELINESS
 from schemas.jog import JogTaken
-from schemas.liveliness import LivelinessChange, TokenGone, TokenKind
+from schemas.liveliness import TokenGone
 from schemas.planning import PlanReply
 from schemas.state import JointState
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
-from services.controller.jog import BAD_JOG_PAYLOAD
 from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.config import PlannerConfig
 from services.planner.core import PlannerCore
@@ -62,221 +60,23 @@ from services.recorder.errors import RecordingError
 from services.recorder.reading import Recorded, Recording, decode
 
 
-@dataclass(frozen=True)
-class Difference:
-    """The first output that differs.
-
-    Attributes:
-        suffix: output channel.
-        rank: index of the output on that channel (0-based).
-        input_ns: log time of the input that produced it (or of the recorded output when
-            the replay produced none) [ns].
-        path: field path (``velocity[2]``); empty when one side has no message.
-        recorded: the recorded value (None: no recorded message).
-        replayed: the replayed value (None: no replayed message).
-    """
-
-    suffix: str
-    rank: int
-    input_ns: int
-    path: str
-    recorded: Any
-    replayed: Any
-
-    def __str__(self) -> str:
-        where = f"{self.suffix} #{self.rank} (input at {self.input_ns / 1e9:.6f} s)"
-        if self.recorded is None:
-            return f"{where}: the replay produced an extra message: {self.replayed!r:.200}"
-        if self.replayed is None:
-            return f"{where}: the replay produced nothing; recorded: {self.recorded!r:.200}"
-        field = self.path or "(whole message)"
-        return (
-            f"{where}: {field}: recorded {self.recorded!r:.120} != replayed {self.replayed!r:.120}"
-        )
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """Outcome of one check.
-
-    Attributes:
-        service: the core checked.
-        inputs: inputs fed to it.
-        compared: outputs compared (identical ones included).
-        recorded: recorded outputs.
-        replayed: outputs the core produced.
-        difference: the first difference (None: identical).
-    """
-
-    service: str
-    inputs: int
-    compared: int
-    recorded: int
-    replayed: int
-    difference: Difference | None
-
-    @property
-    def ok(self) -> bool:
-        """Every output identical."""
-        return self.difference is None
-
-
-def first_difference(recorded: Any, replayed: Any, path: str = "") -> tuple[str, Any, Any] | None:
-    """The first (depth-first) field where two plain values differ: (path, a, b)."""
-    if isinstance(recorded, dict) and isinstance(replayed, dict):
-        return _first_in_maps(recorded, replayed, path)
-    if isinstance(recorded, list) and isinstance(replayed, list):
-        return _first_in_lists(recorded, replayed, path)
-    if type(recorded) is not type(replayed) or recorded != replayed:
-        return path, recorded, replayed
-    return None
-
-
-def _first_in_maps(
-    recorded: dict[Any, Any], replayed: dict[Any, Any], path: str
-) -> tuple[str, Any, Any] | None:
-    for key in sorted(set(recorded) | set(replayed), key=str):
-        sub = f"{path}.{key}" if path else str(key)
-        if key not in recorded or key not in replayed:
-            return sub, recorded.get(key), replayed.get(key)
-        found = first_difference(recorded[key], replayed[key], sub)
-        if found:
-            return found
-    return None
-
-
-def _first_in_lists(
-    recorded: list[Any], replayed: list[Any], path: str
-) -> tuple[str, Any, Any] | None:
-    for i, (a, b) in enumerate(zip(recorded, replayed, strict=False)):
-        found = first_difference(a, b, f"{path}[{i}]")
-        if found:
-            return found
-    if len(recorded) != len(replayed):
-        return f"{path} (length)", len(recorded), len(replayed)
-    return None
-
-
-Window = tuple[int, int]
-"""[first, last] log time [ns] of what a check feeds and compares."""
-
-EVERYTHING: Window = (-(2**63), 2**63 - 1)
-
-
-EARLY_OUTPUT_NS = 100_000_000
-"""How long before its token a service's output may be recorded and still count as its
-first process's (the token goes up once the service listens and answers, milliseconds
-after its first answer, and the recorder hears liveliness on another path than data)."""
-
-
-def service_window(
-    recording: Recording, service: str, inputs: tuple[str, ...] = (), outputs: tuple[str, ...] = ()
-) -> Window:
-    """When the first process of ``service`` was alive, by the recorded liveliness
-    changes of its ``where`` token (:data:`EVERYTHING` when the recording has none:
-    lock-step recordings, or a recorder older than the liveliness channel).
-
-    A service announces its token once it listens, so its first outputs can be recorded
-    before the token: then the window starts at the last of its ``inputs`` (its clock:
-    the joint states it answers) recorded before its first ``output``, not at the token.
-    """
-    start, end = _token_window(recording, service)
-    if start == EVERYTHING[0] or not inputs or not outputs:
-        return start, end
-    first_out = next((r.log_ns for r in recording.messages(outputs)), None)
-    if first_out is None or not start - EARLY_OUTPUT_NS <= first_out < start:
-        return start, end  # none before the token, or a life the recording does not show
-    trigger = start
-    for rec in recording.messages(inputs):
-        if rec.log_ns > first_out:
-            break
-        if rec.log_ns >= start - EARLY_OUTPUT_NS:
-            trigger = rec.log_ns
-    return min(trigger, start), end
-
-
-def _token_window(recording: Recording, service: str) -> Window:
-    """:func:`service_window` by the ``where`` token alone."""
-    if not any(c.suffix == LIVELINESS for c in recording.info.channels.values()):
-        return EVERYTHING
-    start, end = EVERYTHING
-    key: str | None = None
-    for rec in recording.messages([LIVELINESS]):
-        change = decode(rec)
-        if not isinstance(change, LivelinessChange) or change.kind != TokenKind.WHERE:
-            continue
-        if key is None and change.alive and change.service == service:
-            key, start = change.key, rec.log_ns
-        elif key is not None and change.key == key and not change.alive:
-            end = rec.log_ns
-            break
-    return start, end
-
-
-class _Comparer:
-    """Collects replayed outputs and compares them with the recorded ones per channel
-    (those recorded within ``window``)."""
-
-    def __init__(
-        self, recording: Recording, outputs: tuple[str, ...], window: Window = EVERYTHING
-    ) -> None:
-        self.recorded: dict[str, list[Recorded]] = {s: [] for s in outputs}
-        last: int | None = None
-        for rec in recording.messages(outputs):
-            if window[0] <= rec.log_ns <= window[1]:
-                self.recorded[rec.suffix].append(rec)
-                last = rec.log_ns if last is None else max(last, rec.log_ns)
-        self.last_ns = window[1] if last is None else last
-        """Log time of the last recorded output [ns] (none: the window's end, so that a
-        service that answered nothing shows as a difference, not as an empty check)."""
-        self.replayed: dict[str, list[tuple[int, bytes]]] = {s: [] for s in outputs}
-
-    def add(self, suffix: str, payload: bytes, input_ns: int) -> None:
-        self.replayed.setdefault(suffix, []).append((input_ns, payload))
-
-    def result(self, service: str, inputs: int) -> CheckResult:
-        best: Difference | None = None
-        compared = 0
-        for suffix in sorted(set(self.recorded) | set(self.replayed)):
-            recs = self.recorded.get(suffix, [])
-            reps = self.replayed.get(suffix, [])
-            diff: Difference | None = None
-            for rank in range(max(len(recs), len(reps))):
-                rec = recs[rank] if rank < len(recs) else None
-                rep = reps[rank] if rank < len(reps) else None
-                if rec is not None and rep is not None:
-                    compared += 1
-                    if rec.payload == rep[1]:
-                        continue
-                    a, b = _plain(rec.payload), _plain(rep[1])
-                    found = first_difference(a, b) or ("", a, b)
-                    diff = Difference(suffix, rank, rep[0], found[0], found[1], found[2])
-                elif rep is not None:
-                    diff = Difference(suffix, rank, rep[0], "", None, _plain(rep[1]))
-                elif rec is not None:
-                    diff = Difference(suffix, rank, rec.log_ns, "", _plain(rec.payload), None)
-                break
-            if diff is not None and (best is None or diff.input_ns < best.input_ns):
-                best = diff
-        return CheckResult(
-            service,
-            inputs,
-            compared,
-            sum(map(len, self.recorded.values())),
-            sum(map(len, self.replayed.values())),
-            best,
-        )
-
-
-def _plain(payload: bytes) -> Any:
-    try:
-        return msgpack.unpackb(payload, raw=False, strict_map_key=False)
-    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError):
-        return payload
+def _recorded_outputs(
+    recording: Recording, outputs: tuple[str, ...], window: Window
+) -> tuple[dict[str, list[Recorded]], int]:
+    """The outputs recorded within ``window`` per channel, and the log time [ns] of the
+    last one (none: the window's end, so that a service that answered nothing shows as a
+    difference, not as an empty check)."""
+    recorded: dict[str, list[Recorded]] = {s: [] for s in outputs}
+    last: int | None = None
+    for rec in recording.messages(outputs):
+        if window[0] <= rec.log_ns <= window[1]:
+            recorded[rec.suffix].append(rec)
+            last = rec.log_ns if last is None else max(last, rec.log_ns)
+    return recorded, window[1] if last is None else last
 
 
 def _inputs(
-    recording: Recording, suffixes: tuple[str, ...], window: Window = EVERYTHING
+    recording: Recording, suffixes: tuple[str, ...], window: Window
 ) -> Iterator[tuple[Recorded, Message | None]]:
     """The inputs in order; None for a ``jog`` payload that does not decode (the live
     shell hands those to the controller as bad jogs)."""
@@ -302,13 +102,16 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     window = service_window(
         recording,
         PLANNER.service,
-        (ep.JOINTS,),
-        PLANNER.output_suffixes,  # its clock input
+        # What its first outputs answer: a joint state (the scene in use) or a
+        # perception frame (the world model), either maybe before its token.
+        (ep.JOINTS, ep.PERCEPTION),
+        PLANNER.output_suffixes,
     )
     outputs = PLANNER.output_suffixes
-    cmp = _Comparer(recording, outputs, window)
-    window = (window[0], cmp.last_ns)
-    recorded_ms = {s: [_plain(r.payload) for r in cmp.recorded[s]] for s in outputs}
+    recorded, last_ns = _recorded_outputs(recording, outputs, window)
+    cmp = Comparer(recorded, last_ns, CPU_ROUNDING)
+    window = (window[0], last_ns)
+    recorded_ms = {s: [plain(r.payload) for r in recorded[s]] for s in outputs}
     inputs = 0
     for rec, msg in _inputs(recording, PLANNER.input_suffixes, window):
         inputs += 1
@@ -318,9 +121,9 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
             sent = out
             if isinstance(out, PlanReply):  # compute_ms is wall time: not compared
                 rank = len(cmp.replayed[suffix])
-                recorded = recorded_ms[suffix]
-                if rank < len(recorded) and isinstance(recorded[rank], dict):
-                    ms = recorded[rank].get("compute_ms", 0.0)
+                mine = recorded_ms[suffix]
+                if rank < len(mine) and isinstance(mine[rank], dict):
+                    ms = mine[rank].get("compute_ms", 0.0)
                     sent = dataclasses.replace(out, compute_ms=ms if isinstance(ms, float) else 0.0)
             cmp.add(suffix, sent.encode(), rec.log_ns)
     return cmp.result(PLANNER.service, inputs)
@@ -336,21 +139,26 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         (ep.JOINTS,),
         CONTROLLER.output_suffixes,  # its clock
     )
-    cmp = _Comparer(recording, CONTROLLER.output_suffixes, window)
-    window = (window[0], cmp.last_ns)
+    recorded, last_ns = _recorded_outputs(recording, CONTROLLER.output_suffixes, window)
+    cmp = Comparer(recorded, last_ns, CPU_ROUNDING)  # its counts exactly: integers
+    window = (window[0], last_ns)
     inputs = 0
     for rec, msg in _controller_inputs(recording, window):
         inputs += 1
+        t = rec.log_ns
         if isinstance(msg, JogTaken):  # where the controller took it (see below)
             taken = msg.command
-            out = core.on_jog(taken) if taken is not None else core.on_bad_jog(msg.error)
-            outputs = CONTROLLER.published(out)
+            outputs = (
+                CONTROLLER.feed(core, ep.JOG, taken, t)
+                if taken is not None
+                else CONTROLLER.feed_bad(core, ep.JOG, msg.error, t)
+            )
         elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
-            outputs = CONTROLLER.published(core.on_token_gone(msg.service))
+            outputs = CONTROLLER.feed_token_gone(core, msg.service, t)
         elif msg is None:
-            outputs = CONTROLLER.published(core.on_bad_jog(BAD_JOG_PAYLOAD))
+            outputs = CONTROLLER.feed_bad(core, rec.suffix, BAD_PAYLOAD, t)
         else:
-            outputs = CONTROLLER.feed(core, rec.suffix, msg, rec.log_ns)
+            outputs = CONTROLLER.feed(core, rec.suffix, msg, t)
         for suffix, out_msg in outputs:
             cmp.add(suffix, out_msg.encode(), rec.log_ns)
     return cmp.result(CONTROLLER.service, inputs)

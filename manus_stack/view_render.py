@@ -25,10 +25,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from manus.config import ArmConfig, load_arm_config
+from manus.urdf import GRIPPER_FRAME
 from services.recorder.reading import Recording
 from services.viewer.config import ViewerConfig
 from services.viewer.core import ViewerCore
-from services.viewer.model import GRIPPER_FRAME, LINK_NAMES, ROOT_FRAME, link_transforms
+from services.viewer.model import LINK_NAMES, ROOT_FRAME, link_transforms
 from services.viewer.surroundings import Solid, solids
 
 _RING = np.linspace(0.0, 2 * np.pi, 25)

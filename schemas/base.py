@@ -167,6 +167,12 @@ class Message:
         return cls.from_dict(data)
 
     @classmethod
+    def schema_rules(cls) -> list[dict[str, Any]]:
+        """JSON Schema rules of this type beyond its fields (``allOf``: e.g. which fields
+        each kind of a command uses); none by default."""
+        return []
+
+    @classmethod
     def json_schema(cls) -> dict[str, Any]:
         """JSON Schema (draft 2020-12) of this message type."""
         schema = _object_schema(cls)
@@ -337,13 +343,17 @@ def _object_schema(cls: type) -> dict[str, Any]:
         props[f.name]["description"] = f"{doc} [{unit}]" if unit else doc
         if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             required.append(f.name)
-    return {
+    schema: dict[str, Any] = {
         "type": "object",
         "description": (cls.__doc__ or "").strip().split("\n\n")[0],
         "properties": props,
         "required": required,
         "additionalProperties": False,
     }
+    rules = cls.schema_rules() if issubclass(cls, Message) else []
+    if rules:
+        schema["allOf"] = rules
+    return schema
 
 
 def _type_schema(tp: Any, meta: Any, *, top: bool = True) -> dict[str, Any]:

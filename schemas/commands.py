@@ -34,12 +34,14 @@ class JointVelocityCommand(Message):
     ``command_max_age_cycles`` older), or, with ``ref_seq`` = -1, it arrived within the
     bridge's command timeout. Otherwise the arm gets zeros.
 
-    With ``counts`` the sender has already quantized (motor increments, coupling applied)
-    and the bridge sends exactly those after a range check; without, the bridge converts
-    ``velocity`` with its own quantizer.
+    The arm runs each motor at one of 21 speeds (multiples of 5 deg/s up to 50 deg/s, the
+    joint map coupling joints 2 and 3: ``manus.quantize``) and the gripper at multiples of
+    5 mm/s; the bridge turns the velocities into those steps at the CAN edge. A velocity
+    on them (the controller chooses one, its rounding decides how) is sent exactly; any
+    other is scaled into the range by one factor and rounded by the bridge's quantizer.
     """
 
-    TYPE_NAME = "manus/JointVelocityCommand/1"
+    TYPE_NAME = "manus/JointVelocityCommand/2"
 
     stamp_ns: int = field(
         "time the command was computed (the stamp of the state it answers)", unit="ns"
@@ -49,12 +51,6 @@ class JointVelocityCommand(Message):
     ref_seq: int = field("seq of the JointState this command answers (-1: none)", minimum=-1)
     velocity: list[float] = field("DH joint velocities", unit="rad/s", length=6)
     gripper_velocity: float = field("gripper opening velocity (positive opens)", unit="m/s")
-    counts: list[int] | None = field(
-        "already-quantized increments: lift, motor 1..6 [0.1 deg per 20 ms], gripper "
-        "[0.1 mm per 20 ms]; None: the bridge quantizes `velocity`",
-        default=None,
-        length=8,
-    )
 
 
 @dataclass(frozen=True)

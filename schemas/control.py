@@ -35,6 +35,77 @@ class ResultStatus(StrEnum):
     PREEMPTED = "preempted"
 
 
+class EndCause(StrEnum):
+    """Why a goal (or a jog) ended, beside how (``GoalResult.cause``, ``JogState.cause``).
+
+    A client decides on these, never on the words of ``reason``.
+    """
+
+    REACHED = "reached"
+    """succeeded: the goal's end was reached within its tolerances"""
+    CANCEL_REQUEST = "cancel_request"
+    """cancelled by a ``CancelGoal``"""
+    NEW_GOAL = "new_goal"
+    """preempted: a newer goal of the same kind replaced it (spliced or not)"""
+    USER_TOOK_OVER = "user_took_over"
+    """preempted: a jog took the arm (the sequencer pauses its task, it does not fail)"""
+    ARM_ERROR = "arm_error"
+    """aborted: the arm reports an error"""
+    BRIDGE_PHASE = "bridge_phase"
+    """aborted: the bridge left ``running`` (stop, e-stop, arm error, fold, shutdown)"""
+    STATES_INTERRUPTED = "states_interrupted"
+    """aborted: the joint states stopped for longer than ``max_outage_ms``"""
+    STATE_UNUSABLE = "state_unusable"
+    """aborted: a joint state not valid or not in joint mode"""
+    HEARTBEAT_LOST = "heartbeat_lost"
+    """aborted: the supervisor's heartbeat is older than ``heartbeat_timeout``"""
+    TOKEN_GONE = "token_gone"
+    """aborted: the liveliness token of the heartbeats' sender went"""
+    COLLISION = "collision"
+    """aborted: the collision guard stopped the goal's command"""
+    TOLERANCE = "tolerance"
+    """aborted: a path, goal or position tolerance was broken"""
+    TIMEOUT = "timeout"
+    """aborted: a gripper goal not reached within its ``timeout``"""
+    RELEASED = "released"
+    """a jog: the controls were released (a zero command)"""
+    DEADMAN = "deadman"
+    """a jog: no new command within ``jog_timeout``"""
+    BAD_COMMAND = "bad_command"
+    """a jog: a command that cannot be executed (values, units, caps, or not decodable)"""
+    NOT_READY = "not_ready"
+    """a jog: a command while nothing may move (no joint state, arm error, bridge phase)"""
+
+
+class Refusal(StrEnum):
+    """Why a request was refused (``GoalAck.refusal``; empty when accepted)."""
+
+    NONE = ""
+    """accepted"""
+    INVALID = "invalid"
+    """the request's own fields (the reason names the field, value and limit)"""
+    NOT_READY = "not_ready"
+    """nothing may move now: no joint state, an arm error, the bridge not ``running``"""
+    BUSY = "busy"
+    """another command source holds the arm (``GoalAck.held_by`` names it)"""
+    START_MISMATCH = "start_mismatch"
+    """the trajectory's first knot is further than ``start_tolerance`` from the arm"""
+    UNKNOWN_GOAL = "unknown_goal"
+    """a cancel of a goal that is not active"""
+    NO_GOAL = "no_goal"
+    """a speed scale while no trajectory goal is running"""
+
+
+class CommandSourceKind(StrEnum):
+    """What drives the arm in the controller (one at a time; docs/architecture.md,
+    Command sources)."""
+
+    GOAL = "goal"
+    """trajectory and gripper goals (``controller/goal``, ``controller/gripper``)"""
+    JOG = "jog"
+    """live control (the ``jog`` stream)"""
+
+
 class GoalKind(StrEnum):
     """What a goal drives."""
 
@@ -167,7 +238,17 @@ class GoalAck(Message):
 
     accepted: bool = field("accepted")
     goal_id: str = field("the goal concerned")
-    reason: str = field("why it was refused", default="")
+    reason: str = field("why it was refused, in words", default="")
+    refusal: str = field(
+        "why it was refused, the kind a client decides on ('' when accepted)",
+        default=Refusal.NONE,
+        choices=Refusal,
+    )
+    held_by: str = field(
+        "refusal `busy`: the command source that holds the arm ('' otherwise)",
+        default="",
+        choices=("", *CommandSourceKind),
+    )
 
 
 @dataclass(frozen=True)
@@ -205,13 +286,20 @@ class ControllerFeedback(Message):
 class GoalResult(Message):
     """The one result of a goal."""
 
-    TYPE_NAME = "manus/GoalResult/1"
+    TYPE_NAME = "manus/GoalResult/2"
 
-    stamp_ns: int = field("stamp of the joint state at which the goal ended", unit="ns")
+    stamp_ns: int = field(
+        "the bridge's clock, not a wall clock: the stamp of the ArmStatus or BridgeState "
+        "that ended the goal, else of the newest JointState when the result left (a result "
+        "leaves with the controller's next publication: at the joint state where the goal "
+        "ended; for a goal ended by a query, at the next joint state)",
+        unit="ns",
+    )
     seq: int = field("sequence number", minimum=0)
     goal_id: str = field("the goal")
     kind: str = field("trajectory or gripper", choices=GoalKind)
     status: str = field("how it ended", choices=ResultStatus)
+    cause: str = field("why it ended: the kind a client decides on", choices=EndCause)
     reason: str = field("why it ended that way, in words")
     via_errors: list[float] = field(
         "gripper position error at each knot time, measured (FK of the encoders)",

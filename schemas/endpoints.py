@@ -199,7 +199,8 @@ JOG_STATE = _pub(
     "controller/jog_state",
     _CTRL,
     jog.JogState,
-    "the jog as the controller runs it: level, slow-down and stop reasons, refusals, pose",
+    "the jog as the controller runs it: its state and stop cause, the limits holding it "
+    "back, level and caps, refusals, pose",
     _SUP,
 )
 
@@ -336,7 +337,16 @@ OBJECTS = _pub(
     "the world model's objects as versioned diffs, and the whole set every second",
     _SUP,
 )
-OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS)
+ATTACH = _query(
+    "planner/attach",
+    Service.PLANNER,
+    objects.AttachRequest,
+    objects.AttachReply,
+    "attach a grasped object to the gripper (part of the arm from then on) or detach a "
+    "released one where it is: a diff on planner/objects",
+    clients=(_SEQ,),
+)
+OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS, ATTACH)
 """The objects' endpoints (a block of their own in :data:`TABLE`)."""
 
 

@@ -13,6 +13,9 @@ length along the object's own z; a capsule's length is its straight part).
   those named in ``removed``.
 - :class:`WorldUpdate` (``planner/objects``): the world model's objects as versioned
   diffs, and now and then whole (``base_version`` -1), as MoveIt's planning scene does.
+- :class:`AttachRequest` -> :class:`AttachReply` (``planner/attach``): a grasped object
+  becomes part of the arm (``WorldObject.link``), a released one goes back into the
+  world where it is.
 - :class:`ObjectTruth`, :class:`ObjectContact`: the simulator's truth
   (:class:`schemas.state.SimTruth`), which the stack never reads.
 """
@@ -88,7 +91,9 @@ class Perception(Message):
 
 @dataclass(frozen=True)
 class WorldObject(Message):
-    """One object of the world model: its last observation, and whether it is stale."""
+    """One object of the world model: its last observation, and whether it is stale; or,
+    attached to a link of the arm (``link``), where it is held (MoveIt's attached
+    object: the same object, in another place)."""
 
     TYPE_NAME = "manus/WorldObject/1"
 
@@ -96,15 +101,39 @@ class WorldObject(Message):
     cls: str = field("class: cup, bottle, phone, ...")
     shape: str = field("the primitive it is modelled as", choices=ObjectShape)
     size: list[float] = field(SIZE_DOC, unit="m", minimum=0.0)
-    xyz: list[float] = field("centre in the chair frame", unit="m", length=3)
-    ypr: list[float] = field("(yaw, pitch, roll) in the chair frame", unit="rad", length=3)
+    xyz: list[float] = field(
+        "centre in the chair frame (attached: in the frame of `link`)", unit="m", length=3
+    )
+    ypr: list[float] = field(
+        "(yaw, pitch, roll) in the chair frame (attached: in the frame of `link`)",
+        unit="rad",
+        length=3,
+    )
     confidence: float = field("the source's confidence", minimum=0.0, maximum=1.0)
-    stamp_ns: int = field("capture time of its last observation", unit="ns")
-    source: str = field("who observed it last")
+    stamp_ns: int = field(
+        "capture time of its last observation (attached or detached: the time of the arm's "
+        "configuration it was attached or detached at)",
+        unit="ns",
+    )
+    source: str = field("who observed it last (`arm`: attached or detached since)")
     stale: bool = field(
         "not observed for longer than stale_after_s at the update's stamp_ns (its age then: "
-        "the update's stamp_ns minus this stamp_ns; a plan to it is refused)",
+        "the update's stamp_ns minus this stamp_ns; a plan to it is refused); never while "
+        "attached",
         default=False,
+    )
+    link: str = field(
+        "the arm's link it is attached to (gripper_frame: held in the gripper; '': in the world)",
+        default="",
+    )
+    touch_links: list[str] = field(
+        "while attached: the arm's bodies that may touch it (no self clearance to them)",
+        default_factory=list,
+    )
+    touch_objects: list[str] = field(
+        "while attached: the scene objects it may touch (no clearance to them: the surface "
+        "it is lifted from or put down on)",
+        default_factory=list,
     )
 
 
@@ -156,6 +185,59 @@ class WorldUpdate(Message):
         default=0.0,
         minimum=0.0,
     )
+
+
+@dataclass(frozen=True)
+class AttachRequest(Message):
+    """Attach a world object to the arm (the gripper closed on it) or detach it (the
+    gripper let it go), asked of the world model's owner (``planner/attach``); every
+    follower learns it from the diff it makes (``planner/objects``)."""
+
+    TYPE_NAME = "manus/AttachRequest/1"
+
+    object_id: str = field("the object")
+    link: str = field("attach it to this link (gripper_frame); '': detach it where it is")
+    position: list[float] = field(
+        "the arm's DH joint angles when it was grasped or released", unit="rad", length=6
+    )
+    stamp_ns: int = field(
+        "when the arm was there (that joint state's stamp): perception frames captured "
+        "before it do not move the object",
+        unit="ns",
+    )
+    touch_links: list[str] = field(
+        "attach: the arm's bodies that may touch it", default_factory=lambda: ["gripper"]
+    )
+    touch_objects: list[str] = field(
+        "attach: the scene objects it may touch (the surface it is lifted from)",
+        default_factory=list,
+    )
+    xyz: list[float] | None = field(
+        "attach: its centre in the link's frame (null: where perception saw it, centred "
+        "between the jaws; or, attached already, where it is held)",
+        unit="m",
+        length=3,
+        default=None,
+    )
+    ypr: list[float] | None = field(
+        "attach: its (yaw, pitch, roll) in the link's frame (null: as perception saw it; "
+        "or, attached already, as it is held)",
+        unit="rad",
+        length=3,
+        default=None,
+    )
+
+
+@dataclass(frozen=True)
+class AttachReply(Message):
+    """The world model owner's answer to an :class:`AttachRequest`."""
+
+    TYPE_NAME = "manus/AttachReply/1"
+
+    accepted: bool = field("the object is attached (detached) from `version` on")
+    version: int = field("the world model's version now", minimum=0)
+    error: str = field("why it was refused: the object and the reason ('': accepted)", default="")
+    object: WorldObject | None = field("the object as it is now (null: refused)", default=None)
 
 
 @dataclass(frozen=True)

@@ -65,6 +65,8 @@ class TaskEventKind(StrEnum):
     FAILED = "failed"
 
 
+DEFAULT_POSE_DURATION_S = 4.0
+"""Shortest time of a move to a named pose unless the step says otherwise [s]."""
 STEP_KINDS = tuple(StepKind)
 TASK_ACTIONS = tuple(TaskAction)
 TASK_STATES = tuple(TaskState)
@@ -83,7 +85,8 @@ class TaskStep(Message):
     path: Path | None = field("for move: the path", default=None)
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
     duration: float = field(
-        "for wait: how long; for pose: the shortest time of the move (the planner may stretch it)",
+        "for wait: how long; for pose: the shortest time of the move (the planner may "
+        f"stretch it; 0: {DEFAULT_POSE_DURATION_S:g} s)",
         unit="s",
         default=0.0,
     )

@@ -111,7 +111,7 @@ the latter."""
 class JointState(Message):
     """Joint positions of the arm, one per 60 ms cycle, published as soon as 0x360 is in."""
 
-    TYPE_NAME = "manus/JointState/1"
+    TYPE_NAME = "manus/JointState/2"
 
     stamp_ns: int = field("CAN receive time of the cycle's 0x360 frame", unit="ns")
     seq: int = field("cycle sequence number of this stream", minimum=0)
@@ -120,13 +120,18 @@ class JointState(Message):
     valid: bool = field("positions are meaningful (a move mode is active, the bridge is running)")
     mode: str = field("active mode of the arm", choices=ArmMode)
     encoder: list[int] = field(
-        "raw position fields: joints 1..6 [0.1 deg, motor angles] and gripper [0.1 mm]",
+        "the raw position fields as received (diagnostics): joints 1..6 [0.1 deg, motor "
+        "angles] and gripper [0.1 mm]",
         length=7,
     )
-    applied: list[int] = field(
-        "increments the arm is executing, sent at the previous sync: lift, motor 1..6 "
-        "[0.1 deg per 20 ms], gripper [0.1 mm per 20 ms]",
-        length=8,
+    applied_velocity: list[float] = field(
+        "DH joint velocities the arm executes from this snapshot on, sent at the previous "
+        "sync (zeros unless applied_kind is joint)",
+        unit="rad/s",
+        length=6,
+    )
+    applied_gripper_velocity: float = field(
+        "gripper opening velocity it executes likewise (positive opens)", unit="m/s"
     )
     applied_kind: str = field("kind of the frame sent at the previous sync", choices=AppliedKind)
     applied_seq: int = field(

@@ -17,7 +17,7 @@ MS = 1_000_000
 
 
 class VelocityController:
-    """Answers every valid joint state with fixed DH velocities [deg/s] (or counts).
+    """Answers every valid joint state with fixed DH velocities [deg/s].
 
     Attributes:
         stop_after_ns: stop answering (as a crashed controller would) from this time on.
@@ -29,12 +29,10 @@ class VelocityController:
         deg_s: Sequence[float] = (10.0, 0, 0, 0, 0, 0),
         *,
         gripper_m_s: float = 0.0,
-        counts: list[int] | None = None,
         ref_seq_none: bool = False,
     ) -> None:
         self.deg_s = list(deg_s)
         self.gripper_m_s = gripper_m_s
-        self.counts = counts
         self.ref_seq_none = ref_seq_none
         self.stop_after_ns: int | None = None
         self.lag = 0
@@ -56,7 +54,6 @@ class VelocityController:
             ref_seq=-1 if self.ref_seq_none else ref.seq,
             velocity=[math.radians(v) for v in self.deg_s],
             gripper_velocity=self.gripper_m_s,
-            counts=self.counts,
         )
         self.sent.append(cmd)
         return [("cmd/joint_velocity", cmd)]

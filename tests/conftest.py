@@ -4,14 +4,24 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
+from typing import Any
 
 import pytest
+import zenoh
 from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
 from manus.validity import warm_up
 from manus_stack.up import free_port
+from tests import scheduling
+from tests.run_report import (
+    pytest_runtest_makereport,
+    pytest_sessionfinish,
+    pytest_terminal_summary,
+)
+from tests.scheduling import LiveApartScheduling
+
+__all__ = ["pytest_runtest_makereport", "pytest_sessionfinish", "pytest_terminal_summary"]
 
 # Fixed seeds everywhere: the same examples on every run and in CI.
 settings.register_profile(
@@ -24,6 +34,12 @@ settings.register_profile(
 settings.load_profile("manus")
 
 
+pytest_xdist_auto_num_workers = pytest.hookimpl(optionalhook=True)(scheduling.workers)
+pytest_configure = scheduling.pytest_configure
+pytest_unconfigure = scheduling.pytest_unconfigure
+
+
+@pytest.hookimpl(tryfirst=True)  # in the controlling process, before it starts workers
 def pytest_sessionstart(session: pytest.Session) -> None:
     """Compile the fast validity check's kernels before any test: a fresh checkout has
     an empty numba cache, and a service a test starts must not spend its start-up
@@ -31,44 +47,20 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     warm_up()
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests marked ``slow`` run real processes in real time on a 2-core machine, where a
-    scheduling stall now and then delays the 60 ms cycle past a deadline (seen about once
-    in three full runs, never in isolation). They get one rerun; a real fault fails both
-    runs, and pytest-rerunfailures reports every rerun in the summary ("R")."""
-    for item in items:
-        if item.get_closest_marker("slow") is not None:
-            item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> LiveApartScheduling:
+    """The live tests apart from the pure ones (:mod:`tests.scheduling`)."""
+    return LiveApartScheduling(config, log)
 
 
-LOG_TAIL_LINES = 40
-"""Lines of each child log shown when a slow test fails."""
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
-    """When a ``slow`` test fails, print the tail of every log its processes wrote under
-    its ``tmp_path`` (``logs/<service>.log`` of ``manus up``/``manus demo``, netns logs).
-
-    Printed at once, not attached to the report: a failure that passes on its rerun is
-    otherwise reported only as "R", and CI keeps nothing but what the run printed.
-    """
-    outcome = yield
-    report = outcome.get_result()  # type: ignore[attr-defined]
-    if report.when != "call" or not report.failed or item.get_closest_marker("slow") is None:
-        return
-    tmp = getattr(item, "funcargs", {}).get("tmp_path")
-    reporter = item.config.pluginmanager.get_plugin("terminalreporter")
-    if tmp is None or reporter is None:
-        return
-    logs = sorted(Path(tmp).rglob("*.log"))
-    reporter.write_line("")
-    reporter.write_sep("-", f"{item.nodeid} failed: {len(logs)} child log(s) under {tmp}")
-    for log in logs:
-        lines = log.read_text(errors="replace").splitlines()[-LOG_TAIL_LINES:]
-        reporter.write_sep(".", f"{log.relative_to(tmp)} (last {len(lines)} lines)")
-        for line in lines:
-            reporter.write_line(line)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked ``slow`` run real processes in real time: one at a time
+    (:mod:`tests.scheduling`), and with one rerun, so that a failure tells whether it
+    repeats; a run with a rerun still fails (:mod:`tests.run_report`)."""
+    live = [item for item in items if item.get_closest_marker("slow") is not None]
+    for item in live:
+        item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+    scheduling.tell_live(config, live)
 
 
 def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
@@ -78,6 +70,24 @@ def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "co
     while not check():
         assert time.monotonic() < deadline, f"{what} not met within {timeout} s"
         time.sleep(0.01)
+
+
+def matched_publisher(
+    session: zenoh.Session, key: str, timeout: float = 10.0, *, block: bool = False
+) -> zenoh.Publisher:
+    """A publisher on ``key`` once a subscriber matches it (bounded by ``timeout`` [s]);
+    ``block``: it waits for room in a full queue instead of dropping (a burst under load).
+
+    Zenoh routes a sample by what the router knows when it arrives: a subscription
+    declared a moment ago on another session travels on another link and may reach the
+    router after a sample sent at once, which is then dropped, never redelivered. A test
+    that publishes to a service it just started publishes once the router has told this
+    session about the subscription (the publisher's matching status)."""
+    congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+    pub = session.declare_publisher(key, congestion_control=congestion)
+    eventually(lambda: bool(getattr(pub.matching_status, "matching", False)), timeout,
+               f"a subscriber of {key}")  # fmt: skip
+    return pub
 
 
 @pytest.fixture

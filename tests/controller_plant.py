@@ -16,18 +16,40 @@ import numpy as np
 
 from manus.config import UNFOLDED_Q_DEG
 from manus.joint_map import dh_to_encoder, encoder_to_dh
+from manus.quantize import GRIPPER_COUNT_M_S, RoundingQuantizer, step_rates
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
-from schemas.control import ControllerFeedback, GoalResult
+from schemas.control import ControllerFeedback, GoalAck, GoalResult
 from schemas.planning import Trajectory
 from schemas.state import JointState
+from services.can_bridge.commands import to_move
 from services.controller.core import ControllerCore
 from services.controller.estimator import lag_advance
+from services.controller.wiring import WIRING
 
 MS = 1_000_000
 CYCLE_NS = 60 * MS
 UNIT = math.radians(0.1)
 Q0 = np.radians(UNFOLDED_Q_DEG)
+
+
+def steps(cmd: JointVelocityCommand) -> list[int]:
+    """The arm's speed steps a command makes, as the bridge turns it into a 0x374 at the
+    CAN edge: lift, motors 1..6 [0.1 deg per 20 ms], gripper [0.1 mm per 20 ms]."""
+    move = to_move(cmd, RoundingQuantizer())
+    return [move.lift, *move.axes, move.gripper]
+
+
+def ask(core: ControllerCore, queryable: str, request: Message) -> GoalAck:
+    """Ask the controller's queryable (e.g. ``ep.GOAL``) as its shell would."""
+    reply, _ = WIRING.answer(queryable).handle(core, request, 0)
+    assert isinstance(reply, GoalAck)
+    return reply
+
+
+def feed(core: ControllerCore, suffix: str, msg: Message) -> list[tuple[str, Message]]:
+    """Hand the controller one publication (e.g. ``ep.HEARTBEAT``) as its shell would."""
+    return WIRING.feed(core, suffix, msg, 0)
 
 
 @dataclass
@@ -65,7 +87,8 @@ class Plant:
             valid=True,
             mode="joint",
             encoder=[*enc, g],
-            applied=list(self.active),
+            applied_velocity=step_rates(self.active[1:7]),
+            applied_gripper_velocity=self.active[7] * GRIPPER_COUNT_M_S,
             applied_kind="joint",
             applied_seq=-1,
         )
@@ -91,8 +114,8 @@ class Plant:
             self.collect(out)
             cmds = [m for k, m in out if k == "cmd/joint_velocity"]
             assert len(cmds) == 1 and isinstance(cmds[0], JointVelocityCommand)
-            assert cmds[0].ref_seq == js.seq and cmds[0].counts is not None
-            self.pending = list(cmds[0].counts)
+            assert cmds[0].ref_seq == js.seq and True
+            self.pending = list(steps(cmds[0]))
         else:
             self.pending = [0] * 8
         self.seq += seq_step

@@ -23,15 +23,26 @@ from schemas.commands import ArmCommand, ArmCommandReply
 from schemas.control import (
     CancelGoal,
     ControllerFeedback,
+    EndCause,
     GoalAck,
     GoalResult,
     GripperGoal,
+    ResultStatus,
     TrajectoryGoal,
 )
 from schemas.state import BridgeState, JointState
 
 UNFOLDED = [math.radians(v) for v in UNFOLDED_Q_DEG]
 PERIOD_S = 0.06
+
+
+CAUSES = {
+    ResultStatus.SUCCEEDED: EndCause.REACHED,
+    ResultStatus.CANCELLED: EndCause.CANCEL_REQUEST,
+    ResultStatus.ABORTED: EndCause.TOLERANCE,
+    ResultStatus.PREEMPTED: EndCause.NEW_GOAL,
+}
+"""The usual cause of each result status (tests that need another give it)."""
 
 
 class FakeBridge:
@@ -75,7 +86,8 @@ class FakeBridge:
                 stamp = time.time_ns()
                 self._joints.put(JointState(stamp_ns=stamp, seq=self._seq, position=list(self.q),
                                             gripper=self.gripper, valid=True, mode="joint",
-                                            encoder=[0] * 7, applied=[0] * 8,
+                                            encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                                            applied_gripper_velocity=0.0,
                                             applied_kind="none", applied_seq=-1))  # fmt: skip
                 self._state.put(BridgeState(stamp_ns=stamp, seq=self._seq, phase=self.phase,
                                             estop=False, cycles=self._seq, period_ms=60.0,
@@ -143,7 +155,8 @@ class FakeController:
     def _publish_result(self, goal_id: str, kind: str, status: str, reason: str) -> None:
         self._seq += 1
         self._result.put(GoalResult(stamp_ns=time.time_ns(), seq=self._seq, goal_id=goal_id,
-                                    kind=kind, status=status, reason=reason))  # fmt: skip
+                                    kind=kind, status=status, cause=CAUSES[ResultStatus(status)],
+                                    reason=reason))  # fmt: skip
 
     def _loop(self) -> None:
         while not self._stop.wait(PERIOD_S / 2):

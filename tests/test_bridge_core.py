@@ -6,11 +6,22 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from manus.protocol import FrameId
+from manus.quantize import (
+    GRIPPER_COUNT_M_S,
+    GRIPPER_COUNT_MAX,
+    JOINT_COUNT_MAX,
+    ErrorFeedbackQuantizer,
+    RoundingQuantizer,
+    step_rates,
+)
 from manus_stack.lockstep import LockStep
-from schemas.commands import ArmCommand, EStop
+from schemas.commands import ArmCommand, EStop, JointVelocityCommand
 from schemas.state import ArmStatus, BridgeState, JointState
+from services.can_bridge.commands import to_move
 from services.simulator.config import SimConfig
 from services.simulator.faults import FaultConfig, InjectedMessage
 from tests.bridge_scenarios import (
@@ -182,24 +193,39 @@ def test_coupling_on_the_arm_joint_2_alone_keeps_joint_3() -> None:
     assert dq[1] == pytest.approx(15.0, abs=1.5)
     assert abs(dq[2]) < 0.5  # motor 3 turned with motor 2, so DH joint 3 held
     js = ls.published("state/joints")[-1]
-    assert isinstance(js, JointState) and js.applied[2:4] == [-2, -2]
+    assert isinstance(js, JointState) and moves(ls)[-1][1][2:4] == (-2, -2)
+    assert np.degrees(js.applied_velocity[1:3]) == pytest.approx([10.0, 0.0])
 
 
-def test_quantized_counts_pass_after_a_range_check() -> None:
+@given(
+    st.lists(st.integers(-JOINT_COUNT_MAX, JOINT_COUNT_MAX), min_size=6, max_size=6),
+    st.integers(-GRIPPER_COUNT_MAX, GRIPPER_COUNT_MAX),
+)
+def test_velocities_on_the_speed_table_become_exactly_those_steps(
+    motors: list[int], grip: int
+) -> None:
+    """The controller chooses the steps and sends their SI velocities; at the CAN edge the
+    bridge's conversion gives back exactly those steps, whatever its quantizer."""
+    cmd = JointVelocityCommand(
+        stamp_ns=0, seq=0, source="c", ref_seq=0, velocity=step_rates(motors),
+        gripper_velocity=grip * GRIPPER_COUNT_M_S,
+    )  # fmt: skip
+    for quantizer in (RoundingQuantizer(), ErrorFeedbackQuantizer()):
+        move = to_move(cmd, quantizer)
+        assert (move.lift, move.axes, move.gripper) == (0, tuple(motors), grip)
+
+
+def test_a_joint_state_reports_the_executed_steps_as_velocities() -> None:
     ls = running()
-    ctl = VelocityController(counts=[0, 3, -1, 0, 0, 0, 1, -2])
+    ctl = VelocityController((15.0, -5.0, 10.0, 0, 0, 0), gripper_m_s=-0.01)
     ls.subscribe("state/joints", ctl)
     ls.run_for(0.3)
-    assert moves(ls)[-1][1] == (0, 3, -1, 0, 0, 0, 1, -2)
+    assert moves(ls)[-1][1] == (0, 3, 1, 3, 0, 0, 0, -2)  # dq2 = -de2, dq3 = de3 - de2
     js = ls.published("state/joints")[-1]
     assert isinstance(js, JointState)
     assert js.applied_kind == "joint" and js.applied_seq == ctl.sent[-2].seq
-    ctl.counts = [0, 11, 0, 0, 0, 0, 0, 0]
-    t0 = ls.t_ns
-    ls.run_for(0.3)
-    assert all(incs == (0,) * 8 for _, incs in moves(ls, t0 + 60 * MS))
-    assert ls.bridge.health.bad_payloads >= 3
-    assert "motor 1 = 11 outside -10..10" in ls.bridge.detail
+    assert np.degrees(js.applied_velocity) == pytest.approx([15.0, -5.0, 10.0, 0, 0, 0])
+    assert js.applied_gripper_velocity == pytest.approx(-0.01)
 
 
 def test_undecodable_messages_are_counted_in_the_next_bridge_state() -> None:

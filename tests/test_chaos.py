@@ -231,7 +231,7 @@ def test_no_bridge_fault_nor_its_aftermath_is_tolerated_any_more() -> None:
     assert _open({"fault": "record_sigkill", "step": "move"})  # what is still known
 
 
-@pytest.mark.slow
+@pytest.mark.slow(last=True)  # the longest: after the pure tests, alone (tests/scheduling.py)
 def test_a_one_minute_soak_with_a_fixed_seed(tmp_path: Path) -> None:
     figures = run_soak(tmp_path / "run", minutes=1.0, seed=0, out=None)
     assert figures["faults_injected"] >= 4, figures
@@ -239,7 +239,11 @@ def test_a_one_minute_soak_with_a_fixed_seed(tmp_path: Path) -> None:
     for v in figures["invariant_violations"]:
         assert set(v) >= {"round", "fault", "step", "t_s", "what"}
     unexpected = [v for v in figures["invariant_violations"] if not _open(v)]
-    assert unexpected == [], unexpected
+    assert not unexpected, f"in {figures['run_dir']}:\n" + "\n".join(
+        f"round {v['round']} {v['fault']} on {v['task']} ({v['step']}, {v['t_s']} s"
+        f"{', after ' + str(v['after']) if 'after' in v else ''}): {v['what']}"
+        for v in unexpected
+    )
     assert figures["recorder_lost_messages"] == 0, figures["recorder_lost_by_key"]
     assert figures["recorder_expected_messages"] > 1000
     stopping = {r["fault"] for r in figures["rounds"] if "stop_ms" in r}

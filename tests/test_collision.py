@@ -10,7 +10,8 @@ from pathlib import Path as FilePath
 import numpy as np
 import pytest
 
-from manus.collision import SELF_PAIRS, CollisionModel
+from manus.collision import CollisionModel
+from manus.collision_pairs import SELF_PAIRS
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.scene import default_scene
 from manus.sweep import TOLERANCE_M, sweep

@@ -12,13 +12,16 @@ from manus.config import DEFAULT_ARM
 from manus.deadman import RecentStates
 from manus.errors import ConfigError
 from manus.quantize import COUNT_RAD_S
+from schemas import endpoints as ep
+from schemas.commands import JointVelocityCommand
 from schemas.control import CancelGoal, GripperGoal, Heartbeat, SpeedScale, TrajectoryGoal
 from schemas.state import ArmStatus, BridgeState, JointState
 from services.controller.backlash import PlayModel
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
+from services.controller.goal_source import GoalSource
 from services.controller.reference import Reference
-from tests.controller_plant import MS, Q0, Plant, line_trajectory
+from tests.controller_plant import MS, Q0, Plant, ask, feed, line_trajectory, steps
 
 
 def _plant(**config: object) -> Plant:
@@ -41,7 +44,7 @@ def test_idle_answers_every_state_with_zeros() -> None:
     assert len(plant.commands) == 3
     for js, cmd in zip(plant.states, plant.commands, strict=True):
         assert cmd.ref_seq == js.seq
-        assert cmd.counts == [0] * 8
+        assert steps(cmd) == [0] * 8
         assert cmd.velocity == [0.0] * 6
     assert plant.feedback == [] and plant.results == []
 
@@ -50,7 +53,7 @@ def test_idle_answers_every_state_with_zeros() -> None:
 def test_goal_succeeds_with_one_result_and_via_errors(mode: str) -> None:
     plant = _plant()
     goal = _goal(mode=mode)
-    assert plant.core.submit(goal).accepted
+    assert ask(plant.core, ep.GOAL, goal).accepted
     result = plant.run_until_result("g")
     assert result.status == "succeeded", result.reason
     assert len(result.via_errors) == len(goal.trajectory.times) == len(result.via_stamps)
@@ -59,7 +62,7 @@ def test_goal_succeeds_with_one_result_and_via_errors(mode: str) -> None:
     assert result.kind == "trajectory" and result.duration >= 3.0
     plant.run(5)
     assert [r.goal_id for r in plant.results] == ["g"]
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     assert np.max(np.abs(plant.q - np.asarray(goal.trajectory.positions[-1]))) < math.radians(0.3)
 
 
@@ -67,7 +70,7 @@ def test_default_mode_tracks_closer_than_thesis() -> None:
     errors = {}
     for mode in ("default", "thesis"):
         plant = _plant()
-        plant.core.submit(_goal(mode=mode, delta=(20, -15, 12, 10, 10, 10), duration=4.0))
+        ask(plant.core, ep.GOAL, _goal(mode=mode, delta=(20, -15, 12, 10, 10, 10), duration=4.0))
         errors[mode] = float(np.mean(plant.run_until_result("g").via_errors[1:]))
     assert errors["default"] < errors["thesis"]
 
@@ -76,7 +79,7 @@ def test_start_state_check_refuses_a_far_first_knot() -> None:
     plant = _plant()
     q = Q0.copy()
     q[2] += 0.2
-    ack = plant.core.submit(_goal(q0=q))
+    ack = ask(plant.core, ep.GOAL, _goal(q0=q))
     assert not ack.accepted
     assert "joint 3" in ack.reason and "start_tolerance 0.0500 rad" in ack.reason
     plant.run(2)
@@ -85,33 +88,35 @@ def test_start_state_check_refuses_a_far_first_knot() -> None:
 
 def test_refused_without_joint_state_and_bad_fields() -> None:
     core = ControllerCore()
-    ack = core.submit(_goal())
+    ack = ask(core, ep.GOAL, _goal())
     assert not ack.accepted and "no valid joint state" in ack.reason
     plant = _plant()
-    bad = plant.core.submit(_goal(path_tolerance=[0.1, 0.1]))
+    bad = ask(plant.core, ep.GOAL, _goal(path_tolerance=[0.1, 0.1]))
     assert not bad.accepted and "`path_tolerance` has 2 values" in bad.reason
-    empty = plant.core.submit(_goal(goal_id=""))
+    empty = ask(plant.core, ep.GOAL, _goal(goal_id=""))
     assert not empty.accepted and "goal_id" in empty.reason
 
 
 def test_path_tolerance_abort_names_joint_error_and_tolerance() -> None:
     plant = _plant()
     plant.stuck = {0}  # joint 1's motor does not move
-    plant.core.submit(_goal(path_tolerance=[0.02] * 6))
+    ask(plant.core, ep.GOAL, _goal(path_tolerance=[0.02] * 6))
     result = plant.run_until_result("g")
     assert result.status == "aborted"
     assert (
         "path tolerance: joint 1 error" in result.reason and "exceeds 0.0200 rad" in result.reason
     )
     plant.run(2)
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     assert len(plant.results) == 1
 
 
 def test_goal_time_tolerance_abort() -> None:
     plant = _plant()
     plant.stuck = {0}
-    plant.core.submit(_goal(goal_time_tolerance=0.5, goal_tolerance=[0.01] * 6, duration=1.0))
+    ask(
+        plant.core, ep.GOAL, _goal(goal_time_tolerance=0.5, goal_tolerance=[0.01] * 6, duration=1.0)
+    )
     result = plant.run_until_result("g")
     assert result.status == "aborted"
     assert "goal tolerance: joint 1" in result.reason and "goal_time_tolerance" in result.reason
@@ -122,14 +127,14 @@ def test_cancel_decelerates_within_the_bound_then_reports() -> None:
     config = ControllerConfig(cancel_decel=math.radians(60.0))
     plant = Plant(ControllerCore(config))
     plant.run(3)
-    plant.core.submit(_goal(delta=(60, 0, 0, 0, 0, 0), duration=2.0))
+    ask(plant.core, ep.GOAL, _goal(delta=(60, 0, 0, 0, 0, 0), duration=2.0))
     plant.run(14)  # mid-way: near top speed
     before = len(plant.commands)
-    assert max(abs(c) for c in plant.commands[-1].counts or []) >= 5
-    assert plant.core.cancel(CancelGoal(goal_id="g")).accepted
+    assert max(abs(c) for c in steps(plant.commands[-1])) >= 5
+    assert ask(plant.core, ep.CANCEL, CancelGoal(goal_id="g")).accepted
     result = plant.run_until_result("g")
     assert result.status == "cancelled"
-    counts = np.array([c.counts for c in plant.commands[before - 1 :]])[:, 1:7]
+    counts = np.array([steps(c) for c in plant.commands[before - 1 :]])[:, 1:7]
     step = config.cancel_decel * config.cycle_s / COUNT_RAD_S  # 0.72 counts per cycle
     drops = np.abs(counts[:-1]) - np.abs(counts[1:])
     assert drops.min() >= 0  # never speeds up
@@ -141,8 +146,8 @@ def test_cancel_decelerates_within_the_bound_then_reports() -> None:
 
 def test_cancel_unknown_goal_is_refused_and_cancel_all_accepts() -> None:
     plant = _plant()
-    assert not plant.core.cancel(CancelGoal(goal_id="nope")).accepted
-    assert plant.core.cancel(CancelGoal()).accepted
+    assert not ask(plant.core, ep.CANCEL, CancelGoal(goal_id="nope")).accepted
+    assert ask(plant.core, ep.CANCEL, CancelGoal()).accepted
 
 
 def test_reference_splice_is_continuous_in_position_velocity_acceleration() -> None:
@@ -165,11 +170,13 @@ def test_reference_splice_is_continuous_in_position_velocity_acceleration() -> N
 
 def test_replace_while_moving_splices_without_a_jump() -> None:
     plant = _plant()
-    plant.core.submit(_goal(delta=(30, 0, 0, 0, 0, 0), duration=3.0))
+    ask(plant.core, ep.GOAL, _goal(delta=(30, 0, 0, 0, 0, 0), duration=3.0))
     plant.run(20)
     q_now = np.asarray(plant.states[-1].position)
     replacement = line_trajectory(q_now, (0, 10, 0, 0, 0, 0), 2.0)
-    ack = plant.core.submit(TrajectoryGoal(goal_id="h", trajectory=replacement, replace=True))
+    ack = ask(
+        plant.core, ep.GOAL, TrajectoryGoal(goal_id="h", trajectory=replacement, replace=True)
+    )
     assert ack.accepted
     n = len(plant.feedback)
     result = plant.run_until_result("h")
@@ -178,21 +185,25 @@ def test_replace_while_moving_splices_without_a_jump() -> None:
     assert first.status == "preempted" and "spliced" in first.reason
     refs = np.array([f.reference for f in plant.feedback[n - 3 : n + 4]])
     # The reference keeps moving joint 1 on through the splice: no jump, no stop.
-    steps = np.diff(refs[:, 0])
-    assert np.all(steps > 0) and np.max(np.abs(np.diff(steps))) < math.radians(0.5)
-    counts = np.array([c.counts for c in plant.commands])[:, 1:7]
+    moves = np.diff(refs[:, 0])
+    assert np.all(moves > 0) and np.max(np.abs(np.diff(moves))) < math.radians(0.5)
+    counts = np.array([steps(c) for c in plant.commands])[:, 1:7]
     assert np.max(np.abs(np.diff(counts, axis=0))) <= 3
 
 
 def test_preempt_gives_each_goal_exactly_one_result() -> None:
     plant = _plant()
-    plant.core.submit(_goal("a"))
+    ask(plant.core, ep.GOAL, _goal("a"))
     plant.run(5)
-    plant.core.submit(
-        _goal("b", q0=np.asarray(plant.states[-1].position), delta=(1, 0, 0, 0, 0, 0))
+    ask(
+        plant.core,
+        ep.GOAL,
+        _goal("b", q0=np.asarray(plant.states[-1].position), delta=(1, 0, 0, 0, 0, 0)),
     )
-    plant.core.submit(
-        _goal("c", q0=np.asarray(plant.states[-1].position), delta=(1, 0, 0, 0, 0, 0))
+    ask(
+        plant.core,
+        ep.GOAL,
+        _goal("c", q0=np.asarray(plant.states[-1].position), delta=(1, 0, 0, 0, 0, 0)),
     )
     plant.run_until_result("c")
     plant.run(3)
@@ -203,8 +214,8 @@ def test_preempt_gives_each_goal_exactly_one_result() -> None:
 
 def test_arm_error_stops_and_aborts_with_the_arms_message() -> None:
     plant = _plant()
-    plant.core.submit(_goal())
-    plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=0.06))
+    ask(plant.core, ep.GOAL, _goal())
+    ask(plant.core, ep.GRIPPER_GOAL, GripperGoal(goal_id="grip", opening=0.06))
     plant.run(10)
     st = ArmStatus(
         stamp_ns=plant.t_ns,
@@ -221,29 +232,30 @@ def test_arm_error_stops_and_aborts_with_the_arms_message() -> None:
     assert statuses["g"] == ("aborted", "arm error: absolute encoder error")
     assert statuses["grip"][0] == "aborted"
     plant.run(2)
-    assert all(c.counts == [0] * 8 for c in plant.commands[-2:])
-    refused = plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position)))
+    assert all(steps(c) == [0] * 8 for c in plant.commands[-2:])
+    refused = ask(plant.core, ep.GOAL, _goal("h", q0=np.asarray(plant.states[-1].position)))
     assert not refused.accepted and "absolute encoder error" in refused.reason
     ok = dataclasses.replace(st, msg_class="none", msg_code=0, text="")
     plant.core.on_status(ok)
-    assert plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position))).accepted
+    assert ask(plant.core, ep.GOAL, _goal("h", q0=np.asarray(plant.states[-1].position))).accepted
 
 
 @pytest.mark.parametrize("kind", ["seq", "stamp"])
 def test_short_joint_state_gap_stops_for_a_cycle_then_resumes(kind: str) -> None:
     plant = _plant()
-    plant.core.submit(_goal())
+    ask(plant.core, ep.GOAL, _goal())
     plant.run(10)
-    assert any(plant.commands[-1].counts or [])
-    tau_before = plant.core.run.tau if plant.core.run else 0.0
+    assert any(steps(plant.commands[-1]))
+    running = plant.core.source(GoalSource).run
+    tau_before = running.tau if running else 0.0
     if kind == "seq":
         plant.cycle(seq_step=2)  # the next state skips a seq
     else:
         plant.cycle(skip=True)  # a whole cycle without a joint state
     plant.cycle()
     cmd = plant.commands[-1]
-    assert cmd.counts == [0] * 8 and cmd.ref_seq == plant.states[-1].seq
-    run = plant.core.run
+    assert steps(cmd) == [0] * 8 and cmd.ref_seq == plant.states[-1].seq
+    run = plant.core.source(GoalSource).run
     waited = tau_before + (0.06 if kind == "seq" else 0.0)  # nothing added over the gap
     assert run is not None and run.tau == pytest.approx(waited)
     result = plant.run_until_result("g")
@@ -252,13 +264,13 @@ def test_short_joint_state_gap_stops_for_a_cycle_then_resumes(kind: str) -> None
 
 def test_long_joint_state_outage_aborts_with_zeros() -> None:
     plant = _plant()
-    plant.core.submit(_goal())
-    plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=0.06))
+    ask(plant.core, ep.GOAL, _goal())
+    ask(plant.core, ep.GRIPPER_GOAL, GripperGoal(goal_id="grip", opening=0.06))
     plant.run(10)
     for _ in range(6):
         plant.cycle(skip=True)
     plant.cycle()
-    assert plant.commands[-1].counts == [0] * 8
+    assert steps(plant.commands[-1]) == [0] * 8
     reasons = {r.goal_id: (r.status, r.reason) for r in plant.results}
     assert reasons["g"][0] == "aborted" and "joint states interrupted" in reasons["g"][1]
     assert "max_outage_ms 300 ms" in reasons["g"][1]
@@ -278,15 +290,15 @@ def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
         if echo:
             hb = Heartbeat(stamp_ns=js.stamp_ns, seq=js.seq, source="test", ref_seq=js.seq,
                            ref_stamp_ns=js.stamp_ns)  # fmt: skip
-            plant.core.on_heartbeat(hb)
+            feed(plant.core, ep.HEARTBEAT, hb)
 
     for late in (0, 150):
         plant = _plant()
-        assert plant.core.submit(_goal(heartbeat_timeout=0.1)).accepted
+        assert ask(plant.core, ep.GOAL, _goal(heartbeat_timeout=0.1)).accepted
         for _ in range(10):
             cycle(plant)
         cycle(plant, late_ms=150)
-        assert plant.commands[-1].counts == [0] * 8  # the gap's zeros
+        assert steps(plant.commands[-1]) == [0] * 8  # the gap's zeros
         for _ in range(5):
             cycle(plant)
         assert plant.results == []
@@ -295,7 +307,7 @@ def test_a_late_joint_state_is_no_lost_heartbeat() -> None:
         cycle(plant, echo=False)
         assert [r.status for r in plant.results] == ["aborted"]
         assert plant.results[0].reason.startswith("lost the supervisor's heartbeat")
-        assert plant.commands[-1].counts == [0] * 8
+        assert steps(plant.commands[-1]) == [0] * 8
 
 
 def test_an_echo_gets_a_full_cycle_after_a_late_joint_state() -> None:
@@ -313,10 +325,10 @@ def test_an_echo_gets_a_full_cycle_after_a_late_joint_state() -> None:
     def echo(plant: Plant, js: JointState) -> None:
         hb = Heartbeat(stamp_ns=js.stamp_ns, seq=js.seq, source="test", ref_seq=js.seq,
                        ref_stamp_ns=js.stamp_ns)  # fmt: skip
-        plant.core.on_heartbeat(hb)
+        feed(plant.core, ep.HEARTBEAT, hb)
 
     plant = _plant()
-    assert plant.core.submit(_goal(heartbeat_timeout=0.1)).accepted
+    assert ask(plant.core, ep.GOAL, _goal(heartbeat_timeout=0.1)).accepted
     for _ in range(10):
         echo(plant, state(plant))
     late = state(plant, 29)
@@ -349,14 +361,15 @@ def test_invalid_state_gets_zeros() -> None:
     js = dataclasses.replace(plant.joint_state(), valid=False)
     out = plant.core.on_joint_state(js)
     assert out[0][0] == "cmd/joint_velocity"
-    assert out[0][1].counts == [0] * 8  # type: ignore[attr-defined]
+    cmd = out[0][1]
+    assert isinstance(cmd, JointVelocityCommand) and steps(cmd) == [0] * 8
 
 
 @pytest.mark.parametrize("target", [0.06, 0.005])
 def test_gripper_opens_and_closes_beside_an_arm_goal(target: float) -> None:
     plant = _plant()
-    assert plant.core.submit(_goal()).accepted
-    assert plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=target)).accepted
+    assert ask(plant.core, ep.GOAL, _goal()).accepted
+    assert ask(plant.core, ep.GRIPPER_GOAL, GripperGoal(goal_id="grip", opening=target)).accepted
     result = plant.run_until_result("grip")
     assert result.status == "succeeded", result.reason
     assert result.kind == "gripper"
@@ -367,7 +380,7 @@ def test_gripper_opens_and_closes_beside_an_arm_goal(target: float) -> None:
 
 def test_gripper_timeout_aborts() -> None:
     plant = _plant()
-    plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=0.09, timeout=0.3))
+    ask(plant.core, ep.GRIPPER_GOAL, GripperGoal(goal_id="grip", opening=0.09, timeout=0.3))
     result = plant.run_until_result("grip")
     assert result.status == "aborted" and "timeout 0.3 s" in result.reason
 
@@ -376,21 +389,21 @@ def test_speed_scale_slows_the_goal() -> None:
     durations = []
     for scale in (1.0, 0.5):
         plant = _plant()
-        plant.core.submit(_goal())
+        ask(plant.core, ep.GOAL, _goal())
         plant.run(2)
-        ack = plant.core.set_speed_scale(SpeedScale(scale=scale))
+        ack = ask(plant.core, ep.SPEED_SCALE, SpeedScale(scale=scale))
         assert ack.accepted and ack.goal_id == "g"
         durations.append(plant.run_until_result("g").duration)
     assert durations[1] > 1.7 * durations[0]
-    assert not ControllerCore().set_speed_scale(SpeedScale(scale=0.5)).accepted
+    assert not ask(ControllerCore(), ep.SPEED_SCALE, SpeedScale(scale=0.5)).accepted
 
 
 def test_same_inputs_same_outputs() -> None:
     logs = []
     for _ in range(2):
         plant = _plant()
-        plant.core.submit(_goal())
-        plant.core.submit_gripper(GripperGoal(goal_id="grip", opening=0.03))
+        ask(plant.core, ep.GOAL, _goal())
+        ask(plant.core, ep.GRIPPER_GOAL, GripperGoal(goal_id="grip", opening=0.03))
         plant.run_until_result("g")
         logs.append([m.encode() for m in (*plant.commands, *plant.feedback, *plant.results)])
     assert logs[0] == logs[1]
@@ -427,17 +440,17 @@ def test_goals_run_only_while_the_bridge_is_running() -> None:
         detail="",
     )
     assert plant.core.on_bridge_state(bs) == []
-    plant.core.submit(_goal())
+    ask(plant.core, ep.GOAL, _goal())
     plant.run(5)
     plant.collect(
         plant.core.on_bridge_state(dataclasses.replace(bs, phase="estopped", detail="e-stop"))
     )
     result = plant.results[-1]
     assert result.status == "aborted" and result.reason == "bridge phase estopped: e-stop"
-    ack = plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position)))
+    ack = ask(plant.core, ep.GOAL, _goal("h", q0=np.asarray(plant.states[-1].position)))
     assert not ack.accepted and "'estopped'" in ack.reason
     plant.core.on_bridge_state(bs)
-    assert plant.core.submit(_goal("h", q0=np.asarray(plant.states[-1].position))).accepted
+    assert ask(plant.core, ep.GOAL, _goal("h", q0=np.asarray(plant.states[-1].position))).accepted
 
 
 def test_play_model_aims_the_belt_output() -> None:

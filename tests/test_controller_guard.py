@@ -10,8 +10,7 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
-from manus.joint_map import encoder_increments_to_dh
-from manus.quantize import COUNT_RAD_S
+from manus.quantize import step_rates
 from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
 from manus_stack.controlled import ControlledArm
@@ -80,7 +79,7 @@ def test_clear_paths_pass_unchanged_and_mostly_without_distances() -> None:
     q = list(UNFOLDED)
     counts = np.array([2, -1, 0, 3, 0, 0])
     for _ in range(50):
-        verdict = guard.filter(q, [2.0, -1.0, 0.0, 3.0, 0.0, 0.0], counts, 0.0)
+        verdict = guard.filter(q, step_rates(counts.tolist()), counts, 0.0)
         assert verdict.scale == 1.0 and verdict.reason == ""
         assert (verdict.counts == counts).all()
         q = list(np.asarray(q) + np.radians([0.6, 0.3, 0.0, 0.9, 0.0, 0.0]) * 0.1)
@@ -99,7 +98,7 @@ def test_idle_costs_nothing() -> None:
 def ahead(q: np.ndarray, counts: np.ndarray, guard: Guard) -> np.ndarray:
     """Where ``counts`` take the arm from ``q`` (nothing in flight): a cycle and the
     run-out [rad]."""
-    rate = np.asarray(encoder_increments_to_dh(counts.astype(float))) * COUNT_RAD_S
+    rate = np.array(step_rates(counts.tolist()))
     return np.asarray(q + rate * (guard.cycle_s + guard.runout_s))
 
 

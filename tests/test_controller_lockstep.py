@@ -28,6 +28,7 @@ from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.simulator.config import SimConfig
 from services.simulator.faults import InjectedMessage, Silence, StuckJoint
+from tests.controller_plant import steps
 
 PATHS = Path(__file__).resolve().parent.parent / "paths"
 
@@ -84,7 +85,7 @@ def test_path_tolerance_abort_on_a_stuck_joint() -> None:
         "path tolerance: joint 1 error" in result.reason and "exceeds 0.0300 rad" in result.reason
     )
     arm.ls.run_for(0.2)
-    assert all(c.counts == [0] * 8 for c in _commands(arm)[-2:])
+    assert all(steps(c) == [0] * 8 for c in _commands(arm)[-2:])
 
 
 def test_cancel_decelerates_at_the_bound_and_comes_to_rest() -> None:
@@ -93,11 +94,11 @@ def test_cancel_decelerates_at_the_bound_and_comes_to_rest() -> None:
     arm.submit(TrajectoryGoal(goal_id="c", trajectory=_move(js, (40, 0, 0, 0, 0, 0), 2.0)))
     arm.ls.run_for(1.0)
     before = len(_commands(arm))
-    assert max(abs(c) for c in _commands(arm)[-1].counts or []) >= 4
+    assert max(abs(c) for c in steps(_commands(arm)[-1])) >= 4
     assert arm.query("controller/cancel", CancelGoal(goal_id="c")).accepted
     result = arm.run_until_result("c", timeout_s=2.0)
     assert result.status == "cancelled"
-    counts = np.array([c.counts for c in _commands(arm)[before - 1 :]])[:, 1:7]
+    counts = np.array([steps(c) for c in _commands(arm)[before - 1 :]])[:, 1:7]
     step = config.cancel_decel * config.cycle_s / math.radians(5.0)
     drops = np.abs(counts[:-1]) - np.abs(counts[1:])
     assert drops.min() >= 0 and drops.max() <= step + 0.5 + 1e-9
@@ -153,7 +154,7 @@ def test_arm_error_stops_and_aborts_with_the_arms_message() -> None:
     assert "encoder" in result.reason
     n = len(_commands(arm))
     arm.ls.run_for(0.3)
-    assert all(c.counts == [0] * 8 for c in _commands(arm)[n:])
+    assert all(steps(c) == [0] * 8 for c in _commands(arm)[n:])
     later = arm.core.last_js
     assert later is not None
     assert arm.ls.bridge.phase == "arm_error"
@@ -188,7 +189,7 @@ def test_stale_joint_state_gives_zeros_and_a_long_outage_stops() -> None:
     arm, js = _arm()
     arm.submit(TrajectoryGoal(goal_id="s", trajectory=_move(js, (20, 0, 0, 0, 0, 0), 2.0)))
     arm.ls.run_for(0.8)
-    assert any(_commands(arm)[-1].counts or [])
+    assert any(steps(_commands(arm)[-1]))
     n = len(_commands(arm))
     # The arm falls silent for two cycles: the first state after it is answered with zeros
     # and the trajectory's time waits; the goal then finishes.
@@ -196,7 +197,7 @@ def test_stale_joint_state_gives_zeros_and_a_long_outage_stops() -> None:
     result = arm.run_until_result("s", timeout_s=6.0)
     assert result.status == "succeeded", result.reason
     after_gap = [c for c in _commands(arm)[n:] if c.ref_seq >= 0]
-    assert after_gap[0].counts == [0] * 8
+    assert steps(after_gap[0]) == [0] * 8
     assert result.duration > 2.0
     # A silence of half a second aborts the next goal and stops the arm.
     now = arm.core.last_js
@@ -209,7 +210,7 @@ def test_stale_joint_state_gives_zeros_and_a_long_outage_stops() -> None:
     last = next(
         c for c in reversed(_commands(arm)) if c.ref_seq == result_seq(arm, aborted.stamp_ns)
     )
-    assert last.counts == [0] * 8
+    assert steps(last) == [0] * 8
     arm.ls.run_for(0.5)
     assert np.max(np.abs(arm.ls.sim.state.speed_deg_s)) < 0.1
 

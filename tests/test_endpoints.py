@@ -14,6 +14,8 @@ import zenoh
 from manus.errors import SchemaError
 from manus.wiring import Input, Wiring, WiringError, messages
 from manus_stack.lockstep import LockStep
+from manus_stack.panel.keys import PANEL_KEYS
+from manus_stack.policy import DELEGATES
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import EStop
@@ -193,9 +195,15 @@ def test_a_core_output_the_map_does_not_know_is_an_error_in_every_shell() -> Non
     [
         (
             lambda: GoalResult(
-                stamp_ns=0, seq=0, goal_id="g", kind="trajectory", status="preemted", reason=""
+                stamp_ns=0,
+                seq=0,
+                goal_id="g",
+                kind="trajectory",
+                status="preemted",
+                cause="new_goal",
+                reason="",
             ),
-            "GoalResult/1.status: 'preemted' is not one of ['aborted', 'cancelled', "
+            "GoalResult/2.status: 'preemted' is not one of ['aborted', 'cancelled', "
             "'preempted', 'succeeded']",
         ),
         (
@@ -294,6 +302,20 @@ def _allowed(policy: dict[str, Any], user: str, message: str, key: str) -> bool:
     )
 
 
+def test_the_panel_gets_the_supervisors_rights_on_its_keys_only() -> None:
+    base = _policy("base")
+    keys = Keys()
+    for e in ep.TABLE:
+        key = keys(e)
+        for message in ("put", "query"):
+            assert _allowed(base, "panel", message, key) == (
+                e in PANEL_KEYS and _allowed(base, "supervisor", message, key)
+            ), (e, message)
+        assert not _allowed(base, "panel", "declare_queryable", key), e
+    assert _allowed(base, "panel", "put", keys(ep.JOG))
+    assert _allowed(base, "panel", "query", keys(ep.SUBMIT))
+
+
 def test_every_owner_may_publish_and_declare_what_the_table_says_it_owns() -> None:
     policies = {r: _policy(r) for r in ("arm", "base")}
     home = {
@@ -316,7 +338,7 @@ def test_every_owner_may_publish_and_declare_what_the_table_says_it_owns() -> No
                 assert _allowed(policy, e.owner, "put", keys(e.trace(part))), (e, part)
     for user, router in home.items():  # every service holds its own liveliness tokens only
         own = _allowed(policies[router], user, "liveliness_token", keys.alive(user))
-        assert own == (user != ep.SUPERVISOR), user
+        assert own == (user != ep.SUPERVISOR and user not in DELEGATES), user
         for other in home:
             if other != user:
                 theirs = keys.alive(other)

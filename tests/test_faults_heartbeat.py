@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 import pytest
@@ -24,6 +26,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import CancelGoal, GoalResult, GripperGoal, Heartbeat, TrajectoryGoal
 from schemas.state import BridgeState, JointState
+from services.controller.command_source import CommandSource
 from services.controller.core import ControllerCore, Output
 from services.sequencer.actions import HEARTBEAT_SUFFIX, Action, Publish, Query
 from services.sequencer.config import SequencerConfig
@@ -32,6 +35,8 @@ from services.sequencer.taskfile import task_from_args
 from services.simulator.config import SimConfig
 from tests.test_sequencer_core import SQUARE, UNFOLDED, joint_state, square_task
 from tests.test_sequencer_core import Rig as SeqRig
+
+S = TypeVar("S", bound=CommandSource)
 
 PATHS = Path(__file__).resolve().parents[1] / "paths"
 
@@ -55,8 +60,10 @@ class ArmSideController(ControllerCore):
         super().__init__()
         self.link = link
 
-    def on_heartbeat(self, hb: Heartbeat) -> Output:
-        return super().on_heartbeat(hb) if self.link.up else []
+    def take(self, kind: type[S], handle: Callable[[S, Any], Output], msg: Any) -> Output:
+        if isinstance(msg, Heartbeat) and not self.link.up:
+            return []
+        return super().take(kind, handle, msg)
 
 
 class BaseSideSequencer(SequencerCore):

@@ -31,7 +31,7 @@ from services.recorder.flight import (
 from services.recorder.flight_shell import FlightShell, write_dump
 from services.recorder.reading import Recording
 from services.recorder.replay import Replayer, schedule
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 
 CYCLE_NS = 60_000_000
 S = 1_000_000_000
@@ -40,7 +40,8 @@ S = 1_000_000_000
 def _joints(seq: int, t_ns: int) -> bytes:
     return JointState(
         stamp_ns=t_ns, seq=seq, position=[0.1 * seq % 1, 0.5, -0.5, 0.0, -1.0, 0.0],
-        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied=[0] * 8,
+        gripper=0.02, valid=True, mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+        applied_gripper_velocity=0.0,
         applied_kind="joint", applied_seq=seq - 1,
     ).encode()  # fmt: skip
 
@@ -96,7 +97,7 @@ def test_warning_codes_goal_aborts_and_requests_trigger_only_when_chosen() -> No
     assert dump.triggers[0].kind == "arm_warning"
     core = FlightCore(FlightConfig(ring_s=2.0, after_s=0.0))
     aborted = GoalResult(stamp_ns=1, seq=0, goal_id="g1", kind="trajectory", status="aborted",
-                         reason="path tolerance")  # fmt: skip
+                         cause="tolerance", reason="path tolerance")  # fmt: skip
     [d1] = core.on_sample("manus/controller/result", aborted.encode(), 1 * S)
     request = FlightTrigger(stamp_ns=2, seq=0, source="operator", reason="odd noise")
     [d2] = core.on_sample(f"manus/{FLIGHT_TRIGGER}", request.encode(), 2 * S)
@@ -264,7 +265,10 @@ def test_the_live_queue_holds_its_share_of_the_cap_in_bytes(
         shell.core.on_sample = stalled  # type: ignore[method-assign]
         try:
             with Node("pub", zenoh_settings) as node:
-                pub = node.session.declare_publisher(f"{zenoh_settings.prefix}/flood")
+                # every sample to the shell, whose own queue is what drops them: once it
+                # subscribed, and waiting for room on the way (under load 5, 180 drops
+                # were not seen in 5 s: samples had been lost before the shell)
+                pub = matched_publisher(node.session, f"{zenoh_settings.prefix}/flood", block=True)
                 for k in range(200):  # 200 x (1000 + 200) B = 234 KiB offered, 16 KiB budget
                     pub.put(bytes(996) + k.to_bytes(4, "little"))
                 eventually(lambda: shell.dropped >= 180, 5.0, "drops")

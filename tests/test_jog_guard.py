@@ -4,6 +4,8 @@ on the simulator's truth; the jog state names the guard."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from manus.collision import CollisionModel
@@ -12,7 +14,7 @@ from manus.kinematics import fk_position
 from manus.scene import default_scene
 from manus_stack.jog_lockstep import JogArm
 from schemas import endpoints as ep
-from schemas.jog import JogLevel, JogState
+from schemas.jog import JogLevel, JogRunState, JogState, LimitKind
 from services.simulator.config import SimConfig
 
 PERSON_M = default_scene().clearance["person"]
@@ -52,9 +54,16 @@ def test_a_jog_toward_the_head_slows_and_stops_at_the_clearance_on_the_truth() -
     moved = distances[0] - min(distances)
     assert moved > 0.1  # it did travel toward the head before stopping
     states = [m for m in arm.ls.published(ep.JOG_STATE) if isinstance(m, JogState)]
-    reasons = [s.reason for s in states]
-    assert any(r.startswith("collision guard slowed to ") for r in reasons), set(reasons)
+    guard = [lim for s in states for lim in s.limits if lim.kind == LimitKind.COLLISION]
+    assert {lim.object for lim in guard} == {"head"}
+    assert any(0.0 < lim.scale < 1.0 for lim in guard)  # slowed on the way
     last = states[-1]
-    assert last.active  # still jogging: backing away is allowed
-    assert last.reason.startswith("collision guard stopped: "), last.reason
-    assert "from head (person: needs 50 mm)" in last.reason, last.reason
+    assert last.state == JogRunState.RUNNING  # still jogging: backing away is allowed
+    [stop] = [lim for lim in last.limits if lim.kind == LimitKind.COLLISION]
+    assert stop.scale == 0.0 and last.scale == 0.0 and stop.body
+    assert PERSON_M <= stop.distance < PERSON_M + 0.03, stop.distance
+    words = f"the collision guard: {stop.body} near head (person: keeps 50 mm)"
+    assert last.reason == f"stopped by {words}"
+    # the words change with the state (slowed, stopped), never with the distances
+    changes = sum(a.reason != b.reason for a, b in itertools.pairwise(states))
+    assert changes <= 6, [s.reason for s in states]

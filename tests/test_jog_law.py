@@ -5,24 +5,33 @@ Scenarios with the simulator (judged on its truth) are in tests/test_jog_lockste
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
+import jsonschema
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manus.config import UNFOLDED_Q_DEG
+from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, is_folded
 from manus.errors import ConfigError, SchemaError
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
-from schemas.jog import JogCommand, JogLevel, JogState
+from schemas.collision import ClearanceReport
+from schemas.commands import JointVelocityCommand
+from schemas.control import Refusal
+from schemas.jog import JogCommand, JogLevel, JogState, LimitKind
+from schemas.state import JointState
+from services.controller.command_source import Refused, Sent
 from services.controller.config import ControllerConfig
-from services.controller.jog import Jog, JogError, resolve
+from services.controller.jog import JogSource
+from services.controller.jog_command import JogError, resolve
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogRun, JogTarget, rodrigues
 from services.controller.jog_limits import measures, slowdown
+from services.controller.outbox import GoalOutcome
 
 CFG = JogConfig()
 CONFIG = ControllerConfig()
@@ -87,8 +96,9 @@ def test_unitless_is_scaled_by_the_level_and_si_is_limited_by_it() -> None:
         ({"linear": [0.2, 0.0, 0.0]}, r"`linear` speed 200.0 mm/s is above the cap 150.0 mm/s"),
         ({"units": "unitless", "linear": [1.5, 0.0, 0.0]}, r"`linear\[0\]` = 1.5 is outside"),
         ({"linear": [math.inf, 0.0, 0.0]}, r"`linear\[0\]` = inf is not a finite number"),
-        ({"kind": "joints", "linear": [0.1, 0.0, 0.0]}, "joint speeds"),
-        ({"joints": [0.1, 0, 0, 0, 0, 0]}, "carries no joint speeds"),
+        ({"kind": "joints", "linear": [0.1, 0.0, 0.0]}, r"a `joints` command carries no `linear`"),
+        ({"joints": [0.1, 0, 0, 0, 0, 0]}, r"a `twist` command carries no `joints`"),
+        ({"kind": "joints", "drink": True}, r"a `joints` command carries no `drink`"),
         ({"drink": True, "angular": [0.1, 0.0, 0.0]}, "drink mode holds the cup level"),
         ({"pour": 0.1}, "needs drink mode"),
         ({"kind": "joints", "joints": [1.0, 0, 0, 0, 0, 0]}, "above the cap 50.0 deg/s"),
@@ -99,6 +109,56 @@ def test_bad_commands_are_refused_with_the_field_value_and_limit(
 ) -> None:
     with pytest.raises(JogError, match=message):
         resolve(cmd(**kw), 3, CFG)
+
+
+def test_a_command_above_the_level_cap_is_scaled_and_says_so() -> None:
+    # level 3 of 5: 90 mm/s; a 120 mm/s SI twist is held to 90 mm/s, and the target
+    # carries the cap that did it (the jog state reports it: never silently)
+    t = resolve(cmd(linear=[0.0, 0.12, 0.0]), 3, CFG)
+    assert t is not None and t.linear[1] == pytest.approx(0.09)
+    [cap] = t.caps
+    assert (cap.kind, cap.object) == (LimitKind.SPEED_CAP, "linear")
+    assert cap.scale == pytest.approx(0.75)
+    within = resolve(cmd(linear=[0.0, 0.08, 0.0]), 3, CFG)
+    assert within is not None and within.caps == ()
+    g = resolve(cmd(gripper=0.03), 1, CFG)  # 6 mm/s at level 1: the gripper alone
+    assert g is not None and g.gripper == pytest.approx(0.006)
+    [grip] = g.caps
+    assert grip.object == "gripper" and grip.scale == pytest.approx(0.2)
+    full = resolve(cmd(units="unitless", linear=[1.0, 0.0, 0.0]), 5, CFG)
+    assert full is not None and full.caps == ()  # a full deflection is the cap, not above
+
+
+@pytest.mark.parametrize(
+    ("fields", "valid"),
+    [
+        ({"kind": "twist", "linear": [0.1, 0.0, 0.0]}, True),
+        ({"kind": "twist", "joints": [0.1, 0, 0, 0, 0, 0]}, False),
+        ({"kind": "joints", "joints": [0.1, 0, 0, 0, 0, 0], "gripper": 0.01}, True),
+        ({"kind": "joints", "linear": [0.1, 0.0, 0.0]}, False),
+        ({"kind": "joints", "drink": True}, False),
+        ({"kind": "stop", "linear": [0.1, 0.0, 0.0]}, True),
+        ({"kind": "twist", "units": "unitless", "linear": [1.5, 0.0, 0.0]}, False),
+        ({"kind": "twist", "drink": True, "angular": [0.1, 0.0, 0.0]}, False),
+        ({"kind": "twist", "drink": True, "angular": [0.0, 0.0, 0.1], "pour": 0.1}, True),
+        ({"kind": "twist", "pour": 0.1}, False),
+    ],
+)
+def test_the_json_schema_says_what_each_kind_needs_as_the_controller_checks_it(
+    fields: dict[str, Any], valid: bool
+) -> None:
+    """The exported schema and the controller's checks come from one table
+    (``schemas.jog.KIND_FIELDS``): a client validating against the schema is refused for
+    nothing the schema allows (SI caps aside: they are the controller's settings)."""
+    payload = {"stamp_ns": 0, "seq": 1, "source": "t", "units": "si"} | fields
+    schema = jsonschema.Draft202012Validator(JogCommand.json_schema())
+    assert schema.is_valid(payload) == valid, list(schema.iter_errors(payload))
+    try:
+        resolve(JogCommand.from_dict(payload), 5, CFG)
+    except JogError:
+        assert not valid
+    else:
+        assert valid
 
 
 def test_zero_and_stop_commands_mean_stop() -> None:
@@ -137,38 +197,94 @@ def test_config_is_checked() -> None:
 # -- the intake: deadman, latching, levels -----------------------------------------------------
 
 
-def moving(jog: Jog) -> bool:
+class Host:
+    """What the jog asks of the controller core, set by the test: the newest joint state
+    (its stamp) and why nothing may move (None: it may)."""
+
+    def __init__(self) -> None:
+        self.config = CONFIG
+        self.last_js: JointState | None = None
+        self.not_ready: str | None = None
+
+    def at(self, stamp_ns: int | None, not_ready: str | None = None) -> Host:
+        """The newest joint state stamped ``stamp_ns`` (None: none yet)."""
+        self.not_ready = not_ready
+        if stamp_ns is None:
+            self.last_js = None
+            return self
+        self.last_js = JointState(
+            stamp_ns=stamp_ns, seq=0, position=list(UNFOLDED), gripper=0.0, valid=True,
+            mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+            applied_gripper_velocity=0.0, applied_kind="none", applied_seq=-1,
+        )  # fmt: skip
+        return self
+
+    def admission(self, source: object) -> Refused | None:
+        return None if self.not_ready is None else Refused(Refusal.NOT_READY, self.not_ready)
+
+    def finish(self, outcome: GoalOutcome) -> None:
+        raise AssertionError(f"the jog ends no goal: {outcome}")
+
+    def clearance(self, goal_id: str) -> ClearanceReport | None:
+        return None
+
+
+def moving(jog: JogSource) -> bool:
     """``jog.engaged``, read afresh (no narrowing across calls)."""
     return jog.engaged
 
 
 def test_refusal_and_stops_latch_until_a_zero_command() -> None:
-    jog = Jog(CONFIG)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)
+    host = Host()
+    jog = JogSource(host)
+    host.at(1_000)
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert moving(jog)
-    jog.receive(cmd(linear=[0.5, 0.0, 0.0]), 1_000, None)  # above the cap
+    jog.on_command(cmd(linear=[0.5, 0.0, 0.0]))  # above the cap
     assert not moving(jog) and jog.refused == 1
     assert "above the cap" in jog.reason and "release the controls" in jog.reason
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)  # still held
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))  # still held
     assert not moving(jog)
-    jog.receive(cmd(), 1_000, None)  # released
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 1_000, None)
+    jog.on_command(cmd())  # released
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert moving(jog)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), None, None)
+    host.at(None)
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
     assert not moving(jog) and "no valid joint state" in jog.reason
     stopped = "the bridge is in phase 'stopped'"
-    jog.receive(cmd(), 2_000, stopped)  # a release is always taken
-    assert jog.refused == 2 and not jog.latched
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)
-    jog.receive(cmd(linear=[0.05, 0.0, 0.0]), 2_000, stopped)  # held: one refusal
+    host.at(2_000, stopped)
+    jog.on_command(cmd())  # a release is always taken
+    assert jog.refused == 2 and jog.stopped is None
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))
+    jog.on_command(cmd(linear=[0.05, 0.0, 0.0]))  # held: one refusal
     assert jog.refused == 3 and not moving(jog) and stopped in jog.reason
 
 
+def test_the_state_says_whether_the_arm_is_folded() -> None:
+    host = Host()
+    jog = JogSource(host)
+    host.at(1_000)
+    assert jog.set_level(JogLevel(level=2)).accepted  # a change to show
+    js = host.last_js
+    assert js is not None
+    folded = dataclasses.replace(js, position=[math.radians(v) for v in FOLDED_Q_DEG])
+    for state, expected in ((js, False), (folded, True)):
+        jog.announce = True
+        out = jog.reports(Sent(state, JointVelocityCommand(
+            stamp_ns=0, seq=0, source="c", ref_seq=0, velocity=[0.0] * 6, gripper_velocity=0.0
+        ), ""))  # fmt: skip
+        [(_, msg)] = out
+        assert isinstance(msg, JogState) and msg.folded is expected
+        assert msg.state == "idle" and msg.caps.linear == pytest.approx(CFG.max_linear * 2 / 5)
+    assert is_folded([math.radians(v + 4.0) for v in FOLDED_Q_DEG])
+    assert not is_folded([math.radians(v + 6.0) for v in FOLDED_Q_DEG])
+
+
 def test_levels() -> None:
-    jog = Jog(CONFIG)
+    jog = JogSource(Host())
     assert jog.level == 3
-    assert jog.set_level(5) is None and jog.level == 5
-    assert jog.set_level(6) == "level 6 outside 1..5"
+    assert jog.set_level(JogLevel(level=5)).accepted and jog.level == 5
+    assert jog.set_level(JogLevel(level=6)).reason == "level 6 outside 1..5"
     assert jog.level == 5
 
 
@@ -177,11 +293,11 @@ def test_levels() -> None:
 
 def test_measures() -> None:
     q = [0.0, 0.0, math.radians(80.0), 0.0, math.radians(-175.0), 0.0]
-    m = dict(measures(q, CONFIG.arm))
-    assert m["wrist singularity (q5 near 0/180 deg)"] == pytest.approx(5.0)
-    assert m["elbow stretched (q3 near 90 deg)"] == pytest.approx(10.0)
-    assert m["joint 5 limit"] == pytest.approx(-55.0)  # beyond -120 deg
-    assert m["joint 3 limit"] == pytest.approx(360.0 - 80.0)
+    m = {(kind, name): deg for kind, name, deg in measures(q, CONFIG.arm)}
+    assert m[LimitKind.SINGULARITY, "wrist"] == pytest.approx(5.0)
+    assert m[LimitKind.SINGULARITY, "elbow"] == pytest.approx(10.0)
+    assert m[LimitKind.JOINT_LIMIT, "joint 5"] == pytest.approx(-55.0)  # beyond -120 deg
+    assert m[LimitKind.JOINT_LIMIT, "joint 3"] == pytest.approx(360.0 - 80.0)
 
 
 def test_slowdown_toward_a_zone_never_away_and_never_past_the_stop() -> None:
@@ -191,14 +307,16 @@ def test_slowdown_toward_a_zone_never_away_and_never_past_the_stop() -> None:
     away = [0.0, 0.0, 0.0, 0.0, math.radians(13.0), 0.0]
     s = slowdown(q0, toward, arm, CFG)
     assert s.scale == pytest.approx((12.0 - 5.0) / (20.0 - 5.0))
-    assert s.reason.startswith("slowed to 47 %: wrist singularity")
+    assert (s.kind, s.object) == (LimitKind.SINGULARITY, "wrist")
+    assert s.angle == pytest.approx(math.radians(12.0))
+    assert s.words.startswith("the wrist singularity (q5 near 0 or 180 deg)")
     assert slowdown(q0, away, arm, CFG).scale == 1.0
     jump = [0.0, 0.0, 0.0, 0.0, math.radians(-3.0), 0.0]  # across the singularity
     s = slowdown(q0, jump, arm, CFG)
     assert s.scale * 15.0 <= 12.0 - 5.0 + 1e-9  # stops at 5 deg, never flips
     at_stop = [0.0, 0.0, 0.0, 0.0, math.radians(5.0), 0.0]
     s = slowdown(at_stop, [0.0, 0.0, 0.0, 0.0, math.radians(4.0), 0.0], arm, CFG)
-    assert s.scale == 0.0 and s.reason.startswith("stopped: wrist singularity")
+    assert s.scale == 0.0 and s.object == "wrist"
 
 
 # -- the reference ---------------------------------------------------------------------------
@@ -276,7 +394,7 @@ def test_the_reference_stops_before_the_wrist_singularity_never_flipping() -> No
         seen.append(math.degrees(q[4]))
     assert max(seen) < -CFG.wrist_stop_deg + 1e-9  # stopped before, still on its side
     assert seen[-1] > -CFG.wrist_stop_deg - 0.5  # and came close
-    assert step.limit.reason.startswith(("slowed", "stopped"))
+    assert step.limit.scale < 1.0 and step.limit.kind == LimitKind.SINGULARITY
 
 
 def test_the_joint_cap_scales_the_whole_step() -> None:
@@ -287,7 +405,7 @@ def test_the_joint_cap_scales_the_whole_step() -> None:
     capped = 0
     for _ in range(20):
         step = run.step(target, q, fast, CONFIG)
-        capped += step.limit.reason.startswith("joint speed cap")
+        capped += (step.limit.kind, step.limit.object) == (LimitKind.SPEED_CAP, "motors")
         dq = np.subtract(step.q_target, q)
         motors = np.abs([dq[0], -dq[1], dq[2] - dq[1], dq[3], dq[4], dq[5]])
         assert motors.max() <= math.radians(50.0) * 0.06 + 1e-6

@@ -14,23 +14,26 @@ import numpy as np
 import pytest
 
 from manus.protocol import FrameId, decode_move
+from manus.wiring import BAD_PAYLOAD
 from manus_stack.jog_lockstep import JogArm, line_drift
 from manus_stack.regression import check_controller
 from manus_stack.task_lockstep import TaskLockStep
 from schemas import endpoints as ep
 from schemas.commands import ArmCommand, EStop, JointVelocityCommand
-from schemas.control import GoalResult, TrajectoryGoal
-from schemas.jog import USER_TOOK_OVER, JogLevel, JogTaken
+from schemas.control import CommandSourceKind, EndCause, GoalResult, Refusal, TrajectoryGoal
+from schemas.jog import USER_TOOK_OVER, JogLevel, JogRunState, JogTaken, LimitKind
 from schemas.keys import Keys
 from schemas.planning import Trajectory
 from schemas.sequencing import Task, TaskStep
 from schemas.state import ArmStatus
 from services.controller.core import ControllerCore
-from services.controller.jog import BAD_JOG_PAYLOAD
+from services.controller.jog import JogSource
+from services.controller.wiring import WIRING as CONTROLLER
 from services.recorder.writer import RecordingWriter
 from services.sequencer.taskfile import task_from_args
 from services.simulator.config import SimConfig
 from services.simulator.faults import InjectedMessage
+from tests.controller_plant import steps
 
 PATHS = Path(__file__).resolve().parents[1] / "paths"
 CYCLE_NS = 60_000_000
@@ -98,11 +101,21 @@ def test_deadman_stops_the_arm_within_two_cycles_and_nothing_resumes_without_a_r
     assert all(zero for t, zero in _zero_frames(arm, first_zero))
     state = arm.states()[-1]
     assert not state.active and state.deadman_stops == 1
-    assert state.reason.startswith("stopped: deadman")
-    # the sender comes back still deflected: nothing moves until it releases
+    assert (state.state, state.cause) == (JogRunState.STOPPED, EndCause.DEADMAN)
+    assert state.reason.startswith("stopped: deadman") and state.refused == 0
+    # the sender comes back still deflected: nothing moves until it releases, and the
+    # state says so (each command held back is shown; the stop counts one refusal)
+    seen = len(arm.states())
     arm.stream(0.5, units="unitless", linear=X)
     assert all(s.at_rest for s in arm.samples[-80:])
+    held = arm.states()[seen:]
+    assert len(held) >= 5
+    assert {(h.state, h.cause, h.reason, h.refused) for h in held} == {
+        (JogRunState.STOPPED, EndCause.DEADMAN, state.reason, 1)
+    }
     _hold(arm, 0.2)
+    released = arm.states()[-1]
+    assert (released.state, released.cause) == (JogRunState.IDLE, EndCause.RELEASED)
     arm.stream(0.4, units="unitless", linear=X)
     assert not arm.samples[-1].at_rest
 
@@ -120,7 +133,9 @@ def test_a_10_hz_stream_with_jitter_keeps_jogging_and_a_7_hz_one_trips_the_deadm
     while arm.ls.t_ns < end:
         arm.send(units="unitless", linear=X)
         arm.run(1.0 / hz + float(rng.uniform(-0.02, 0.02)))
-    assert (arm.core.jog.deadman_stops > 0) == stops, arm.core.jog.reason
+    assert (arm.core.source(JogSource).deadman_stops > 0) == stops, arm.core.source(
+        JogSource
+    ).reason
     assert arm.samples[-1].at_rest == stops
 
 
@@ -134,7 +149,7 @@ def test_a_zero_command_stops_at_once() -> None:
     corrections = arm.ls.published(ep.JOINT_VELOCITY)[before:]
     assert len(corrections) == 1  # the stop replaces this cycle's command at once
     assert isinstance(corrections[0], JointVelocityCommand)
-    assert corrections[0].counts == [0] * 8
+    assert steps(corrections[0]) == [0] * 8
     arm.run(0.5)
     rest = arm.rest_from(released)  # zeros act within 100 ms, then the lag's 92 ms
     assert rest is not None
@@ -161,6 +176,7 @@ def test_a_bad_command_is_refused_counted_and_the_arm_stops(fields: dict[str, ob
     assert rest - bad <= 200_000_000, (rest - bad) / 1e6
     state = arm.states()[-1]
     assert state.refused == 1 and not state.active
+    assert (state.state, state.cause) == (JogRunState.STOPPED, EndCause.BAD_COMMAND)
     assert "refused" in state.reason
 
 
@@ -168,14 +184,16 @@ def test_a_garbage_payload_stops_the_jog() -> None:
     core = ControllerCore()
     arm = _arm(5)
     arm.stream(0.5, units="unitless", linear=X)
-    out = arm.core.on_bad_jog("the payload does not decode")
+    out = CONTROLLER.feed_bad(arm.core, ep.JOG, BAD_PAYLOAD, 0)
     assert [s for s, _ in out] == [ep.JOG_TAKEN, ep.JOINT_VELOCITY]  # taken, and stopped
     taken = out[0][1]
     assert isinstance(taken, JogTaken) and taken.command is None
     assert taken.error == "the payload does not decode"
-    assert not arm.core.jog.engaged and arm.core.jog.refused == 1
-    assert [s for s, _ in core.on_bad_jog("junk")] == [ep.JOG_TAKEN]  # idle: only counted
-    assert core.jog.refused == 1
+    assert not arm.core.source(JogSource).engaged and arm.core.source(JogSource).refused == 1
+    assert [s for s, _ in CONTROLLER.feed_bad(core, ep.JOG, "junk", 0)] == [
+        ep.JOG_TAKEN
+    ]  # idle: only counted
+    assert core.source(JogSource).refused == 1
 
 
 @pytest.mark.parametrize("stop", ["estop", "arm_error", "bridge_stop"])
@@ -193,9 +211,11 @@ def test_the_stops_of_a_trajectory_stop_a_jog(stop: str) -> None:
     rest = arm.rest_from(t)
     assert rest is not None
     assert rest - t <= 300_000_000, (rest - t) / 1e6
-    assert not arm.core.jog.engaged
-    assert arm.core.jog.latched  # stopped until the user releases the controls
-    assert arm.core.jog.refused <= 1  # a joystick held through the stop is one refusal
+    assert not arm.core.source(JogSource).engaged
+    assert arm.core.source(JogSource).stopped is not None  # until the user releases the controls
+    assert (
+        arm.core.source(JogSource).refused <= 1
+    )  # a joystick held through the stop is one refusal
 
 
 def test_goals_are_refused_while_jogging_and_a_jog_preempts_a_trajectory() -> None:
@@ -210,6 +230,7 @@ def test_goals_are_refused_while_jogging_and_a_jog_preempts_a_trajectory() -> No
     )
     ack = arm.submit(goal)
     assert not ack.accepted and "jogging" in ack.reason
+    assert (ack.refusal, ack.held_by) == (Refusal.BUSY, CommandSourceKind.JOG)
     _hold(arm, 0.3)
     js = arm.core.last_js
     assert js is not None
@@ -225,6 +246,7 @@ def test_goals_are_refused_while_jogging_and_a_jog_preempts_a_trajectory() -> No
     arm.run(0.1)
     result = arm.results("g2")
     assert len(result) == 1 and result[0].status == "preempted"
+    assert result[0].cause == EndCause.USER_TOOK_OVER
     assert result[0].reason.startswith(USER_TOOK_OVER)
 
 
@@ -266,7 +288,7 @@ def test_a_jog_session_replays_byte_for_byte(tmp_path: Path) -> None:
     arm.stream(0.3, units="unitless", linear=X, gripper=0.5)
     # a garbage payload on jog, as the live shell hands it over (recorded as it travelled)
     garbage_ns: int | None = arm.ls.t_ns
-    for suffix, msg in arm.core.on_bad_jog(BAD_JOG_PAYLOAD):
+    for suffix, msg in CONTROLLER.feed_bad(arm.core, ep.JOG, BAD_PAYLOAD, 0):
         arm.ls.publish(suffix, msg)
     _hold(arm, 0.2)
     arm.stream(0.3, units="unitless", linear=X)
@@ -281,7 +303,7 @@ def test_a_jog_session_replays_byte_for_byte(tmp_path: Path) -> None:
     result = check_controller(path)
     assert result.ok, result.difference
     assert result.compared > 100
-    assert arm.core.jog.refused == 2
+    assert arm.core.source(JogSource).refused == 2
 
 
 def test_a_joint_jog_toward_the_wrist_singularity_stops_before_it_on_the_truth() -> None:
@@ -294,10 +316,14 @@ def test_a_joint_jog_toward_the_wrist_singularity_stops_before_it_on_the_truth()
     assert max(q5) < 0.0  # never across: no wrist flip
     assert -stop - 1.0 < q5[-1] < -stop + 0.5, q5[-1]  # stopped near the stop
     assert arm.samples[-1].at_rest
-    reasons = [s.reason for s in arm.states()]
-    assert any(r.startswith("slowed") and "wrist singularity" in r for r in reasons)
-    assert arm.states()[-1].reason.startswith("stopped: wrist singularity")
-    assert arm.states()[-1].active  # held there, still jogging: backing out is allowed
+    wrist = [(s, lim) for s in arm.states() for lim in s.limits if lim.object == "wrist"]
+    assert all(lim.kind == LimitKind.SINGULARITY for _, lim in wrist)
+    assert any(0.0 < lim.scale < 1.0 for _, lim in wrist)  # slowed first
+    last = arm.states()[-1]
+    assert [(lim.object, lim.scale) for lim in last.limits] == [("wrist", 0.0)]
+    assert last.scale == 0.0 and last.limits[0].angle == pytest.approx(math.radians(stop), abs=0.02)
+    assert last.reason.startswith("stopped by the wrist singularity")
+    assert last.state == JogRunState.RUNNING  # held there, still jogging: backing out is allowed
     arm.stream(0.6, kind="joints", units="unitless", joints=[0.0, 0.0, 0.0, 0.0, -1.0, 0.0])
     assert math.degrees(arm.ls.sim.truth().q_true[4]) < q5[-1] - 5.0
 
@@ -306,8 +332,11 @@ def test_reaching_out_stops_before_a_joint_limit_and_holds_still() -> None:
     arm = _arm(5)
     arm.stream(4.0, units="unitless", linear=X)  # forward, the gripper's pitch kept: q5 falls
     state = arm.states()[-1]
-    assert state.active and state.scale == 0.0
-    assert state.reason.startswith("stopped: joint 5 limit"), state.reason
+    assert state.state == JogRunState.RUNNING and state.scale == 0.0
+    assert [(lim.kind, lim.object, lim.scale) for lim in state.limits] == [
+        (LimitKind.JOINT_LIMIT, "joint 5", 0.0)
+    ]
+    assert state.reason.startswith("stopped by the limit of joint 5"), state.reason
     lower = math.degrees(arm.core.config.arm.lower[4])
     q5 = [math.degrees(s.q[4]) for s in arm.samples]
     assert min(q5) > lower + arm.core.config.jog.limit_stop_deg - 0.5  # (the belt's play)

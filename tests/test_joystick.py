@@ -15,6 +15,7 @@ from manus_stack.jog_lockstep import JogArm, line_drift
 from manus_stack.joystick import DEFAULT_MAP, Joystick, JoystickMap, RecordedEvents
 from schemas import endpoints as ep
 from schemas.jog import JogCommand, JogLevel
+from services.controller.jog import JogSource
 
 SESSION = Path(__file__).resolve().parent / "data" / "joystick_session.jsonl"
 
@@ -89,9 +90,9 @@ def test_a_recorded_session_drives_the_arm_straight_along_x() -> None:
                 assert arm.query(ep.JOG_LEVEL, JogLevel(level=level)).accepted
         arm.send(**js.command(now))
         arm.run(0.05)
-    assert arm.core.jog.level == 4
+    assert arm.core.source(JogSource).level == 4
     drift, along, turned = line_drift(arm.samples[first:], np.array([1.0, 0.0, 0.0]))
     # 1 s at full deflection of level 4 (120 mm/s) after 0.1 s at half
     assert 0.09 < along < 0.15, along
     assert drift < 0.001 and turned < 0.5
-    assert arm.samples[-1].at_rest and not arm.core.jog.engaged
+    assert arm.samples[-1].at_rest and not arm.core.source(JogSource).engaged

@@ -16,6 +16,7 @@ from schemas import endpoints as ep
 from schemas.control import CancelGoal, GoalAck, GripperGoal, Heartbeat
 from services.can_bridge.health import Health
 from services.controller.shell import ControllerShell
+from tests.conftest import matched_publisher
 
 SAMPLES = 30
 
@@ -36,10 +37,9 @@ def _count_then_query(settings: ZenohSettings, *, ordered: bool) -> int:
     with Node("ordered", settings, ordered=ordered) as node, Node("client", settings) as client:
         node.subscribe(node.keys("samples"), Heartbeat, on_sample)
         node.queryable(node.keys("ask"), CancelGoal, on_query, mirror=False)
-        pub = client.publisher(client.keys("samples"))
-        time.sleep(0.3)  # the declarations reach the router
+        pub = matched_publisher(client.session, client.keys("samples"))
         for i in range(SAMPLES):
-            pub.put(Heartbeat(stamp_ns=i, seq=i, source="t", ref_seq=i, ref_stamp_ns=i))
+            pub.put(Heartbeat(stamp_ns=i, seq=i, source="t", ref_seq=i, ref_stamp_ns=i).encode())
         reply = client.query(client.keys("ask"), CancelGoal(goal_id="q"), GoalAck, timeout=5.0)
     return int(reply.reason)
 
@@ -53,12 +53,12 @@ def test_an_ordered_node_answers_a_query_after_the_samples_that_came_before_it(
 def _fold_ends_then_goal(settings: ZenohSettings, folding: int = 20) -> GoalAck:
     """The bridge folds (``folding`` states), then runs; a gripper goal comes at once."""
     with ControllerShell(settings), Node("bridge-and-sequencer", settings) as peer:
-        states = peer.publisher(peer.keys(ep.BRIDGE_STATE))
-        time.sleep(0.3)  # the declarations reach the router
+        states = matched_publisher(peer.session, peer.keys(ep.BRIDGE_STATE))
         health = Health()
         for seq in range(folding + 1):
             phase = "folding_out" if seq < folding else "running"
-            states.put(health.state(stamp_ns=seq, seq=seq, phase=phase, estop=False, detail=""))
+            state = health.state(stamp_ns=seq, seq=seq, phase=phase, estop=False, detail="")
+            states.put(state.encode())
         goal = GripperGoal(goal_id="g", opening=0.04)
         return peer.query(peer.keys(ep.GRIPPER_GOAL), goal, GoalAck, timeout=5.0)
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from manus.scene import pose_matrix
-from manus.world import WorldModel, apply_update
+from manus.world import WorldModel
+from manus.world_follower import apply_update
 from manus_stack.lockstep import LockStep
 from schemas import endpoints as ep
 from schemas.objects import WorldObject, WorldUpdate

@@ -290,7 +290,8 @@ def test_start_from_the_latest_valid_joint_state() -> None:
 
     def state(q: np.ndarray, valid: bool, seq: int) -> JointState:
         return JointState(stamp_ns=seq, seq=seq, position=list(q), gripper=0.0, valid=valid,
-                          mode="joint", encoder=[0] * 7, applied=[0] * 8,
+                          mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                          applied_gripper_velocity=0.0,
                           applied_kind="none", applied_seq=-1)  # fmt: skip
 
     core.on_joint_state(state(np.zeros(6), valid=False, seq=1))

@@ -55,7 +55,8 @@ def test_planner_shell_answers_queries(zenoh_settings: ZenohSettings) -> None:
         other = [0.2, *UNFOLDED[1:]]
         publisher = client.publisher(client.keys(ep.JOINTS))
         state = JointState(stamp_ns=1, seq=1, position=other, gripper=0.0, valid=True,
-                           mode="joint", encoder=[0] * 7, applied=[0] * 8,
+                           mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                           applied_gripper_velocity=0.0,
                            applied_kind="none", applied_seq=-1)  # fmt: skip
 
         def started_from_state() -> bool:

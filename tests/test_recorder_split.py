@@ -13,7 +13,7 @@ from services.recorder.errors import RecordingError
 from services.recorder.reading import Recording
 from services.recorder.shell import RecorderShell
 from services.recorder.split import KeyFilter, SplitWriter
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 
 SQUARE = Path(__file__).parent / "data" / "thesis_square.mcap"
 
@@ -73,7 +73,9 @@ def test_recorder_records_only_the_selected_keys(
     out = tmp_path / "sel.mcap"
     keys = KeyFilter(["state/*", "liveliness"], ["state/bridge"])
     with RecorderShell(zenoh_settings, out, keys=keys) as shell, Node("pub", zenoh_settings) as n:
-        pubs = {s: n.session.declare_publisher(f"{prefix}/{s}") for s in
+        # every sample counted: publish once the recorder's subscription reached the
+        # router, and wait for room rather than drop under load
+        pubs = {s: matched_publisher(n.session, f"{prefix}/{s}", block=True) for s in
                 ("state/joints", "state/bridge", "can/rx")}  # fmt: skip
         for m in Recording(SQUARE).messages(["state/joints", "state/bridge", "can/rx"]):
             pubs[m.suffix].put(m.payload)

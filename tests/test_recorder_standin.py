@@ -151,6 +151,7 @@ def test_manus_replay_as_planner_answers_until_stopped(
     assert stats["answers"] == {
         "planner/plan": {"exact": 1, "fallback": 1, "exhausted": 0},
         "planner/scene": {"exact": 0, "fallback": 0, "exhausted": 0},
+        "planner/attach": {"exact": 0, "fallback": 0, "exhausted": 0},
     }
     # --hold bounds it; without --as it means nothing
     assert main([*args, "--prefix", "test", "--hold", "0.2"]) == 0

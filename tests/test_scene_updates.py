@@ -139,7 +139,8 @@ def test_an_accepted_update_is_published_and_the_guard_and_folds_follow_it() -> 
 
 def _js(stamp_ms: float) -> JointState:
     return JointState(stamp_ns=round(stamp_ms * 1e6), seq=round(stamp_ms / 60), position=UNFOLDED,
-                      gripper=0.0, valid=True, mode="joint", encoder=[0] * 7, applied=[0] * 8,
+                      gripper=0.0, valid=True, mode="joint", encoder=[0] * 7,
+                      applied_velocity=[0.0] * 6, applied_gripper_velocity=0.0,
                       applied_kind="none", applied_seq=-1)  # fmt: skip
 
 

@@ -13,6 +13,7 @@ import pytest
 from manus.errors import SchemaError
 from schemas import endpoints as ep
 from schemas.base import Message
+from schemas.jog import JogCommand
 from schemas.keys import Keys, channel_types
 from schemas.planning import Path, PlanRequest, ViaPoint, ViaPointPath
 from schemas.state import JointState
@@ -20,8 +21,28 @@ from schemas.state import JointState
 TYPES = sorted({t for t in channel_types().values()}, key=lambda t: t.TYPE_NAME)
 
 
+RULED: dict[type[Message], Message] = {
+    JogCommand: JogCommand(
+        stamp_ns=1,
+        seq=1,
+        source="t",
+        kind="twist",
+        units="si",
+        frame="gripper",
+        linear=[0.1, 0.0, 0.0],
+        angular=[0.0, 0.0, 0.2],
+        gripper=0.01,
+        drink=True,
+        pour=0.1,
+    ),
+}
+"""Examples of the types whose fields depend on each other (``schema_rules``)."""
+
+
 def example(cls: type[Message]) -> Message:
     """A valid instance of ``cls`` with every field set (nested types recursively)."""
+    if cls in RULED:
+        return RULED[cls]
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
@@ -100,11 +121,11 @@ def joint_state(**changes: Any) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("changes", "match"),
     [
-        ({"position": [0.0] * 5}, r"JointState/1.position: expected 6 values, got 5"),
-        ({"gripper": "wide"}, r"JointState/1.gripper: expected a number, got 'wide'"),
-        ({"seq": -1}, r"JointState/1.seq: -1 is below the minimum 0"),
-        ({"mode": "dance"}, r"JointState/1.mode: 'dance' is not one of"),
-        ({"valid": 1}, r"JointState/1.valid: expected a boolean"),
+        ({"position": [0.0] * 5}, r"JointState/2.position: expected 6 values, got 5"),
+        ({"gripper": "wide"}, r"JointState/2.gripper: expected a number, got 'wide'"),
+        ({"seq": -1}, r"JointState/2.seq: -1 is below the minimum 0"),
+        ({"mode": "dance"}, r"JointState/2.mode: 'dance' is not one of"),
+        ({"valid": 1}, r"JointState/2.valid: expected a boolean"),
         ({"gripper": float("nan")}, r"expected a finite number"),
         ({"extra": 1}, r"unknown field\(s\) \['extra'\]"),
     ],
@@ -117,7 +138,7 @@ def test_bad_fields_are_named(changes: dict[str, Any], match: str) -> None:
 def test_missing_field_and_garbage_are_schema_errors() -> None:
     data = joint_state()
     del data["seq"]
-    with pytest.raises(SchemaError, match=r"JointState/1.seq: missing required field"):
+    with pytest.raises(SchemaError, match=r"JointState/2.seq: missing required field"):
         JointState.decode(msgpack.packb(data))
     with pytest.raises(SchemaError, match="not MessagePack"):
         JointState.decode(b"\xc1\xc1\xc1")

@@ -223,6 +223,30 @@ def test_only_the_supervisor_may_jog(lab: Lab) -> None:
     assert not [p for p in inbox.items if p.startswith(b"rogue")], inbox.items
 
 
+def test_the_panel_jogs_stops_and_runs_tasks_and_nothing_more(lab: Lab) -> None:
+    """``manus panel``'s identity acts for the supervisor on its own keys only."""
+    lab.open("router-base.json5", listen=(lab.base_tcp,), connect=())
+    sequencer = lab.client("sequencer", lab.base_tcp)
+    planner = lab.client("planner", lab.base_tcp)
+    keep = [_answering(sequencer, f"manus/sequencer/{name}") for name in ("submit", "control")]
+    keep.append(_answering(planner, "manus/planner/scene"))
+    jog, estop = Inbox(sequencer, "manus/jog"), Inbox(sequencer, "manus/estop")
+    heartbeat = Inbox(sequencer, "manus/heartbeat")
+    panel = lab.client("panel", lab.base_tcp)
+    supervisor = lab.client("supervisor", lab.base_tcp)
+    assert _put_until_received(panel, jog, "manus/jog", b"panel")
+    assert _put_until_received(panel, estop, "manus/estop", b"STOP")
+    assert _until(lambda: bool(_replies(panel, "manus/sequencer/submit", 0.3)))
+    assert _replies(panel, "manus/sequencer/control") == [b"accepted manus/sequencer/control"]
+    # not the supervisor's other rights (the scene), nor a service's (the heartbeat)
+    assert _replies(supervisor, "manus/planner/scene") == [b"accepted manus/planner/scene"]
+    assert _replies(panel, "manus/planner/scene") == []
+    panel.put("manus/heartbeat", b"rogue")
+    time.sleep(QUIET_S)
+    assert heartbeat.items == []
+    assert len(keep) == 3
+
+
 @pytest.mark.parametrize("host", ["localhost", "127.0.0.1"])
 def test_routers_linked_over_tls_pass_samples_both_ways(lab: Lab, host: str) -> None:
     lab.arm_tls = lab.arm_tls.replace("localhost", host)  # a DNS name and an IP address SAN

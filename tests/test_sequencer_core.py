@@ -22,11 +22,12 @@ from schemas.control import (
     GoalAck,
     GoalResult,
     GripperGoal,
+    ResultStatus,
     TrajectoryGoal,
 )
 from schemas.guardian import GuardianReport
 from schemas.planning import PlanRequest, PlanResume, ViaPointPath
-from schemas.sequencing import Task, TaskControl, TaskEvent, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, Task, TaskControl, TaskEvent, TaskStep
 from schemas.state import BridgeState, JointState
 from services.planner.core import PlannerCore
 from services.sequencer.actions import Action, Publish, Query
@@ -34,6 +35,7 @@ from services.sequencer.core import SequencerCore
 from services.sequencer.poses import pose_path
 from services.sequencer.taskfile import TaskFileError, parse_task_text, task_from_args
 from services.sequencer.validate import Validator
+from tests.sequencer_fakes import CAUSES
 
 ROOT = FilePath(__file__).resolve().parent.parent
 SQUARE = str(ROOT / "paths" / "thesis_square.txt")
@@ -45,7 +47,8 @@ FAR = "[3000, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2.0, 0]"  # 3 m away: unreachable
 
 def joint_state(q: list[float], seq: int = 1) -> JointState:
     return JointState(stamp_ns=seq, seq=seq, position=q, gripper=0.0, valid=True,
-                      mode="joint", encoder=[0] * 7, applied=[0] * 8, applied_kind="none",
+                      mode="joint", encoder=[0] * 7, applied_velocity=[0.0] * 6,
+                      applied_gripper_velocity=0.0, applied_kind="none",
                       applied_seq=-1)  # fmt: skip
 
 
@@ -252,6 +255,16 @@ def test_named_pose_is_the_fk_of_the_pose_and_plans() -> None:
     assert end == pytest.approx(fk(UNFOLDED, DEFAULT_ARM)[:3, 3], abs=1e-6)
 
 
+def test_a_pose_step_without_a_duration_takes_the_default() -> None:
+    """``duration`` is optional for a pose (the schema's default 0: 4 s), as for a task file."""
+    start = [0.3, *UNFOLDED[1:]]
+    task = Task(steps=[TaskStep(kind="pose", pose="home")])
+    checked = validate(task, start)
+    assert checked.errors == []
+    plan = checked.plans[0]
+    assert plan is not None and plan.times[-1] >= DEFAULT_POSE_DURATION_S
+
+
 # -- the step state machine -------------------------------------------------------------------
 
 
@@ -303,11 +316,12 @@ class Rig:
     def goals(self) -> list[Message]:
         return [q.request for q in self.sent if isinstance(q.request, TrajectoryGoal | GripperGoal)]
 
-    def result(self, status: str, reason: str = "") -> None:
+    def result(self, status: str, reason: str = "", cause: str | None = None) -> None:
         goal = self.goals()[-1]
         kind = "gripper" if isinstance(goal, GripperGoal) else "trajectory"
+        cause = cause or CAUSES[ResultStatus(status)]
         res = GoalResult(stamp_ns=self.now, seq=1, goal_id=goal.goal_id, kind=kind,  # type: ignore[attr-defined]
-                         status=status, reason=reason)  # fmt: skip
+                         status=status, cause=cause, reason=reason)  # fmt: skip
         self.feed(self.core.on_result(res, self.now))
 
     def feedback(self, t: float) -> None:

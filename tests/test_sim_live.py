@@ -1,6 +1,8 @@
 """The simulator on a real clock: LiveSim on python-can buses, the slcan pty, Zenoh truth.
 
 Only generous protocol-order checks here: no speed or jitter assertions (CI is slow).
+The sync period is still checked (20-100 ms for the nominal 60): a real-time test, in
+the live chain (marked ``slow``; it failed beside a CPU-bound worker at load 7).
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ from services.simulator.scripted import joint_move
 from services.simulator.shell import MessagePublisher, TruthPublisher
 from services.simulator.slcan import SlcanPtyBus
 from tests.conftest import eventually
+
+pytestmark = pytest.mark.slow
 
 FAST = SimConfig(gripper_ready_ms=60, angles_measured_ms=120)
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from manus.world import apply_update
+from manus.world_follower import apply_update
 from manus_stack.up import free_port
 from schemas import endpoints as ep
 from schemas.objects import Perception, WorldObject, WorldUpdate

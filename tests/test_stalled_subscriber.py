@@ -28,10 +28,10 @@ from collections.abc import Iterator
 import zenoh
 
 from manus.node import Node
-from manus.session import ZenohSettings
+from manus.session import ZenohSettings, client_settings, open_session
 from schemas import endpoints as ep
 from schemas.control import Heartbeat
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 
 SUBSCRIBER = """
 import sys, time
@@ -55,13 +55,16 @@ once told to stop (a line on stdin)."""
 
 @contextlib.contextmanager
 def _subscriber(endpoint: str, prefix: str) -> Iterator[subprocess.Popen[str]]:
-    """The :data:`SUBSCRIBER` process (10 s lease), once ready; killed on the way out if
-    it still runs."""
+    """The :data:`SUBSCRIBER` process (10 s lease), once its subscription reached the
+    router; killed on the way out if it still runs."""
     argv = [sys.executable, "-c", SUBSCRIBER, endpoint, prefix, "10000"]
     sub = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
         assert sub.stdout is not None
         assert sub.stdout.readline().strip() == "ready"
+        with open_session(client_settings(endpoint)) as probe:
+            # it subscribes to everything under the prefix: this key too, and only it
+            matched_publisher(probe, f"{prefix}/probe/stalled").undeclare()
         yield sub
     finally:
         if sub.poll() is None:
@@ -95,7 +98,10 @@ def test_a_stopped_subscriber_delays_no_one(
                     received.add(beat.seq)
 
             listener.subscribe(listener.keys(ep.HEARTBEAT), Heartbeat, on_beat, locked=False)
-            time.sleep(0.5)  # both subscriptions reach the router
+            # then one outside the prefix: declarations of one session reach the router in
+            # order, so once that one matches, the heartbeat subscription is known too
+            listener.subscribe("probe/listener", Heartbeat, on_beat, locked=False)
+            matched_publisher(node.session, "probe/listener").undeclare()
             pad = b"x" * FILLER
             os.kill(sub.pid, signal.SIGSTOP)
             try:
@@ -134,7 +140,9 @@ def test_a_slow_subscriber_loses_nothing(
         Node("publisher", zenoh_settings, liveliness=False) as node,
     ):
         beats = node.publisher(node.keys(ep.HEARTBEAT))
-        time.sleep(0.5)
+        # the router knows the subscriber (above); this publisher too before it stops
+        # (once, under two CPU hogs, it got 1 of 50 when the stop came at once)
+        eventually(lambda: bool(getattr(beats._pub.matching_status, "matching", False)), 10.0)
         os.kill(sub.pid, signal.SIGSTOP)
         try:
             for _ in range(50):

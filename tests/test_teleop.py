@@ -15,7 +15,8 @@ import pytest
 
 from manus.session import ZenohSettings
 from manus_stack.teleop import Teleop, screen
-from schemas.jog import JogCommand, JogState
+from schemas.jog import JogCaps, JogCommand, JogState
+from services.controller.jog import JogSource
 from services.controller.shell import ControllerShell
 from tests.conftest import eventually
 
@@ -25,10 +26,11 @@ MANUS = Path(sys.executable).with_name("manus")
 
 def _state(**kw: object) -> JogState:
     base: dict[str, object] = {
-        "stamp_ns": 0, "seq": 0, "active": True, "kind": "twist", "frame": "base",
-        "drink": False, "level": 3, "levels": 5, "scale": 1.0, "reason": "", "command_seq": 1,
-        "refused": 0, "deadman_stops": 0, "actual_xyz": [0.2, 0.1, 0.3],
-        "actual_ypr": [0.0, -math.pi / 3, 0.0],
+        "stamp_ns": 0, "seq": 0, "state": "running", "active": True, "cause": "",
+        "kind": "twist", "frame": "base", "drink": False, "level": 3, "levels": 5,
+        "caps": JogCaps(linear=0.09, angular=0.3, joints=0.5, gripper=0.018), "scale": 1.0,
+        "limits": [], "reason": "", "command_seq": 1, "refused": 0, "deadman_stops": 0,
+        "folded": False, "actual_xyz": [0.2, 0.1, 0.3], "actual_ypr": [0.0, -math.pi / 3, 0.0],
     }  # fmt: skip
     return JogState(**(base | kw))  # type: ignore[arg-type]
 
@@ -100,10 +102,14 @@ def test_not_a_terminal_is_refused_with_a_reason() -> None:
     assert "must be a terminal" in proc.stderr
 
 
+TMUX = ["tmux", "-L", f"manus-test-{os.getpid()}"]
+"""tmux on a server of this test process's own: the default server is shared with every
+other tmux user of the machine, whose clients can resize its windows."""
+
+
 def _tmux(*args: str) -> str:
-    return subprocess.run(
-        ["tmux", *args], capture_output=True, text=True, timeout=10, check=True
-    ).stdout
+    return subprocess.run([*TMUX, *args], capture_output=True, text=True, timeout=10,
+                          check=True).stdout  # fmt: skip
 
 
 @pytest.mark.slow
@@ -114,15 +120,15 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
 ) -> None:
     session = f"manus-jog-test-{uuid.uuid4().hex[:8]}"
     stty = tmp_path / "stty.txt"
-    script = (
-        f"stty -a > {tmp_path / 'before.txt'}; "
+    script = (  # stty -g: the settings alone (-a lays them out to the window's width)
+        f"stty -g > {tmp_path / 'before.txt'}; "
         f"{MANUS} jog --connect {router_endpoint} --prefix test; "
-        f"stty -a > {stty}; sleep 30"
+        f"stty -a > {stty}; stty -g > {tmp_path / 'after.txt'}; sleep 30"
     )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     with ControllerShell(zenoh_settings) as controller:
         subprocess.run(
-            ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
+            [*TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
              script],
             check=True, timeout=10, env=env,
         )  # fmt: skip
@@ -130,11 +136,13 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
             eventually(lambda: "manus jog" in _tmux("capture-pane", "-p", "-t", session), 20.0,
                        "the teleop's screen")  # fmt: skip
             _tmux("send-keys", "-t", session, "4")
-            eventually(lambda: controller.core.jog.level == 4, 10.0, "level 4 set")
+            eventually(lambda: controller.core.source(JogSource).level == 4, 10.0, "level 4 set")
             _tmux("send-keys", "-t", session, "w")
             # no arm: the controller refuses the jog (no joint state) and counts it
-            eventually(lambda: controller.core.jog.refused >= 1, 10.0, "the jog refused")
-            assert "no valid joint state" in controller.core.jog.reason
+            eventually(
+                lambda: controller.core.source(JogSource).refused >= 1, 10.0, "the jog refused"
+            )
+            assert "no valid joint state" in controller.core.source(JogSource).reason
             if ending == "q":
                 _tmux("send-keys", "-t", session, "q")
             else:  # the pane's shell runs the teleop as its one child
@@ -145,12 +153,13 @@ def test_manus_jog_in_a_terminal_drives_the_controller_and_restores_the_terminal
                 child = found.stdout.split()
                 assert len(child) == 1, child
                 os.kill(int(child[0]), 15)
-            eventually(lambda: stty.exists() and stty.stat().st_size > 0, 20.0, "the exit")
+            after = tmp_path / "after.txt"
+            eventually(lambda: after.exists() and after.stat().st_size > 0, 20.0, "the exit")
         finally:
-            subprocess.run(["tmux", "kill-session", "-t", session], timeout=10, check=False)
-    after = stty.read_text()
-    assert " icanon" in after and " echo " in after, after  # the terminal is restored
-    assert after == (tmp_path / "before.txt").read_text()
+            subprocess.run([*TMUX, "kill-session", "-t", session], timeout=10, check=False)
+    settings = stty.read_text()
+    assert " icanon" in settings and " echo " in settings, settings  # the terminal restored
+    assert after.read_text() == (tmp_path / "before.txt").read_text()
 
 
 @pytest.mark.slow
@@ -167,15 +176,19 @@ def test_manus_jog_plays_a_recorded_joystick_session(
     )
     with ControllerShell(zenoh_settings) as controller:
         subprocess.run(
-            ["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
+            [*TMUX, "new-session", "-d", "-s", session, "-x", "120", "-y", "30", "bash", "-c",
              script],
             check=True, timeout=10, env=dict(os.environ, PYTHONPATH=str(ROOT)),
         )  # fmt: skip
         try:
-            eventually(lambda: controller.core.jog.level == 4, 20.0, "level 4 from BTN_TR")
+            eventually(
+                lambda: controller.core.source(JogSource).level == 4, 20.0, "level 4 from BTN_TR"
+            )
             # the stick pushed forward: a jog (refused here: no arm, no joint state)
-            eventually(lambda: controller.core.jog.refused >= 1, 10.0, "the stick's jog")
+            eventually(
+                lambda: controller.core.source(JogSource).refused >= 1, 10.0, "the stick's jog"
+            )
             _tmux("send-keys", "-t", session, "q")
             eventually(lambda: done.exists() and done.read_text().strip() == "0", 20.0, "exit 0")
         finally:
-            subprocess.run(["tmux", "kill-session", "-t", session], timeout=10, check=False)
+            subprocess.run([*TMUX, "kill-session", "-t", session], timeout=10, check=False)

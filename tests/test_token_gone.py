@@ -21,6 +21,7 @@ from schemas.commands import ArmCommand
 from schemas.control import GripperGoal, Heartbeat, TrajectoryGoal
 from schemas.liveliness import TokenGone
 from schemas.state import JointState
+from services.controller.goal_source import GoalSource
 from services.recorder.writer import RecordingWriter
 from tests.bridge_scenarios import MS, UNFOLDED, VelocityController, check_safety, running
 from tests.test_fold_deadman import Mortal, fold_task_rig
@@ -110,7 +111,10 @@ def test_a_move_stops_at_once_when_its_heartbeat_senders_token_goes(offset_ms: i
     assert isinstance(record, TokenGone) and record.stopped == result[0].reason
     echo.alive = True  # back (a new sequencer): nothing resumes by itself
     arm.ls.run_for(1.0)
-    assert all(zero for _, zero in _joint_frames(arm.ls, fault)) and arm.core.run is None
+    assert (
+        all(zero for _, zero in _joint_frames(arm.ls, fault))
+        and arm.core.source(GoalSource).run is None
+    )
     check_safety(arm.ls)
 
 
@@ -150,7 +154,7 @@ def test_a_goal_with_no_heartbeat_of_its_own_yet_is_left_to_the_echo_deadman() -
                           heartbeat_timeout=0.1)  # fmt: skip
     assert arm.submit(goal).accepted
     arm.ls.run_for(0.07)
-    assert arm.core.run is not None
+    assert arm.core.source(GoalSource).run is not None
     arm.ls.token_gone("sequencer")
     assert arm.results("sq") == []
     result = arm.run_until_result("sq", timeout_s=1.0)

@@ -11,6 +11,7 @@ import pytest
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
+from manus.held import HeldBody, HeldError
 from manus.scene import default_scene, parse_scene
 from manus.validity import ValidityChecker, checker_for
 
@@ -66,7 +67,7 @@ def test_the_tightest_check_names_what_coal_names_when_it_is_clear_cut() -> None
 
 def test_per_body_margins_bound_coals_per_body_margins() -> None:
     Q = random_configurations(300, seed=5)
-    moving = [MODEL.shapes[i].name for i in MODEL._moving]
+    moving = [MODEL.shapes[i].name for i in MODEL.moving]
     assert FAST.bodies == moving
     for q in Q:
         free, tight, _ = MODEL.pair_margins(q)
@@ -113,25 +114,74 @@ def test_a_motion_into_the_table_stops_before_it() -> None:
 
 
 def test_a_held_object_counts_as_part_of_the_gripper() -> None:
-    model = CollisionModel(default_scene(), DEFAULT_ARM)
-    fast = ValidityChecker(model)
-    Q = random_configurations(500, seed=13)
-    before = fast.is_valid_batch(Q)
     # A 400 mm rod held along the approach axis, reaching far past the fingers.
-    placement = np.eye(4)
-    placement[2, 3] = DEFAULT_ARM.l4 + 0.2
-    fast.add_body("rod", 6, "cylinder", (0.03, 0.4), placement)
+    rod = HeldBody("rod", "rod", "cylinder", (0.03, 0.4), (0.0, 0.0, 0.2), (0.0, 0.0, 0.0))
+    model = MODEL.holding([rod])
+    fast = checker_for(model)
+    Q = random_configurations(500, seed=13)
+    before = FAST.is_valid_batch(Q)
     after = fast.is_valid_batch(Q)
     assert fast.bodies[-1] == "rod" and len(fast.margins(UNFOLDED).free) == 7
     assert not np.any(after & ~before) and after.sum() < before.sum()
-    rod = {
+    rod_checks = {
         fast.check_of(*w)
         for w, ok in zip(fast.margins_batch(Q).which, after, strict=True)
         if not ok
     }
-    assert any(c.body == "rod" for c in rod)
-    with pytest.raises(ValueError, match="exists already"):
-        fast.add_body("rod", 6, "sphere", (0.01,), np.eye(4))
+    assert any(c.body == "rod" for c in rod_checks)
+    with pytest.raises(HeldError, match="'gripper': an arm body"):
+        MODEL.holding([rod._replace(name="gripper")])
+
+
+@pytest.mark.parametrize(
+    "held",
+    [
+        HeldBody("cup", "cup", "cylinder", (0.035, 0.12), (0.0, 0.0, 0.0), (0.0, 0.0, 1.5708)),
+        HeldBody("rod", "rod", "capsule", (0.02, 0.35), (0.0, 0.02, 0.0), (0.0, 0.0, 1.5708)),
+        HeldBody("box", "box", "box", (0.08, 0.3, 0.05), (0.0, 0.0, -0.01), (0.3, 0.0, 0.0)),
+    ],
+    ids=lambda h: h.name,
+)
+def test_the_fast_check_stays_conservative_with_a_held_body(held: HeldBody) -> None:
+    """Held bodies of each shape, checked against the arm's moving bodies too (its
+    forearm, wrist, gripper motor): never valid where Coal (with the same held body)
+    finds a clearance broken, no bound above Coal's margin, per body either."""
+    model = MODEL.holding([held])
+    fast = checker_for(model)
+    Q = random_configurations(600, seed=29)
+    valid = fast.is_valid_batch(Q)
+    exact = exact_margins(Q, model)
+    clear = exact >= 0.0
+    assert not np.any(valid & ~clear), "the fast check called a violation free"
+    assert np.all(fast.margins_batch(Q).tight[clear] <= exact[clear])
+    assert (clear & ~valid).sum() < 0.1 * clear.sum()
+    names = {fast.check_of(*w) for w in fast.margins_batch(Q[~valid]).which}
+    assert {"forearm", "table", "head"} <= {c.other for c in names if c.body == held.name}
+    for q in Q[clear][:150]:
+        free, _, _ = model.pair_margins(q)  # the held body's mutual pairs halved, as here
+        keep_in = min((m for m, _ in model.keep_in_margins()), default=math.inf)
+        assert np.all(fast.margins(q).free <= np.maximum(free, keep_in) + 1e-12)
+
+
+def test_motions_with_a_held_body_are_proven_only_where_a_dense_exact_check_finds_them_clear() -> (
+    None
+):
+    """The held body and the forearm both move: their pair's margin is shared between
+    them, so a proof of a motion that brings the held body to the forearm holds too."""
+    rod = HeldBody("rod", "rod", "capsule", (0.02, 0.3), (0.0, 0.0, 0.05), (0.0, 1.5708, 0.0))
+    model = MODEL.holding([rod])
+    fast = checker_for(model)
+    rng = np.random.default_rng(17)
+    Q = random_configurations(300, seed=18)
+    proven = 0
+    for a in Q[fast.is_valid_batch(Q)][:50]:
+        b = a + rng.uniform(-0.6, 0.6, 6)
+        b[4] += rng.choice([-1.5, 1.5])  # the wrist swings the rod past the forearm
+        found = fast.motion_valid(a, b)
+        dense = exact_margins(a + np.linspace(0.0, 1.0, 101)[:, None] * (b - a), model)
+        proven += found.ok
+        assert dense[: int(found.fraction * 100) + found.ok].min(initial=math.inf) >= 0.0
+    assert proven > 5
 
 
 def test_the_gripper_opening_of_the_model_is_followed() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import dataclasses
 import json
 import math
 import struct
@@ -29,16 +30,16 @@ from manus.node import Node
 from manus.orientation import rot_z, ypr_to_matrix
 from manus.scene import Scene, default_scene, default_scene_path, parse_scene
 from manus.session import ZenohSettings
-from manus.urdf import build_urdf
+from manus.urdf import GRIPPER_FRAME, build_urdf
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
+from schemas.objects import WorldObject, WorldUpdate
 from schemas.state import JointState
 from services.recorder.reading import Recording, decode
 from services.viewer.config import ViewerConfig
 from services.viewer.core import GOAL_REQUEST, FoxMessage, ViewerCore
 from services.viewer.layout import LAYOUT_FILE, layout_json
 from services.viewer.model import (
-    GRIPPER_FRAME,
     LINK_NAMES,
     ROOT_FRAME,
     build_visual_urdf,
@@ -47,7 +48,7 @@ from services.viewer.model import (
 )
 from services.viewer.server import URDF_URI
 from services.viewer.shell import ViewerShell
-from tests.conftest import eventually
+from tests.conftest import eventually, matched_publisher
 from tests.foxglove_client import SUBPROTOCOL, Received, collect, protobuf_decoder
 
 DATA = Path(__file__).parent / "data"
@@ -198,7 +199,11 @@ def test_scene_entities_sit_where_the_default_scene_puts_them() -> None:
     assert [wheel["pose"]["position"][k] for k in "xyz"] == pytest.approx([-0.425, -0.02, -0.675])
     assert [wheel["size"][k] for k in "xyz"] == pytest.approx([0.65, 0.22, 0.55])
     assert ents["object/head"]["cubes"] == [] and len(ents["object/forearm_right"]["spheres"]) == 2
-    assert [d.topic for d in core.describe(5)] == ["manus/viz/robot_description", "manus/viz/scene"]
+    assert [d.topic for d in core.describe(5)] == [
+        "manus/viz/robot_description",
+        "manus/viz/scene",
+        "manus/viz/objects",
+    ]
     assert ViewerCore(ViewerConfig(scene="none")).scene_update(1).data != msg.data
 
 
@@ -222,6 +227,50 @@ def test_a_scene_state_replaces_every_entity_and_garbage_is_counted() -> None:
     outs = core.on_sample("manus/planner/scene_state", bad, 78)
     assert [o.topic for o in outs] == ["manus/viz/log"]  # a warning; the scene stays
     assert core.stats.bad_payloads == {"planner/scene_state": 1} and core.scene.version == 3
+
+
+def test_objects_are_drawn_free_where_seen_and_held_in_the_gripper_frame() -> None:
+    """``planner/objects``: a free cup in base_link where perception saw it, a held
+    bottle in gripper_frame (frame-locked: it moves with the gripper), every update
+    drawing the whole set again; a diff it cannot apply draws nothing."""
+    core = ViewerCore()
+    cup = WorldObject("cup", "cup", "cylinder", [0.04, 0.1], [0.9, -0.3, 0.79], [0.0, 0.0, 0.0],
+                      0.9, 10, "camera")  # fmt: skip
+    bottle = WorldObject("bottle", "bottle", "cylinder", [0.035, 0.25], [0.0, 0.01, 0.0],
+                         [0.0, 0.0, 1.5], 0.8, 20, "arm", link="gripper_frame",
+                         touch_links=["gripper"])  # fmt: skip
+    whole = WorldUpdate(stamp_ns=20, version=3, base_version=-1, objects=[cup, bottle])
+    (msg,) = [o for o in core.on_sample("manus/planner/objects", whole.encode(), 5)
+              if o.topic == "manus/viz/objects"]  # fmt: skip
+    update = protobuf_decoder(_advert(msg))(msg.data)
+    assert update["deletions"][0]["type"] == "ALL"
+    ents = _entities_by_id(update)
+    assert set(ents) == {"world/cup", "world/bottle"}
+    free, held = ents["world/cup"], ents["world/bottle"]
+    assert free["frame_id"] == ROOT_FRAME and held["frame_id"] == "gripper_frame"
+    assert held["frame_locked"] is True
+    meta = {kv["key"]: kv["value"] for kv in held["metadata"]}
+    assert (meta["state"], meta["link"], meta["touch_links"]) == (
+        "held",
+        "gripper_frame",
+        "gripper",
+    )
+    (cyl,) = free["cylinders"]
+    want = np.linalg.inv(default_scene().mount) @ _matrix([0.9, -0.3, 0.79], [0, 0, 0, 1])
+    np.testing.assert_allclose(_pose_of(cyl), want, atol=1e-9)
+    (cyl,) = held["cylinders"]
+    assert [cyl["pose"]["position"][k] for k in "xyz"] == pytest.approx([0.0, 0.01, 0.0])
+    assert [cyl["size"][k] for k in "xyz"] == pytest.approx([0.07, 0.07, 0.25])
+    # Released: a diff; then one from another version (missed): nothing drawn.
+    released = dataclasses.replace(bottle, link="", xyz=[0.8, -0.2, 0.86], touch_links=[])
+    diff = WorldUpdate(stamp_ns=30, version=4, base_version=3, objects=[released])
+    outs = core.on_sample("manus/planner/objects", diff.encode(), 6)
+    update = protobuf_decoder(_advert(outs[-1]))(outs[-1].data)
+    assert {e["frame_id"] for e in update["entities"]} == {ROOT_FRAME}
+    stray = WorldUpdate(stamp_ns=40, version=9, base_version=8, objects=[])
+    assert [o.topic for o in core.on_sample("manus/planner/objects", stray.encode(), 7)] == [
+        "manus/planner/objects"
+    ]  # forwarded as JSON, not drawn
 
 
 # -- the model -----------------------------------------------------------------------------
@@ -530,7 +579,7 @@ def test_live_viewer_serves_the_arm_to_a_foxglove_client(zenoh_settings: ZenohSe
     assert got.channels[tf_topic]["schemaName"] == FrameTransforms.get_schema().name
     assert got.channels[tf_topic]["encoding"] == "protobuf"
     assert got.channels[planned_topic]["schemaName"] == SceneUpdate.get_schema().name
-    assert got.channels[joints_topic]["schemaName"] == "manus/JointState/1"
+    assert got.channels[joints_topic]["schemaName"] == "manus/JointState/2"
     assert got.channels[joints_topic]["schemaEncoding"] == "jsonschema"
     # the links follow the forward kinematics of the recorded joint states, in order
     tfs = got.messages[tf_topic]
@@ -561,7 +610,7 @@ def test_viewer_drops_and_counts_when_its_queue_is_full(zenoh_settings: ZenohSet
         viewer._stop.set()  # the worker stops taking: every sample past the first is dropped
         viewer._thread.join()
         with Node("pub", zenoh_settings) as node:
-            pub = node.session.declare_publisher(f"{zenoh_settings.prefix}/state/joints")
+            pub = matched_publisher(node.session, f"{zenoh_settings.prefix}/state/joints")
             for _ in range(50):
                 pub.put(b"x")
             eventually(lambda: viewer.received == 50, 5.0, "50 samples received")

@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from manus.errors import ConfigError
-from manus.world import FULL, WorldConfig, WorldError, WorldModel, apply_update
+from manus.world import WorldConfig, WorldModel
+from manus.world_follower import FULL, WorldError, apply_update
 from schemas import endpoints as ep
 from schemas.objects import ObservedObject, Perception, WorldObject, WorldUpdate
 from services.planner.config import PlannerConfig

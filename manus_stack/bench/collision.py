@@ -30,7 +30,7 @@ import pinocchio as pin
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.joint_map import dh_increments_to_encoder
-from manus.quantize import COUNT_RAD_S
+from manus.quantize import COUNT_RAD_S, step_rates
 from manus.scene import default_scene
 from manus.sweep import exact_sweep, sweep
 from manus.viapoints import load_path
@@ -146,7 +146,7 @@ def _guard(request: PlanRequest) -> dict[str, Any]:
             if force:
                 guard.advance.forget()
             started = time.perf_counter()
-            guard.filter(list(Q[k]), [float(c) for c in counts[k - 1]], counts[k], 0.0)
+            guard.filter(list(Q[k]), step_rates(counts[k - 1].tolist()), counts[k], 0.0)
             out.append(time.perf_counter() - started)
         return out
 

@@ -13,6 +13,11 @@
   below Coal's where Coal finds them clear.
 - ``motion``: :meth:`ValidityChecker.motion_valid` between seeded pairs of valid
   configurations up to 0.5 rad apart per joint: time per motion, how many are proven.
+- ``held``: the same with a cup held across the gripper's jaws (radius 40, length 100
+  mm; :class:`manus.held.HeldBody`): building the model and checker that carry it (what
+  the guard, the planner and the fold check pay at an attach), the one-call and batched
+  costs against Coal's ``tightest`` with it, and the conservativeness on a tenth as many
+  configurations.
 - ``first_call``: building the first checker in a fresh process with an empty numba
   cache (compiling every kernel) and again with the cache filled (what a service pays
   at start-up).
@@ -31,6 +36,7 @@ import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
+from manus.held import HeldBody
 from manus.scene import default_scene
 from manus.validity import MOTION_FLOOR_M, SLACK_M, ValidityChecker
 
@@ -153,6 +159,35 @@ def _motion(fast: ValidityChecker, n: int) -> dict[str, Any]:
     }
 
 
+CUP = HeldBody("cup", "cup", "cylinder", (0.04, 0.1), (0.0, 0.0, 0.0), (0.0, 0.0, np.pi / 2))
+"""A cup held across the jaws (its axis along the gripper frame's y)."""
+
+
+def _held(model: CollisionModel, n: int) -> dict[str, Any]:
+    builds = []
+    for _ in range(20):
+        started = time.perf_counter()
+        held = model.holding([CUP])
+        fast = ValidityChecker(held)
+        builds.append(time.perf_counter() - started)
+    Q = seeded(2000, seed=2026, near=0.0)
+    tightest = _us(_one_by_one(held.tightest, Q))
+    batched = _us(_batched(fast.is_valid_batch, Q))
+    return {
+        "held": CUP.name,
+        "build_ms": {
+            "p50": round(float(np.percentile(builds, 50)) * 1e3, 2),
+            "max": round(max(builds) * 1e3, 2),
+        },
+        "coal_tightest": tightest,
+        "fast_is_valid": _us(_one_by_one(fast.is_valid, Q)),
+        "fast_margins": _us(_one_by_one(fast.margins, Q)),
+        "fast_is_valid_batch": batched,
+        "speedup_batched": round(tightest["p50_us"] / batched["p50_us"], 1),
+        "conservative": _conservative(held, fast, n),
+    }
+
+
 _BUILD = (
     "import time; t = time.perf_counter(); "
     "from manus.collision import CollisionModel; from manus.config import DEFAULT_ARM; "
@@ -187,6 +222,7 @@ def run(quick: bool = False) -> dict[str, Any]:
         "per_configuration": _per_configuration(model, fast),
         "conservative": _conservative(model, fast, 10_000 if quick else 100_000),
         "motion": _motion(fast, 200 if quick else 1000),
+        "held": _held(model, 1000 if quick else 10_000),
         "first_call": _first_call(),
         "target": TARGET,
     }

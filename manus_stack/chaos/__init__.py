@@ -7,5 +7,7 @@ back to back while a seeded schedule injects faults, judged on the simulator's t
   prefix (hashed, for the recording's completeness), the truth, task events, tokens;
 - :mod:`~manus_stack.chaos.judge`: the invariants, pure functions of what was watched;
 - :mod:`~manus_stack.chaos.soak`: injects each fault into the running processes and
-  makes the documented recovery.
+  makes the documented recovery;
+- :mod:`~manus_stack.chaos.verdict`: judges every round of a finished soak and the
+  recordings' completeness (the bench's figures).
 """

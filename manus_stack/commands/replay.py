@@ -1,7 +1,8 @@
 """``manus replay FILE.mcap``: publish a recording onto the bus (see
 :mod:`services.recorder.replay_cli`), or, with ``--check SERVICE``, feed its inputs to
 that service's core and compare the outputs with the recorded ones
-(:mod:`manus_stack.regression`): prints the result as JSON, exits 1 on a difference; or,
+(:mod:`manus_stack.regression`): prints the result as JSON (with the float tolerance
+and the largest deviation accepted), exits 1 on a difference; or,
 with ``--view``, show it in Foxglove as ``manus view`` shows the live arm
 (:mod:`manus_stack.view_replay`; nothing goes on the bus)."""
 
@@ -66,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
         "recorded": result.recorded,
         "replayed": result.replayed,
         "difference": None if result.difference is None else str(result.difference),
+        "tolerance": result.tolerance.relative,
+        "deviation": result.deviation,
     }
     sys.stdout.write(json.dumps(out, indent=2) + "\n")
     return 0 if result.ok else 1

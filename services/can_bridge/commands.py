@@ -1,9 +1,10 @@
 """Velocity commands -> the 0x374 the arm gets, and the freshness rule.
 
-A :class:`schemas.commands.JointVelocityCommand` either carries ``counts`` (already
-quantized by the sender: lift, motors 1..6, gripper) which are only range-checked, or
-DH joint velocities [rad/s] and a gripper velocity [m/s] which the bridge converts with
-the joint map, saturates by one common factor and quantizes (:mod:`manus.quantize`).
+The CAN edge of the command path: a :class:`schemas.commands.JointVelocityCommand`
+carries DH joint velocities [rad/s] and a gripper velocity [m/s], which the bridge turns
+into the arm's speed steps (:mod:`manus.quantize`): through the joint map, saturated by
+one common factor, quantized. Velocities on the steps (the controller chooses them) come
+out exactly as chosen.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from manus.errors import ManusError
-from manus.protocol import FrameId, MoveCommand, move_limits
+from manus.protocol import FrameId, MoveCommand
 from manus.quantize import (
     JOINT_COUNT_MAX,
     Quantizer,
@@ -22,8 +23,6 @@ from manus.quantize import (
     saturate,
 )
 from schemas.commands import JointVelocityCommand
-
-_NAMES = ("lift", "motor 1", "motor 2", "motor 3", "motor 4", "motor 5", "motor 6", "gripper")
 
 
 class CommandError(ManusError, ValueError):
@@ -36,16 +35,6 @@ def to_move(cmd: JointVelocityCommand, quantizer: Quantizer) -> MoveCommand:
     Raises:
         CommandError: naming the field, the value and the allowed range.
     """
-    if cmd.counts is not None:
-        limits = move_limits(FrameId.JOINT)
-        for name, v, lim in zip(_NAMES, cmd.counts, limits, strict=True):
-            if not -lim <= v <= lim:
-                raise CommandError(
-                    f"command seq {cmd.seq} from {cmd.source!r}: counts {name} = {v} "
-                    f"outside -{lim}..{lim}"
-                )
-        lift, a1, a2, a3, a4, a5, a6, grip = (int(v) for v in cmd.counts)
-        return MoveCommand(FrameId.JOINT, lift, (a1, a2, a3, a4, a5, a6), grip)
     try:
         counts = quantizer(saturate(joint_rates_to_counts(np.asarray(cmd.velocity))))
         grip = gripper_counts(cmd.gripper_velocity)

@@ -22,14 +22,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from manus.deadman import tied_to, token_gone
+from manus.deadman import Echo, tied_to, token_gone
 from manus.protocol import (
     REPLY_IDS,
-    ZERO_JOINT_MOVE,
     Frame,
     FrameId,
     Mode,
-    decode_move,
     decode_position,
     decode_status,
     move_frame,
@@ -40,23 +38,17 @@ from schemas.base import Message
 from schemas.commands import ArmCommand, ArmCommandReply, EStop, JointVelocityCommand
 from schemas.control import Heartbeat
 from schemas.liveliness import TokenGone
-from schemas.state import CanFrame
 from services.can_bridge.commands import CommandError, PendingCommand, is_fresh, to_move
 from services.can_bridge.config import BridgeConfig
 from services.can_bridge.cycle import Cycle, CycleAssembler, Placement
+from services.can_bridge.executed import NOTHING, latched
 from services.can_bridge.health import WINDOW_NS, Health
-from services.can_bridge.phases import MS, PhaseMachine, Reply
-from services.can_bridge.reports import arm_status, encoder_fields, joint_state
+from services.can_bridge.phases import MS, PhaseMachine
+from services.can_bridge.plausible import FieldCheck
+from services.can_bridge.replies import Reply, zeros
+from services.can_bridge.reports import arm_status, can_frame, encoder_fields, joint_state
 
 __all__ = ["BridgeConfig", "BridgeCore", "Outputs"]
-
-_APPLIED_KIND = {
-    FrameId.JOINT: "joint",
-    FrameId.STOP: "stop",
-    FrameId.FOLD_IN: "fold_in",
-    FrameId.FOLD_OUT: "fold_out",
-}
-_NO_COUNTS = (0, 0, 0, 0, 0, 0, 0, 0)
 
 
 @dataclass
@@ -77,8 +69,8 @@ class BridgeCore:
 
     Args:
         config: settings.
-        quantizer: turns float motor counts into integers for commands without
-            ``counts`` (default: :class:`manus.quantize.RoundingQuantizer`).
+        quantizer: turns the commands' velocities into the arm's speed steps (default:
+            :class:`manus.quantize.RoundingQuantizer`; exact for velocities on the steps).
     """
 
     def __init__(self, config: BridgeConfig | None = None, quantizer: Quantizer | None = None):
@@ -97,12 +89,11 @@ class BridgeCore:
         self._last_reply_sent_ns: int | None = None
         self._last_sync_ns: int | None = None
         self._last_arm_ns: int | None = None
-        self._applied: tuple[tuple[int, ...], str, int] = (_NO_COUNTS, "none", -1)
+        self._applied = NOTHING  # what the arm latched at the last sync (:mod:`.executed`)
         self._status: tuple[int, Frame] | None = None  # (cycle index, accepted 0x350)
-        self._ref: tuple[tuple[int, ...], int] | None = None  # plausible fields, cycle
-        self._rejected: tuple[tuple[int, ...], int] | None = None
-        self._echo_ns: int | None = None  # joint-state stamp the newest heartbeat echoes
-        self._echo_source = ""  # who sent that heartbeat (its alive/<source> token)
+        self.fields = FieldCheck(cfg.max_field_step)
+        """The plausibility of the position fields (:mod:`.plausible`)."""
+        self._echo = Echo()  # the newest heartbeat's echo and its sender
         self._state_cycle = -1  # index of the cycle of the newest joint state
         self._report_ns = 0  # stamp of the newest bridge state (kept monotonic)
 
@@ -136,7 +127,7 @@ class BridgeCore:
         out = Outputs()
         self.phases.start(now_ns)
         self._seq[ep.CAN_RX] += 1
-        out.messages.append((ep.CAN_RX, _can_frame(frame, frame.t_ns, self._seq[ep.CAN_RX] - 1)))
+        out.messages.append((ep.CAN_RX, can_frame(frame, frame.t_ns, self._seq[ep.CAN_RX] - 1)))
         if frame.id in REPLY_IDS and not frame.remote:
             self._other_node(frame)
             self._report(now_ns, out)
@@ -185,9 +176,7 @@ class BridgeCore:
     def on_heartbeat(self, hb: Heartbeat, rx_ns: int) -> Outputs:
         """The supervisor's deadman heartbeat: the newest joint state it echoes is judged
         at the next joint state of a fold with a deadman (:mod:`.fold_deadman`)."""
-        if self._echo_ns is None or hb.ref_stamp_ns > self._echo_ns:
-            self._echo_ns = hb.ref_stamp_ns
-            self._echo_source = hb.source
+        self._echo.heard(hb.ref_stamp_ns, hb.source)
         return Outputs()
 
     def on_token_gone(self, service: str, rx_ns: int) -> Outputs:
@@ -201,7 +190,7 @@ class BridgeCore:
         deadman = self.phases.fold_deadman
         stopped = ""
         if deadman is not None and tied_to(
-            service, self._echo_source, deadman.since_ns, self._echo_ns
+            service, self._echo.source, deadman.since_ns, self._echo.ns
         ):
             self.phases.stop_fold(token_gone(service))
             stopped = self.phases.detail
@@ -264,12 +253,7 @@ class BridgeCore:
         if self._last_reply_sync_ns == sync:
             self.health.preempted_replies += 1
             self.phases.detail, self.phases.changed = "another node's reply preempted ours", True
-        fid = FrameId(frame.id)
-        counts = _NO_COUNTS
-        if fid == FrameId.JOINT and len(frame.data) == 8:
-            mv = decode_move(fid, frame.data)
-            counts = (mv.lift, *mv.axes, mv.gripper)
-        self._applied = (counts, _APPLIED_KIND.get(fid, "none"), -1)
+        self._applied = latched(frame)
 
     def _count(self, p: Placement) -> None:
         h = self.health
@@ -327,25 +311,17 @@ class BridgeCore:
         self._state_cycle = cycle.index
         out.messages.insert(0, (ep.JOINTS, js))
         deadman = self.phases.fold_deadman
-        lost = deadman.on_joint_state(frame.t_ns, seq, self._echo_ns) if deadman else None
+        lost = deadman.on_joint_state(frame.t_ns, seq, self._echo.ns) if deadman else None
         if lost is not None:
             self.phases.stop_fold(lost)
 
     def _plausible(self, fields: tuple[int, ...], cycle: Cycle) -> bool:
-        """Position fields may move at most ``max_field_step`` per cycle from the last
-        accepted ones; two consecutive cycles that agree with each other re-base."""
+        """Position fields may move at most ``max_field_step`` per cycle (:mod:`.plausible`)."""
         if not self.phases.positions_valid:
-            self._ref, self._rejected = None, None
+            self.fields.reset()
             return True
-        step = self.config.max_field_step
-        ref, rejected = self._ref, self._rejected
-        if ref is None or _near(fields, ref[0], step * (cycle.index - ref[1])):
-            self._ref, self._rejected = (fields, cycle.index), None
+        if self.fields.accept(fields, cycle.index):
             return True
-        if rejected is not None and _near(fields, rejected[0], step * (cycle.index - rejected[1])):
-            self._ref, self._rejected = (fields, cycle.index), None
-            return True
-        self._rejected = (fields, cycle.index)
         self.health.garbled_frames += 1
         cycle.faults.append("position fields jumped further than the arm can move")
         return False
@@ -397,18 +373,13 @@ class BridgeCore:
         if pending is not None and self._fresh(sync_ns):
             return move_frame(pending.move), pending.cmd.seq
         self.health.stale_commands += 1
-        return move_frame(ZERO_JOINT_MOVE), -1
+        return zeros()
 
     def _emit(self, frame: Frame, now_ns: int, out: Outputs, cmd_seq: int = -1) -> None:
         out.frames.append(frame)
         self._seq[ep.CAN_TX] += 1
-        out.messages.append((ep.CAN_TX, _can_frame(frame, now_ns, self._seq[ep.CAN_TX] - 1)))
-        fid = FrameId(frame.id)
-        counts = _NO_COUNTS
-        if fid == FrameId.JOINT:
-            mv = decode_move(fid, frame.data)
-            counts = (mv.lift, *mv.axes, mv.gripper)
-        self._applied = (counts, _APPLIED_KIND.get(fid, "none"), cmd_seq)
+        out.messages.append((ep.CAN_TX, can_frame(frame, now_ns, self._seq[ep.CAN_TX] - 1)))
+        self._applied = latched(frame, cmd_seq)
 
     # -- reports --------------------------------------------------------------------------
 
@@ -427,18 +398,3 @@ class BridgeCore:
             stamp_ns=self._report_ns, seq=seq, phase=ph.phase, estop=ph.estop, detail=ph.detail
         )
         out.messages.append((ep.BRIDGE_STATE, state))
-
-
-def _near(a: tuple[int, ...], b: tuple[int, ...], limit: int) -> bool:
-    return all(abs(x - y) <= limit for x, y in zip(a, b, strict=True))
-
-
-def _can_frame(frame: Frame, stamp_ns: int, seq: int) -> CanFrame:
-    return CanFrame(
-        stamp_ns=stamp_ns,
-        seq=seq,
-        id=frame.id & 0x7FF,
-        data=frame.data,
-        remote=frame.remote,
-        dlc=min(frame.dlc, 8),
-    )

@@ -26,14 +26,10 @@ the bridge state after each input that changed something.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 from manus.protocol import (
     ERROR_TEXT,
     GEN_ANGLES_MEASURED,
-    GEN_FOLDED,
-    GEN_UNFOLDED,
-    GENERAL_TEXT,
     ZERO_JOINT_MOVE,
     Frame,
     FrameId,
@@ -47,36 +43,16 @@ from manus.protocol import (
 from schemas.commands import ArmCommand, EStop
 from services.can_bridge.config import BridgeConfig
 from services.can_bridge.cycle import Cycle
+from services.can_bridge.fold import Fold
 from services.can_bridge.fold_deadman import FoldDeadman
 from services.can_bridge.health import Health
+from services.can_bridge.replies import Reply, stop, zeros
 from services.can_bridge.reports import mode_name
 
 MS = 1_000_000
 START_UP = ("opening", "waiting_power_up", "entering_joint_mode", "initialising")
 """Phases before the first ``running``: positions are not valid yet."""
-_FOLD_FRAME = {"fold_out": FrameId.FOLD_OUT, "fold_in": FrameId.FOLD_IN}
-_FOLD_DONE = {"fold_out": GEN_UNFOLDED, "fold_in": GEN_FOLDED}
 _MOVE_MODES = (Mode.JOINT, Mode.FOLD_IN, Mode.FOLD_OUT)
-
-Reply = tuple[Frame, int]
-"""A frame for the current sync and the seq of the velocity command it carries (-1)."""
-
-
-def _zeros() -> Reply:
-    return move_frame(ZERO_JOINT_MOVE), -1
-
-
-def _stop() -> Reply:
-    return empty_frame(FrameId.STOP), -1
-
-
-@dataclass
-class _Fold:
-    kind: str  # "fold_out" | "fold_in"
-    start_ns: int
-    stage: str = "folding"  # then "stopping" (0x370 next), "rejoining" (zero 0x374)
-    zero_sent_ns: int | None = None
-    deadman: FoldDeadman | None = None
 
 
 class PhaseMachine:
@@ -105,7 +81,7 @@ class PhaseMachine:
         self._zero_sent_ns: int | None = None
         self._init_step = 0
         self._estop_zero_sent = False
-        self._fold: _Fold | None = None
+        self._fold: Fold | None = None
         self._clean_run = 0
         self._silent = False
         self._shutdown_stage = 0  # 1: zeros next, 2: 0x370 next, 3: done
@@ -163,8 +139,7 @@ class PhaseMachine:
         elif self.phase in ("running", "resync") and not joint:
             cycle.faults.append(f"arm reports mode {mode_name(st.mode)}, expected joint")
         fold = self._fold
-        zero_ns = fold.zero_sent_ns if fold is not None and fold.stage == "rejoining" else None
-        if fold is not None and joint and zero_ns is not None and t_ns > zero_ns:
+        if fold is not None and fold.rejoined(joint, t_ns):
             self._fold = None
             self._set("running", f"{fold.kind} complete")
 
@@ -189,7 +164,7 @@ class PhaseMachine:
             return self._shutdown_reply()
         self._power_up_timeout(sync_ns)
         if self.phase == "running":
-            return command() if clean else _zeros()
+            return command() if clean else zeros()
         reply = _PHASE_REPLIES.get(self.phase, PhaseMachine._stop_reply)
         return reply(self, sync_ns, clean)
 
@@ -271,7 +246,7 @@ class PhaseMachine:
             return False, f"arm error ({self.detail}): clear it first"
         if self.phase in START_UP:
             return False, f"the bridge is not ready yet (phase {self.phase})"
-        self._fold = _Fold(action, rx_ns)
+        self._fold = Fold(action, rx_ns)
         deadman = ""
         if timeout > 0.0:
             self._fold.deadman = FoldDeadman(timeout, self.config.fold_missed_cycles_to_stop)
@@ -299,34 +274,33 @@ class PhaseMachine:
         if self._leftover_stop_sent:
             return None
         self._leftover_stop_sent = True
-        return _stop()
+        return stop()
 
     def _joint_mode_reply(self, sync_ns: int, clean: bool) -> Reply:
         self._zero_sent_ns = sync_ns
-        return _zeros()
+        return zeros()
 
     def _resync_reply(self, sync_ns: int, clean: bool) -> Reply:
         self._clean_run = self._clean_run + 1 if clean else 0
         if self._clean_run >= self.config.clean_cycles_to_resume:
             self._set("running", f"in step again after {self._clean_run} clean cycles")
-        return _zeros()
+        return zeros()
 
     def _estop_reply(self, sync_ns: int, clean: bool) -> Reply:
         if not self._estop_zero_sent:
             self._estop_zero_sent = True
-            return _zeros()
-        return _stop()
+            return zeros()
+        return stop()
 
     def _stop_reply(self, sync_ns: int, clean: bool) -> Reply:
-        return _stop()  # stopped, arm_error
+        return stop()  # stopped, arm_error
 
     def _general(self, code: int) -> None:
         if code == GEN_ANGLES_MEASURED:
             self.powered = True
-        fold = self._fold
-        if fold is not None and fold.stage == "folding" and code == _FOLD_DONE[fold.kind]:
-            fold.stage = "stopping"
-            self._note(f"{fold.kind}: the arm reports '{GENERAL_TEXT[code]}': 0x370 next")
+        note = self._fold.reported(code) if self._fold is not None else None
+        if note is not None:
+            self._note(note)
 
     def _arm_error(self, code: int) -> None:
         if self.phase in ("arm_error", "shutdown"):
@@ -353,36 +327,27 @@ class PhaseMachine:
     def _init_reply(self, sync_ns: int, clean: bool) -> Reply:
         moves = self.config.init_moves
         if not clean or self._init_step > len(moves):
-            return _zeros()
+            return zeros()
         if self._init_step == len(moves):
             self.initialised = True
             self._set("running", "initialised: commands reach the arm")
-            return _zeros()
+            return zeros()
         m = moves[self._init_step]
         self._init_step += 1
         return move_frame(MoveCommand(FrameId.JOINT, 0, (0, 0, 0, m, m, m), 0)), -1
 
     def _fold_reply(self, sync_ns: int, clean: bool) -> Reply:
-        fold = self._fold
-        assert fold is not None
-        if fold.stage == "stopping":
-            fold.stage = "rejoining"
-            return _stop()
-        if fold.stage == "rejoining":
-            fold.zero_sent_ns = sync_ns
-            return _zeros()
-        if not clean:
-            return _zeros()
-        return empty_frame(_FOLD_FRAME[fold.kind]), -1
+        assert self._fold is not None
+        return self._fold.reply(sync_ns, clean)
 
     def _shutdown_reply(self) -> Reply | None:
         if self._shutdown_stage == 1:
             self._shutdown_stage = 2
-            return _zeros()
+            return zeros()
         if self._shutdown_stage == 2:
             self._shutdown_stage = 3
             self._set("shutdown", "zeros and 0x370 sent")
-            return _stop()
+            return stop()
         return None
 
     def _rejoin(self, why: str) -> None:

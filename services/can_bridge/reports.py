@@ -1,10 +1,12 @@
-"""From the arm's frames to SI messages: joint state and arm status.
+"""From the arm's frames to SI messages: joint state, arm status, the frames themselves.
 
 Frames and units: docs/protocol.md, Frames from the arm; Encoder map.
 
 Joint fields are motor angles in 0.1 deg; the joint map (:mod:`manus.joint_map`) turns
 them into DH angles [rad]. The gripper field is the opening in 0.1 mm (the project's
-choice), published in metres.
+choice), published in metres. The speed steps the arm executes are published as DH
+joint and gripper velocities (:func:`manus.quantize.step_rates`): past the bridge,
+every service sees SI only.
 """
 
 from __future__ import annotations
@@ -17,13 +19,15 @@ from manus.joint_map import encoder_to_dh
 from manus.protocol import (
     GRIPPER_UNIT_MM,
     JOINT_UNIT_DEG,
+    Frame,
     MessageClass,
     Mode,
     PositionFrame,
     StatusFrame,
     message_text,
 )
-from schemas.state import ArmStatus, JointState
+from manus.quantize import GRIPPER_COUNT_M_S, step_rates
+from schemas.state import ArmStatus, CanFrame, JointState
 
 _MODE_NAMES = {
     Mode.NONE: "none",
@@ -73,7 +77,8 @@ def joint_state(
         stamp_ns: receive time of the 0x360 [ns].
         seq: this stream's sequence number.
         valid: the positions are meaningful.
-        applied: lift, motors 1..6 [counts], gripper [counts] sent at the previous sync.
+        applied: lift, motors 1..6 [counts], gripper [counts] sent at the previous sync
+            (published as what they are: DH joint and gripper velocities).
         applied_kind: what was sent then (:data:`schemas.state.APPLIED_KINDS`).
         applied_seq: seq of the velocity command sent then (-1: none).
     """
@@ -87,7 +92,8 @@ def joint_state(
         valid=valid,
         mode=mode_name(status.mode),
         encoder=list(encoder_fields(status, position)),
-        applied=list(applied),
+        applied_velocity=step_rates(applied[1:7]),
+        applied_gripper_velocity=applied[7] * GRIPPER_COUNT_M_S,
         applied_kind=applied_kind,
         applied_seq=applied_seq,
     )
@@ -103,4 +109,16 @@ def arm_status(status: StatusFrame, *, stamp_ns: int, seq: int) -> ArmStatus:
         msg_class=_CLASS_NAMES[status.msg_class],
         msg_code=status.msg_code,
         text=message_text(status.msg_class, status.msg_code),
+    )
+
+
+def can_frame(frame: Frame, stamp_ns: int, seq: int) -> CanFrame:
+    """A frame as ``can/rx`` and ``can/tx`` carry it (``stamp_ns``: receive or send time)."""
+    return CanFrame(
+        stamp_ns=stamp_ns,
+        seq=seq,
+        id=frame.id & 0x7FF,
+        data=frame.data,
+        remote=frame.remote,
+        dlc=min(frame.dlc, 8),
     )

@@ -5,7 +5,7 @@ The arm integrates motor increments through a first-order speed lag (docs/protoc
 rounded to 0.1 deg.
 :class:`DriveEstimator` keeps, per motor, an estimate of the true angle and speed at the
 last snapshot: it predicts the motion from the increments the bridge reports as applied
-(``JointState.applied``) and intersects the interval of positions consistent with every
+(``JointState.applied_velocity``) and intersects the interval of positions consistent with every
 earlier reading (moved by the predicted motion, widened by the drives' speed gain
 error) with the new reading's quantization cell (a set-membership observer). The
 estimate is the middle of that interval: finer than the encoder once a few readings have

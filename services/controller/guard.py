@@ -3,7 +3,7 @@
 Every command passes through :meth:`Guard.filter` where the controller forms it, so
 trajectories, spliced (replaced) trajectories and jogs are all guarded. It predicts where
 the arm will be: the joint state's snapshot at s, plus what the arm executes during
-[s, s+60) ms (``JointState.applied``, already sent), plus this command during
+[s, s+60) ms (``JointState.applied_velocity``, already sent), plus this command during
 [s+60, s+120) ms, plus the drives' run-out after it (``runout_s``, the lag). If the
 clearances (the scene's, per class, and the zones) would be violated there, the
 command is scaled down, or stopped; near an obstacle (margin under ``slow_zone_m``) a
@@ -36,6 +36,7 @@ from manus.advancement import Advancement
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
+from manus.held import HeldBody
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
 from manus.scene import SceneError, parse_scene, scene_from_setting
@@ -43,11 +44,11 @@ from manus.validity import checker_for
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
-_NOTHING = (0,) * 6
-"""``JointState.applied`` when the command in flight is not a joint move."""
+_NOTHING = (0.0,) * 6
+"""The DH velocities in flight when the frame in flight is not a joint move [rad/s]."""
 
-_TO_DH = np.array([encoder_increments_to_dh_list(list(e)) for e in np.eye(6)]).T
-"""The joint map as a matrix: DH increments from motor increments (it is linear)."""
+_SAME = np.eye(6)
+"""The rates the prediction takes are DH rates already: no map."""
 
 
 class Verdict(NamedTuple):
@@ -58,12 +59,15 @@ class Verdict(NamedTuple):
         scale: the factor applied (1: unchanged, 0: stopped).
         reason: why it scaled or stopped ("" when unchanged).
         clearance: the tightest clearance computed this cycle (None: none computed).
+        near: when it scaled or stopped: the clearance, where the arm is now (the
+            snapshot), of the check that decided it (None: unchanged).
     """
 
     counts: np.ndarray
     scale: float
     reason: str
     clearance: Clearance | None
+    near: Clearance | None = None
 
 
 class Guard:
@@ -89,8 +93,6 @@ class Guard:
         self.runout_s = runout_s
         self.slow_zone_m = slow_zone_m
         self.advance = Advancement(checker_for(model))
-        self._first_s = COUNT_RAD_S * cycle_s
-        self._then_s = COUNT_RAD_S * (cycle_s + runout_s)
         self.report_below = math.inf
         """A pass computes Coal's clearance only when it may be below this [m] (the
         smallest its caller has seen: :class:`RunGuard`, per goal)."""
@@ -100,8 +102,9 @@ class Guard:
     def filter(
         self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
     ) -> Verdict:
-        """Guard ``counts`` (motor increments, (6,)) for the snapshot angles ``q`` [rad]
-        and the motor counts in flight ``applied`` (6 values), gripper ``opening`` [m]."""
+        """Guard ``counts`` (motor speed steps, (6,)) for the snapshot angles ``q`` [rad]
+        and the DH joint velocities in flight ``applied`` [rad/s] (6 values), gripper
+        ``opening`` [m]."""
         counts = np.asarray(counts, dtype=np.int64)
         motor = counts.tolist()
         if not any(motor) and not any(applied):
@@ -111,13 +114,13 @@ class Guard:
             model.set_opening(opening)
             self.advance.forget()
         ahead = self.cycle_s + self.runout_s
-        # The common path, proven clear from the anchor: one compiled call.
-        if self.advance.proven_ahead(q, applied, counts, _TO_DH, self._first_s, self._then_s):
-            return Verdict(counts, 1.0, "", None)
-        now_dh = encoder_increments_to_dh_list(applied)
         cmd_dh = encoder_increments_to_dh_list(motor)
-        nxt = [a + d * COUNT_RAD_S * self.cycle_s for a, d in zip(q, now_dh, strict=True)]
-        end = [a + d * COUNT_RAD_S * ahead for a, d in zip(nxt, cmd_dh, strict=True)]
+        rates = [d * COUNT_RAD_S for d in cmd_dh]  # the command's DH rates [rad/s]
+        # The common path, proven clear from the anchor: one compiled call.
+        if self.advance.proven_ahead(q, applied, rates, _SAME, self.cycle_s, ahead):
+            return Verdict(counts, 1.0, "", None)
+        nxt = [a + v * self.cycle_s for a, v in zip(q, applied, strict=True)]
+        end = [a + r * ahead for a, r in zip(nxt, rates, strict=True)]
         return self._decide(counts, list(q), nxt, end)
 
     def _decide(
@@ -138,7 +141,7 @@ class Guard:
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
         if m_next.margin < floor:
-            return self._stopped(counts, m_next, "already in flight")
+            return self._stopped(counts, m_next, "already in flight", self._now(now, m_next, q_s))
         m_end = self._margin(q_end)
         scale = 1.0
         if m_end.margin < floor:
@@ -160,8 +163,10 @@ class Guard:
                     scale,
                     f"slowed to {scale:.2f}: {check.describe()} ahead",
                     now.clearance,
+                    now.clearance,
                 )
-        return self._stopped(counts, m_end, "ahead at the commanded speed")
+        near = self._now(now, m_end, q_s)
+        return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
     def _at_least_one(
         self, counts: np.ndarray, scaled: np.ndarray, q_next: np.ndarray
@@ -187,15 +192,30 @@ class Guard:
         return scaled
 
     def _ahead(self, q_next: np.ndarray, counts: np.ndarray) -> np.ndarray:
-        """Where ``counts`` [motor increments] take the arm from ``q_next`` [rad]: this
+        """Where ``counts`` [motor speed steps] take the arm from ``q_next`` [rad]: this
         cycle and the run-out after it."""
-        rate = _TO_DH @ counts.astype(float) * COUNT_RAD_S  # DH joint rates [rad/s]
-        return np.asarray(q_next + rate * (self.cycle_s + self.runout_s))
+        rates = np.array(encoder_increments_to_dh_list(counts.tolist())) * COUNT_RAD_S
+        return np.asarray(q_next + rates * (self.cycle_s + self.runout_s))
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _stopped(self, counts: np.ndarray, found: Clearance, when: str) -> Verdict:
-        return Verdict(np.zeros_like(counts), 0.0, f"stopped: {found.describe()} {when}", found)
+    def _stopped(self, counts: np.ndarray, found: Clearance, when: str, near: Clearance) -> Verdict:
+        reason = f"stopped: {found.describe()} {when}"
+        return Verdict(np.zeros_like(counts), 0.0, reason, found, near)
+
+    def _now(self, now: _AnchorResult, found: Clearance, q: np.ndarray) -> Clearance:
+        """The clearance at ``q`` (where the arm is) of ``found``'s check: the tightest
+        one there if it is the same (most cycles), else computed."""
+        if found.check == now.clearance.check:
+            return now.clearance
+        model = self.model
+        self.computed += 1
+        margins = model.margins(q)
+        pairs = [(float(m), c) for m, c in zip(margins, model.checks, strict=True)]
+        for margin, check in pairs + model.keep_in_margins():
+            if check == found.check:
+                return Clearance(margin, margin + check.required, check, 0.0, q)
+        return now.clearance
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
@@ -234,7 +254,7 @@ class RunGuard:
 
     def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
         """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
-        applied = js.applied[1:7] if js.applied_kind == "joint" else _NOTHING
+        applied = js.applied_velocity if js.applied_kind == "joint" else _NOTHING
         low = self.lowest.get(goal_id)
         # Only a clearance below the goal's smallest so far is worth Coal's time.
         self.guard.report_below = (
@@ -252,13 +272,23 @@ class RunGuard:
         """The smallest clearance of the goal (forgotten once read)."""
         return self.lowest.pop(goal_id, None)
 
+    def hold(self, held: Sequence[HeldBody]) -> None:
+        """Keep ``held`` (the objects the arm holds) clear too, from the next command on:
+        the same guard on the model that carries them (nothing it proved holds for it)."""
+        g = self.guard
+        model = g.model.holding(held)
+        self.guard = Guard(model, cycle_s=g.cycle_s, runout_s=g.runout_s, slow_zone_m=g.slow_zone_m)
 
-def scene_guard(state: SceneState, arm: ArmConfig) -> RunGuard | None:
-    """The guard for a scene published by the planner (None: it does not build)."""
+
+def scene_guard(
+    state: SceneState, arm: ArmConfig, held: Sequence[HeldBody] = ()
+) -> RunGuard | None:
+    """The guard for a scene published by the planner, the arm holding ``held`` (None: it
+    does not build)."""
     try:
         scene = parse_scene(state.text, state.source)
         scene = dataclasses.replace(scene, version=state.version)
-        return RunGuard(Guard(CollisionModel(scene, arm)))
+        return RunGuard(Guard(CollisionModel(scene, arm, held=held)))
     except SceneError:
         return None
 

@@ -1,9 +1,10 @@
-"""Live control in the controller: the jog stream's intake, its safety, its cycle.
+"""Live control as a command source: the jog stream's intake, its safety, its cycle.
 
-:class:`Jog` holds the newest :class:`~schemas.jog.JogCommand` (checked and turned into
-SI speeds by :func:`resolve`), the speed level, and the reference of the motion
-(:class:`~services.controller.jog_law.JogRun`); the controller core asks it for each
-cycle's counts. Its safety rules:
+:class:`JogSource` holds the newest :class:`~schemas.jog.JogCommand` (checked and turned
+into SI speeds by :func:`~services.controller.jog_command.resolve`), the speed level, and
+the reference of the motion (:class:`~services.controller.jog_law.JogRun`); the core asks
+it for each cycle's command. It ranks above the goals: a moving jog preempts every goal
+(cause ``user_took_over``) and goals are refused while it moves. Its safety rules:
 
 - **Deadman**: a command is as old as the newest joint state the controller had when it
   arrived (judged on the bridge's stamps, so a replay judges the same); at a joint state
@@ -19,156 +20,82 @@ cycle's counts. Its safety rules:
   re-arms the jog.
 - **Speed levels** 1..``levels``: unitless deflections are scaled to the caps times
   level / levels, SI speeds are limited to that (refused above the top level's caps).
+
+Each command taken is published at once as a :class:`~schemas.jog.JogTaken` (after which
+joint state it came: the regression check feeds it there).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from manus.errors import ManusError
-from manus.kinematics import fk
-from manus.orientation import matrix_to_ypr
 from manus.quantize import gripper_counts
-from schemas.jog import JogCommand, JogFrame, JogKind, JogState, JogUnits
+from schemas import endpoints as ep
+from schemas.control import CommandSourceKind, EndCause, GoalAck, Refusal, ResultStatus
+from schemas.jog import JOGGING, USER_TOOK_OVER, JogCommand, JogLevel, JogTaken
 from schemas.state import JointState
-from services.controller.config import ControllerConfig
+from services.controller.command_source import (
+    Command,
+    CommandSource,
+    Cycle,
+    End,
+    Host,
+    Sent,
+    SourceAnswer,
+    SourceInput,
+)
 from services.controller.estimator import DriveEstimator
+from services.controller.guard import Verdict
+from services.controller.jog_command import JogError, resolve
 from services.controller.jog_config import JogConfig
 from services.controller.jog_law import JogRun, JogTarget, jog_counts, predicted_dh
+from services.controller.jog_limits import FREE, Slowdown
+from services.controller.jog_state import guard_limit, jog_reason, jog_state
+from services.controller.outbox import Output
 
-_TOLERANCE = 1e-9
-"""Relative slack of the range checks (a value at the cap is allowed)."""
-
-
-BAD_JOG_PAYLOAD = "the payload does not decode"
-"""What :meth:`ControllerCore.on_bad_jog` is told of a garbage jog payload (live and in
-a replay alike)."""
+_ZERO = np.zeros(6, dtype=np.int64)
 
 
-class JogError(ManusError, ValueError):
-    """A jog command that cannot be executed (the message names the field, value, limit)."""
-
-
-def _norm(values: list[float]) -> float:
-    return math.sqrt(sum(v * v for v in values))
-
-
-def _check_values(cmd: JogCommand) -> None:
-    for name, enum in (("kind", JogKind), ("units", JogUnits), ("frame", JogFrame)):
-        value = getattr(cmd, name)
-        allowed = [m.value for m in enum]
-        if value not in allowed:
-            raise JogError(f"`{name}` {value!r} is not one of {allowed}")
-    for name, size in (("linear", 3), ("angular", 3), ("joints", 6)):
-        values = getattr(cmd, name)
-        if len(values) != size:
-            raise JogError(f"`{name}` must hold {size} values, got {len(values)}")
-    scalars = [("gripper", cmd.gripper), ("pour", cmd.pour)]
-    named = [
-        (f"{n}[{i}]", v)
-        for n in ("linear", "angular", "joints")
-        for i, v in enumerate(getattr(cmd, n))
-    ]
-    for name, value in named + scalars:
-        if not (isinstance(value, int | float) and math.isfinite(value)):
-            raise JogError(f"`{name}` = {value!r} is not a finite number")
-        if cmd.units == JogUnits.UNITLESS and abs(value) > 1.0 + _TOLERANCE:
-            raise JogError(f"`{name}` = {value!r} is outside -1..1 (unitless deflection)")
-    if cmd.kind == JogKind.JOINTS and (
-        any(cmd.linear) or any(cmd.angular) or cmd.drink or cmd.pour
-    ):
-        raise JogError("a `joints` command carries joint speeds (and the gripper's) only")
-    if cmd.kind == JogKind.TWIST and any(cmd.joints):
-        raise JogError("a `twist` command carries no joint speeds (use kind `joints`)")
-    if cmd.drink and (cmd.angular[0] or cmd.angular[1]):
-        raise JogError(
-            f"drink mode holds the cup level: `angular[0]` = {cmd.angular[0]!r} and "
-            f"`angular[1]` = {cmd.angular[1]!r} must be 0 (only the yaw, `angular[2]`, turns)"
-        )
-    if cmd.pour and not cmd.drink:
-        raise JogError(f"`pour` = {cmd.pour!r} needs drink mode (`drink` true)")
-
-
-def resolve(cmd: JogCommand, level: int, cfg: JogConfig) -> JogTarget | None:
-    """The SI speeds a command asks for at speed level ``level`` (None: stop).
-
-    Raises:
-        JogError: the command is malformed or out of range (module docstring).
-    """
-    _check_values(cmd)
-    if cmd.kind == JogKind.STOP:
-        return None
-    share = cfg.share(level)
-    lin, ang, pour = list(cmd.linear), list(cmd.angular), cmd.pour
-    joints, grip = list(cmd.joints), cmd.gripper
-    if cmd.units == JogUnits.UNITLESS:  # a deflection of the level's share of the caps
-        lin = [v * cfg.max_linear * share for v in lin]
-        ang = [v * cfg.max_angular * share for v in ang]
-        pour *= cfg.max_angular * share
-        joints = [v * cfg.max_joint * share for v in joints]
-        grip *= cfg.max_gripper * share
-    else:
-        for name, size, cap, unit, k in (
-            ("linear", _norm(lin), cfg.max_linear, "mm/s", 1000.0),
-            ("angular", _norm(ang), cfg.max_angular, "deg/s", 180.0 / math.pi),
-            ("pour", abs(pour), cfg.max_angular, "deg/s", 180.0 / math.pi),
-            ("joints", max(map(abs, joints)), cfg.max_joint, "deg/s", 180.0 / math.pi),
-            ("gripper", abs(grip), cfg.max_gripper, "mm/s", 1000.0),
-        ):
-            if size > cap * (1.0 + _TOLERANCE):
-                raise JogError(
-                    f"`{name}` speed {size * k:.1f} {unit} is above the cap {cap * k:.1f} {unit}"
-                )
-    # One factor for a twist (its direction, and a straight line, are kept).
-    sizes = (
-        (_norm(lin), cfg.max_linear),
-        (_norm(ang) + abs(pour), cfg.max_angular),
-        (max(map(abs, joints)), cfg.max_joint),
-    )
-    f = min([1.0] + [cap * share / size for size, cap in sizes if size > 0.0])
-    grip = max(-cfg.max_gripper * share, min(cfg.max_gripper * share, grip))
-    target = JogTarget(
-        cmd.kind,
-        cmd.frame,
-        tuple(v * f for v in lin),
-        tuple(v * f for v in ang),
-        tuple(v * f for v in joints),
-        grip,
-        cmd.drink,
-        pour * f,
-    )
-    if not target.arm_moves and target.gripper == 0.0:
-        return None
-    return target
-
-
-class Jog:
+class JogSource(CommandSource):
     """The jog as the controller runs it (see the module docstring).
 
     Args:
-        config: controller settings (its ``jog`` holds the jog's own).
+        host: the core holding it.
     """
 
-    def __init__(self, config: ControllerConfig) -> None:
-        self.config = config
+    KIND = CommandSourceKind.JOG
+    PRIORITY = 10
+    STOPS_AT_ONCE = True
+    BUSY = f"{JOGGING} (controller/jog_state): goals wait until the jog stops"
+
+    def __init__(self, host: Host) -> None:
+        super().__init__(host)
+        self.config = config = host.config
         self.cfg: JogConfig = config.jog
         self.level = self.cfg.default_level
         self.target: JogTarget | None = None
-        """The speeds being executed (None: stopped)."""
+        """The speeds being executed (None: none)."""
         self.ref_ns = 0
         """Stamp [ns] of the newest joint state before the newest command (deadman)."""
         self.command_seq = -1
-        self.latched = ""
-        """Why the jog stopped ('' : armed); a zero command re-arms it."""
-        self.reason = ""
-        self.scale = 1.0
+        self.stopped: End | None = None
+        """Why the jog stopped (None: armed); a zero command re-arms it."""
+        self.cause: EndCause | None = None
+        """Why it last stopped (None: never)."""
+        self.counted = False
+        """This stop has counted its refusal (moving commands held back count once)."""
         self.refused = 0
         self.deadman_stops = 0
         self.run: JogRun | None = None
+        self.limit = FREE
+        """The jog law's slow-down this cycle (motors' speed cap, a zone)."""
+        self.guard: Slowdown | None = None
+        """What the collision guard did to this cycle's command (None: nothing)."""
         self.announce = False
         """Publish a JogState at the next joint state (a change to show)."""
+        self.sender = ""
+        """Who sent the newest command (``JogCommand.source``)."""
+        self._caps = {n: self.cfg.caps(n) for n in range(1, self.cfg.levels + 1)}
         self._seq = 0
 
     @property
@@ -176,70 +103,180 @@ class Jog:
         """A non-zero jog command is being executed."""
         return self.target is not None
 
-    def receive(self, cmd: JogCommand, stamp_ns: int | None, not_ready: str | None) -> None:
-        """A command from the stream; ``stamp_ns``: the newest joint state's stamp (None:
-        none yet); ``not_ready``: why nothing may move now (None: it may)."""
+    @property
+    def reason(self) -> str:
+        """The state's words (:func:`.jog_state.jog_reason`): stable while the state is."""
+        return jog_reason(self.stopped, self.cause, self.limits())
+
+    # -- the stream --------------------------------------------------------------------------
+
+    def on_command(self, cmd: JogCommand) -> Output:
+        """A command of the stream: taken (it acts from the next joint state), or refused
+        and counted (the arm stops)."""
+        js = self.host.last_js
+        stamp = js.stamp_ns if js is not None and js.valid else None
+        refused = self.host.admission(self)
+        self.sender = cmd.source
+        self._receive(cmd, stamp, refused.reason if refused is not None else None)
+        return [self._taken(cmd)]
+
+    def on_bad_command(self, error: str) -> Output:
+        """A jog payload that does not decode (the node refused it): counted, the arm stops."""
+        self._refuse(f"bad jog payload: {error}")
+        return [self._taken(None, error)]
+
+    def set_level(self, req: JogLevel) -> GoalAck:
+        """Set the speed level (shown in the next JogState)."""
+        level = req.level
+        if not 1 <= level <= self.cfg.levels:
+            reason = f"level {level!r} outside 1..{self.cfg.levels}"
+            return GoalAck(accepted=False, goal_id="", reason=reason, refusal=Refusal.INVALID)
+        self.level, self.announce = level, True
+        return GoalAck(accepted=True, goal_id="")
+
+    INPUTS = (SourceInput(ep.JOG, on_command, bad=on_bad_command),)
+    ANSWERS = (SourceAnswer(ep.JOG_LEVEL, set_level),)
+
+    def preemption(self) -> End | None:
+        """A moving jog ends every goal: the user took over."""
+        if not self.engaged:
+            return None
+        why = f"{USER_TOOK_OVER}: jog command from {self.sender!r}"
+        return End(ResultStatus.PREEMPTED, EndCause.USER_TOOK_OVER, why)
+
+    def stop(self, end: End) -> None:
+        """A fault stops a moving jog until the controls are released."""
+        if self.engaged:
+            self._latch(end)
+
+    # -- the cycle ---------------------------------------------------------------------------
+
+    def command(self, cycle: Cycle) -> Command | None:
+        """The deadman, then this cycle's counts while a jog moves."""
+        if self.target is None:
+            return None
+        self._deadman(cycle.js)
+        if not self.engaged:  # the deadman stopped it
+            return None
+        counts, grip = self._counts(cycle.joints)
+        if cycle.gap:  # nothing is known of the cycle(s) missed: stop, start afresh
+            counts, grip, self.run = _ZERO, 0, None
+        return Command(counts, grip)
+
+    def guarded(self, command: Command, verdict: Verdict) -> None:
+        """The collision guard slowed or stopped the jog: a limit in its state."""
+        self.guard = guard_limit(verdict)
+
+    def reports(self, sent: Sent) -> Output:
+        """The JogState while a jog runs, and once after each change."""
+        show = self.target is not None or self.announce
+        if not show:
+            return []
+        self.announce = False
+        limits = self.limits()
+        reason = jog_reason(self.stopped, self.cause, limits) if limits or self.cause else ""
+        self.guard = None  # the guard's verdict holds for this cycle only
+        msg = jog_state(
+            sent.js,
+            self._seq,
+            target=self.target,
+            stopped=self.stopped,
+            cause=self.cause,
+            limits=limits,
+            reason=reason,
+            level=(self.level, self.cfg.levels),
+            caps=self._caps[self.level],
+            counts=(self.command_seq, self.refused, self.deadman_stops),
+            arm=self.config.arm,
+        )
+        self._seq += 1
+        return [(ep.JOG_STATE, msg)]
+
+    def limits(self) -> list[Slowdown]:
+        """What holds the running jog back now: the level's caps, the jog law's limit,
+        the collision guard (empty when it does not run)."""
+        if self.target is None:
+            return []
+        found = list(self.target.caps)
+        if self.limit.scale < 1.0:
+            found.append(self.limit)
+        if self.guard is not None:
+            found.append(self.guard)
+        return found
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _taken(self, cmd: JogCommand | None, error: str = "") -> tuple[str, JogTaken]:
+        js = self.host.last_js
+        after = js.seq if js is not None else -1
+        return ep.JOG_TAKEN, JogTaken(after_seq=after, command=cmd, error=error)
+
+    def _receive(self, cmd: JogCommand, stamp_ns: int | None, not_ready: str | None) -> None:
+        """``stamp_ns``: the newest joint state's stamp (None: none yet); ``not_ready``:
+        why nothing may move now (None: it may)."""
         what = f"jog command seq {cmd.seq} from {cmd.source!r} refused"
         try:
             target = resolve(cmd, self.level, self.cfg)
         except JogError as exc:
-            self.refuse(f"{what}: {exc}")
+            self._refuse(f"{what}: {exc}")
             return
         if target is not None and (stamp_ns is None or not_ready is not None):
-            # counted once per stop: a joystick held through an e-stop is one refusal
-            self.refused += 0 if self.latched else 1
-            self.stop(f"{what}: {not_ready or 'no valid joint state yet (is the bridge running?)'}")
+            why = not_ready or "no valid joint state yet (is the bridge running?)"
+            self._hold_back(End(ResultStatus.ABORTED, EndCause.NOT_READY, f"{what}: {why}"))
             return
         self.command_seq = cmd.seq
         if target is None or stamp_ns is None:
-            if self.target is not None or self.latched:
-                self.reason, self.announce = ("released" if self.latched else ""), True
-            self.target, self.run, self.latched = None, None, ""
+            if self.target is not None or self.stopped is not None:
+                self.cause, self.announce = EndCause.RELEASED, True
+            self.target, self.run, self.stopped = None, None, None
             return
-        if self.latched:
-            return  # still held: the user must release the controls first
+        if self.stopped is not None:
+            self._hold_back(None)  # still held: the user must release the controls first
+            return
         if self.target is None:
             self.announce = True
         self.target, self.ref_ns = target, stamp_ns
 
-    def refuse(self, why: str) -> None:
-        """Count a refused command and stop."""
+    def _refuse(self, why: str) -> None:
+        """Count a bad command and stop (a stop already in force stays as it is)."""
         self.refused += 1
-        self.stop(why)
+        self.announce = True
+        if self.stopped is None:
+            self._latch(End(ResultStatus.ABORTED, EndCause.BAD_COMMAND, why), counted=True)
 
-    def stop(self, why: str) -> None:
-        """Stop (zeros from the next cycle) until a zero command re-arms the jog."""
-        if self.target is None and self.latched:
-            self.reason = why
-            return
-        self.target, self.run = None, None
-        self.latched = why
-        self.reason = f"stopped: {why}; release the controls (a zero command) to jog again"
+    def _hold_back(self, end: End | None) -> None:
+        """A moving command that may not move the arm: the jog stops with ``end`` if it
+        runs; the stop counts one refusal, however many commands it holds back."""
+        if self.stopped is None and end is not None:
+            self._latch(end)
+        if not self.counted:
+            self.refused += 1
+            self.counted = True
         self.announce = True
 
-    def set_level(self, level: int) -> str | None:
-        """Set the speed level; the reason when refused (None: accepted)."""
-        if not 1 <= level <= self.cfg.levels:
-            return f"level {level!r} outside 1..{self.cfg.levels}"
-        self.level, self.announce = level, True
-        return None
+    def _latch(self, end: End, *, counted: bool = False) -> None:
+        """Stop (zeros from the next cycle) until a zero command re-arms the jog."""
+        self.target, self.run = None, None
+        self.stopped, self.cause, self.counted = end, end.cause, counted
+        self.announce = True
 
-    def deadman(self, js: JointState) -> None:
+    def _deadman(self, js: JointState) -> None:
         """Stop if the newest command is older than the timeout at this joint state."""
         if self.target is None:
             return
         age = js.stamp_ns - self.ref_ns
         if age > self.cfg.timeout_ns:
             self.deadman_stops += 1
-            self.stop(
+            why = (
                 f"deadman: no jog command within jog_timeout {self.cfg.timeout_ms:g} ms (the "
                 f"newest arrived after the joint state {age / 1e6:.0f} ms before seq {js.seq})"
             )
+            self._latch(End(ResultStatus.ABORTED, EndCause.DEADMAN, why))
 
-    def cycle(self, est: DriveEstimator) -> tuple[np.ndarray, int]:
+    def _counts(self, est: DriveEstimator) -> tuple[np.ndarray, int]:
         """This cycle's motor counts, shape (6,), and gripper counts."""
         target = self.target
-        self.scale = 1.0
+        self.limit = FREE
         if target is None:
             return np.zeros(6, dtype=np.int64), 0
         grip = gripper_counts(target.gripper)
@@ -250,33 +287,6 @@ class Jog:
         if self.run is None or not self.run.follows(target):
             self.run = JogRun.start(target, q_pred, self.config)
         step = self.run.step(target, q_pred, self.cfg, self.config)
-        self.scale, self.reason = step.limit.scale, step.limit.reason
+        self.limit = step.limit
         holding = step.limit.scale <= 0.0  # stopped at a zone: hold without a limit cycle
         return jog_counts(step.q_target, est, self.config, holding), grip
-
-    def state(self, js: JointState) -> JogState | None:
-        """The JogState to publish with this joint state (None: nothing to show)."""
-        if not (self.engaged or self.announce):
-            return None
-        self.announce = False
-        T = fk(js.position, self.config.arm)
-        target = self.target
-        msg = JogState(
-            stamp_ns=js.stamp_ns,
-            seq=self._seq,
-            active=target is not None,
-            kind=target.kind if target is not None else "",
-            frame=target.frame if target is not None else "",
-            drink=target.drink if target is not None else False,
-            level=self.level,
-            levels=self.cfg.levels,
-            scale=self.scale,
-            reason=self.reason,
-            command_seq=self.command_seq,
-            refused=self.refused,
-            deadman_stops=self.deadman_stops,
-            actual_xyz=[float(v) for v in T[:3, 3]],
-            actual_ypr=[float(v) for v in matrix_to_ypr(T[:3, :3])],
-        )
-        self._seq += 1
-        return msg

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from manus.errors import ConfigError
 from manus.quantize import GRIPPER_COUNT_M_S, GRIPPER_COUNT_MAX
+from schemas.jog import MAX_ANGULAR, MAX_GRIPPER, MAX_JOINT, MAX_LINEAR, JogCaps
 
 DEG = math.pi / 180.0
 
@@ -56,10 +57,10 @@ class JogConfig:
     timeout_ms: float = 150.0
     levels: int = 5
     default_level: int = 3
-    max_linear: float = 0.150
-    max_angular: float = 30.0 * DEG
-    max_joint: float = 50.0 * DEG
-    max_gripper: float = 0.030
+    max_linear: float = MAX_LINEAR
+    max_angular: float = MAX_ANGULAR
+    max_joint: float = MAX_JOINT
+    max_gripper: float = MAX_GRIPPER
     linear_accel: float = 1.0
     angular_accel: float = 200.0 * DEG
     joint_accel: float = 200.0 * DEG
@@ -111,3 +112,13 @@ class JogConfig:
     def share(self, level: int) -> float:
         """The caps' share at speed level ``level`` (1 at the top level)."""
         return level / self.levels
+
+    def caps(self, level: int) -> JogCaps:
+        """The caps at speed level ``level``."""
+        k = self.share(level)
+        return JogCaps(
+            linear=self.max_linear * k,
+            angular=self.max_angular * k,
+            joints=self.max_joint * k,
+            gripper=self.max_gripper * k,
+        )

@@ -38,7 +38,7 @@ from manus.joint_map import dh_to_encoder_list, encoder_to_dh
 from manus.kinematics import fk, jacobian_columns
 from manus.orientation import rotation_error
 from manus.quantize import COUNT_RAD_S, JOINT_COUNT_MAX, saturate_values
-from schemas.jog import JogKind
+from schemas.jog import JogKind, LimitKind
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator, deadbeat_speed, lag_factor
 from services.controller.jog_config import JogConfig
@@ -58,6 +58,8 @@ class JogTarget(NamedTuple):
         gripper: gripper opening speed [m/s].
         drink: keep the cup level.
         pour: tilt rate about the rim [rad/s].
+        caps: the level's caps that scaled the command down (the arm's speeds by one
+            factor, the gripper's alone), as the jog state reports them.
     """
 
     kind: str
@@ -68,6 +70,7 @@ class JogTarget(NamedTuple):
     gripper: float
     drink: bool
     pour: float
+    caps: tuple[Slowdown, ...] = ()
 
     @property
     def arm_moves(self) -> bool:
@@ -166,7 +169,8 @@ class JogRun:
         share, limit = 1.0, FREE
         if fastest > cap:
             share = cap / fastest
-            limit = Slowdown(share, f"joint speed cap {math.degrees(cap / dt):.0f} deg/s")
+            words = f"the joint speed cap {math.degrees(cap / dt):.0f} deg/s"
+            limit = Slowdown(share, LimitKind.SPEED_CAP, "motors", 0.0, words)
         zone = slowdown(q0, q1, config.arm, cfg)
         if zone.scale < 1.0:
             share, limit = share * zone.scale, zone

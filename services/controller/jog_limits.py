@@ -18,39 +18,57 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 from manus.config import ArmConfig
+from schemas.jog import LimitKind
 from services.controller.jog_config import JogConfig
 
 
 class Slowdown(NamedTuple):
-    """How much of a step to take, and why.
+    """How much of a step to take, and what holds it back (a ``JogLimit`` of the state).
 
     Attributes:
         scale: share of the step to take [-], in [0, 1].
-        reason: the zone that set it, in words ('' when the step is not slowed).
+        kind: what holds it back (:class:`~schemas.jog.LimitKind`; '' when nothing does).
+        object: which zone, speed or object (``wrist``, ``joint 3``, ``motors``, ``head``).
+        angle: a zone's measure where the step starts [rad] (0 otherwise).
+        words: what holds it back, in words that do not change while it does.
+        body: the collision guard: the arm body nearest to ``object`` ('' otherwise).
+        distance: the collision guard: that body's distance to it [m] (0 otherwise).
     """
 
     scale: float
-    reason: str
+    kind: str = ""
+    object: str = ""
+    angle: float = 0.0
+    words: str = ""
+    body: str = ""
+    distance: float = 0.0
 
 
-FREE = Slowdown(1.0, "")
+FREE = Slowdown(1.0)
 STOP_BAND_DEG = 0.5
 """Within this of a zone's stop the step is not taken at all [deg]: the approach, slower
 and slower, ends in finite time."""
 
+_JOINTS = tuple(f"joint {j}" for j in range(1, 7))
+_NAMES = {
+    "wrist": "the wrist singularity (q5 near 0 or 180 deg)",
+    "elbow": "the elbow stretched (q3 near 90 deg)",
+}
 
-def measures(q: Sequence[float], arm: ArmConfig) -> list[tuple[str, float]]:
-    """Each zone's name and distance [deg] at DH angles ``q`` [rad], shape (6,)."""
+
+def measures(q: Sequence[float], arm: ArmConfig) -> list[tuple[LimitKind, str, float]]:
+    """Each zone's kind, object and distance [deg] at DH angles ``q`` [rad], shape (6,)."""
     out = [
-        ("wrist singularity (q5 near 0/180 deg)", math.degrees(abs(math.remainder(q[4], math.pi)))),
+        (LimitKind.SINGULARITY, "wrist", math.degrees(abs(math.remainder(q[4], math.pi)))),
         (
-            "elbow stretched (q3 near 90 deg)",
+            LimitKind.SINGULARITY,
+            "elbow",
             math.degrees(abs(math.remainder(q[2] - math.pi / 2, 2 * math.pi))),
         ),
     ]
-    for j in range(6):
+    for j, name in enumerate(_JOINTS):
         room = min(q[j] - arm.lower[j], arm.upper[j] - q[j])
-        out.append((f"joint {j + 1} limit", math.degrees(room)))
+        out.append((LimitKind.JOINT_LIMIT, name, math.degrees(room)))
     return out
 
 
@@ -63,8 +81,10 @@ def slowdown(
         "elbow": (cfg.elbow_slow_deg, cfg.elbow_stop_deg),
     }
     best = FREE
-    for (name, m0), (_, m1) in zip(measures(q_from, arm), measures(q_to, arm), strict=True):
-        slow, stop = zones.get(name.split()[0], (cfg.limit_slow_deg, cfg.limit_stop_deg))
+    for (kind, name, m0), (_, _, m1) in zip(
+        measures(q_from, arm), measures(q_to, arm), strict=True
+    ):
+        slow, stop = zones.get(name, (cfg.limit_slow_deg, cfg.limit_stop_deg))
         if m1 >= m0 or m1 >= slow:
             continue  # moving away, or still clear
         share = min(1.0, max(0.0, (m0 - stop) / (slow - stop)))
@@ -72,10 +92,7 @@ def slowdown(
         if m0 - stop <= STOP_BAND_DEG:
             share = 0.0
         if share < best.scale:
-            verb = "stopped" if share <= 0.0 else f"slowed to {share * 100:.0f} %"
-            best = Slowdown(
-                share,
-                f"{verb}: {name}, {m0:.1f} deg from it (slowing within {slow:g}, "
-                f"stopping at {stop:g} deg)",
-            )
+            zone = _NAMES.get(name, f"the limit of {name}")
+            words = f"{zone}: slows within {slow:g} deg, stops at {stop:g} deg"
+            best = Slowdown(share, kind, name, math.radians(m0), words)
     return best

@@ -13,69 +13,24 @@ each cycle's command and verdict. ``TrajectoryGoal.mode`` names one of :data:`LA
   timing, via errors where a segment ends, qdot = qdot_ref + K (q_ref - q), and local
   re-plans after the last via point (docs/protocol.md, the thesis's control loop).
 
-A new mode is one class here and one entry in :data:`LAWS` (and the value in
+Each implements :class:`~services.controller.tracking.ControlLaw`, the seam the run
+calls. A new mode is one class here and one entry in :data:`LAWS` (and the value in
 :class:`schemas.control.ControlMode`). The run keeps the state; a law holds none.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from manus.kinematics import Vec3, gripper_position
-from schemas.control import ControlMode
+from schemas.control import ControlMode, EndCause, ResultStatus
 from services.controller.backlash import PlayModel
+from services.controller.command_source import End
 from services.controller.estimator import DriveEstimator
 from services.controller.laws import default_law, thesis_law
-
-if TYPE_CHECKING:
-    from services.controller.tracking import TrajectoryRun
-
-Verdict = tuple[str, str] | None
-"""(status, reason) when the goal ends this cycle, else None."""
-
-
-class ControlLaw(Protocol):
-    """What a control mode decides for a running trajectory goal (module docstring)."""
-
-    def start_tau(self, run: TrajectoryRun) -> float:
-        """Trajectory time at the goal's first snapshot [s]."""
-        ...
-
-    def tau_at_command(self, run: TrajectoryRun) -> float:
-        """Trajectory time when the command computed now starts acting [s]."""
-        ...
-
-    def end_tau(self, run: TrajectoryRun) -> float:
-        """Trajectory time at which the reference has ended [s]."""
-        ...
-
-    def segment(self, run: TrajectoryRun) -> int:
-        """Index of the knot interval being tracked."""
-        ...
-
-    def measure(self, run: TrajectoryRun, snap_ns: int, q: np.ndarray, xyz: Vec3) -> None:
-        """Record the via-point errors due by this snapshot (``run.via_errors``)."""
-        ...
-
-    def cycle(
-        self,
-        run: TrajectoryRun,
-        snap_ns: int,
-        q: np.ndarray,
-        xyz: Vec3,
-        est: DriveEstimator,
-        play: PlayModel | None,
-    ) -> tuple[np.ndarray, Verdict]:
-        """This cycle's counts, shape (6,) int64, and the verdict once the reference has
-        ended (``run.end_ns`` set)."""
-        ...
-
-    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> Verdict:
-        """The end was not reached yet and time is left: what to do (None: wait)."""
-        ...
+from services.controller.tracking import ControlLaw, TrajectoryRun
 
 
 class DefaultLaw:
@@ -118,7 +73,7 @@ class DefaultLaw:
         xyz: Vec3,
         est: DriveEstimator,
         play: PlayModel | None,
-    ) -> tuple[np.ndarray, Verdict]:
+    ) -> tuple[np.ndarray, End | None]:
         ref, tau = run.current_reference()
         holding = run.end_ns is not None
         counts = default_law(
@@ -128,7 +83,7 @@ class DefaultLaw:
         verdict = run.judge(snap_ns, q, xyz, at_rest) if holding else None
         return counts, verdict
 
-    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> Verdict:
+    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> End | None:
         return None
 
 
@@ -172,22 +127,24 @@ class ThesisLaw:
         xyz: Vec3,
         est: DriveEstimator,
         play: PlayModel | None,
-    ) -> tuple[np.ndarray, Verdict]:
+    ) -> tuple[np.ndarray, End | None]:
         # Judged first: a re-plan decided now is followed from this cycle on.
         verdict = run.judge(snap_ns, q, xyz, True) if run.end_ns is not None else None
         ref, tau = run.current_reference()
         return thesis_law(run.config, ref, tau, run.scale, q), verdict
 
-    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> Verdict:
+    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> End | None:
         """After the last via point: re-plan locally (a rest-to-rest quintic from the
         measured angles to the last knot) until within tolerance, at most
         ``max_settles`` times."""
         if run.settle is not None and run.settle_tau < run.settle.duration:
             return None
         if run.settles >= run.config.max_settles:
-            return "aborted", (
+            return End(
+                ResultStatus.ABORTED,
+                EndCause.TOLERANCE,
                 f"final position error {run.final_error * 1000:.2f} mm still above "
-                f"{run.goal.position_tolerance * 1000:.2f} mm after {run.settles} re-plans"
+                f"{run.goal.position_tolerance * 1000:.2f} mm after {run.settles} re-plans",
             )
         run.replan(q)
         return None

@@ -5,9 +5,9 @@ Its subscriptions, queryables and publishers are those of its wiring map
 (goals run only while the bridge is ``running``), the supervisor's deadman heartbeat;
 goals, gripper goals, cancels and speed scaling, each answered with a GoalAck; commands,
 feedback and results out; the jog stream and its level, the jog's state out. A ``jog``
-payload that does not decode is handed to the core as a bad jog (it stops the arm). A
-service's ``alive/<service>`` token vanishing is handed to the core
-(:meth:`ControllerCore.on_token_gone`: the goals whose heartbeats it sent stop at once).
+payload that does not decode is handed to the core as a bad jog (it stops the arm), and a
+service's ``alive/<service>`` token vanishing too (:meth:`ControllerCore.on_token_gone`:
+the goals whose heartbeats it sent stop at once), both through the wiring map.
 Everything runs under the node lock, in the Zenoh thread that received it (an ordered
 node), so the core sees one message at a time, in arrival order: a goal sent after the
 bridge state it depends on is judged after it.
@@ -22,10 +22,8 @@ import zenoh
 
 from manus.node import Node
 from manus.session import ZenohSettings
-from schemas import endpoints as ep
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore, Output
-from services.controller.jog import BAD_JOG_PAYLOAD
 from services.controller.wiring import WIRING
 
 log = logging.getLogger("manus.controller")
@@ -57,18 +55,7 @@ class ControllerShell:
         self.sent: Counter[str] = Counter()
         self._publish = WIRING.publishers(self.node)  # before any callback can use it
         WIRING.attach(self.node, self.core, self._deliver, publish=self._publish)
-        self.node.on_bad_payload = self._on_bad_payload
-        self.node.watch_liveliness(self._on_alive)  # its callback runs under the node lock
         self.node.announce()  # alive once it listens and answers
-
-    def _on_bad_payload(self, key: str) -> None:
-        if key == self.node.keys(ep.JOG):
-            with self.node.lock:
-                self._deliver(self.core.on_bad_jog(BAD_JOG_PAYLOAD))
-
-    def _on_alive(self, service: str, alive: bool) -> None:
-        if not alive:
-            self._deliver(self.core.on_token_gone(service))
 
     def _deliver(self, out: Output) -> None:
         self._publish(out)

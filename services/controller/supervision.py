@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from manus.deadman import RecentStates, echo_too_old, judged_at, tied_to
+from manus.deadman import Echo, RecentStates, echo_too_old, judged_at, tied_to
 from schemas.control import Heartbeat
 
 
@@ -25,10 +25,8 @@ class Supervision:
 
     def __init__(self, cycle_ns: int) -> None:
         self.cycle_ns = cycle_ns
-        self.echo_ns: int | None = None
-        """Stamp [ns] of the joint state the newest heartbeat echoes (None: none yet)."""
-        self.source = ""
-        """Who sent that heartbeat (``Heartbeat.source``: its ``alive/<source>`` token)."""
+        self.echo = Echo()
+        """The joint state the newest heartbeat echoes, and its sender."""
         self.judged_ns = 0
         """When the newest joint state is judged [ns, bridge stamps]: its stamp, or one
         cycle after the state before it if that is sooner (:func:`manus.deadman.judged_at`)."""
@@ -37,9 +35,7 @@ class Supervision:
 
     def on_heartbeat(self, hb: Heartbeat) -> None:
         """Remember the newest joint state a heartbeat echoes, and its sender."""
-        if self.echo_ns is None or hb.ref_stamp_ns > self.echo_ns:
-            self.echo_ns = hb.ref_stamp_ns
-            self.source = hb.source
+        self.echo.heard(hb.ref_stamp_ns, hb.source)
 
     def on_joint_state(self, stamp_ns: int, last_ns: int | None) -> None:
         """A joint state stamped ``stamp_ns`` [ns] after one stamped ``last_ns`` (None:
@@ -56,7 +52,7 @@ class Supervision:
                 of its first joint state [ns] (the reference until a newer echo).
         """
         for limit, since in deadmen:
-            lost = echo_too_old(self.judged_ns, seq, since, self.echo_ns, limit, self.recent)
+            lost = echo_too_old(self.judged_ns, seq, since, self.echo.ns, limit, self.recent)
             if lost is not None:
                 return f"{lost} (stopped; nothing resumes by itself)"
         return None
@@ -64,4 +60,4 @@ class Supervision:
     def tied_to(self, service: str, since: Sequence[int | None]) -> bool:
         """The newest heartbeats came from ``service`` for a goal whose first joint state
         is stamped one of ``since`` [ns] (:func:`manus.deadman.tied_to`)."""
-        return any(tied_to(service, self.source, s, self.echo_ns) for s in since)
+        return any(tied_to(service, self.echo.source, s, self.echo.ns) for s in since)

@@ -1,12 +1,12 @@
 """One trajectory goal being executed: time base, control law, via-point errors, verdicts.
 
-Two control laws (``TrajectoryGoal.mode``; each a :class:`~.modes.ControlLaw` of
-:data:`.modes.LAWS`, the arithmetic in :mod:`.laws`):
+Two control laws (``TrajectoryGoal.mode``; each a :class:`ControlLaw`, the seam a run
+calls, implemented in :mod:`.modes` (:data:`.modes.LAWS`), the arithmetic in :mod:`.laws`):
 
 - ``default``, built for the arm's interface. One global time base: trajectory time 0 is
   the moment the first command acts (the start snapshot + ``command_delay_ms``). The
   command computed from the snapshot at s acts during [s+60, s+120) ms, while the one
-  sent before it (``JointState.applied``) acts during [s, s+60): so the motor angles at
+  sent before it (``JointState.applied_velocity``) acts during [s, s+60): so the motor angles at
   s+60 are predicted from the estimate at s and the increments in flight, through the
   drives' speed lag, and the command is the constant speed that brings them onto the
   reference at s+120 (a dead-beat law in motor space). Its rounding error is not lost:
@@ -31,22 +31,62 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
 from manus.kinematics import Vec3
-from manus.quantize import (
-    COUNT_RAD_S,
-    Quantizer,
-)
-from schemas.control import TrajectoryGoal
+from manus.quantize import COUNT_RAD_S, Quantizer
+from schemas.control import EndCause, ResultStatus, TrajectoryGoal
 from services.controller.backlash import PlayModel
+from services.controller.command_source import End
 from services.controller.config import ControllerConfig
 from services.controller.estimator import DriveEstimator
 from services.controller.goals import violation
 from services.controller.laws import make_quantizer
-from services.controller.modes import LAWS, ControlLaw
 from services.controller.reference import Reference, rest_to_rest
+
+
+class ControlLaw(Protocol):
+    """What a control mode decides for a running trajectory goal (:mod:`.modes`: the
+    module docstring there). The run keeps the state; a law holds none."""
+
+    def start_tau(self, run: TrajectoryRun) -> float:
+        """Trajectory time at the goal's first snapshot [s]."""
+        ...
+
+    def tau_at_command(self, run: TrajectoryRun) -> float:
+        """Trajectory time when the command computed now starts acting [s]."""
+        ...
+
+    def end_tau(self, run: TrajectoryRun) -> float:
+        """Trajectory time at which the reference has ended [s]."""
+        ...
+
+    def segment(self, run: TrajectoryRun) -> int:
+        """Index of the knot interval being tracked."""
+        ...
+
+    def measure(self, run: TrajectoryRun, snap_ns: int, q: np.ndarray, xyz: Vec3) -> None:
+        """Record the via-point errors due by this snapshot (``run.via_errors``)."""
+        ...
+
+    def cycle(
+        self,
+        run: TrajectoryRun,
+        snap_ns: int,
+        q: np.ndarray,
+        xyz: Vec3,
+        est: DriveEstimator,
+        play: PlayModel | None,
+    ) -> tuple[np.ndarray, End | None]:
+        """This cycle's counts, shape (6,) int64, and the end once the reference has
+        ended (``run.end_ns`` set) and the goal is judged (None: not yet)."""
+        ...
+
+    def unsettled(self, run: TrajectoryRun, q: np.ndarray) -> End | None:
+        """The end was not reached yet and time is left: what to do (None: wait)."""
+        ...
 
 
 @dataclass(slots=True)
@@ -58,14 +98,14 @@ class Step:
         reference: the reference positions at the snapshot [rad], 6 values.
         segment: knot interval being tracked (-1: none).
         state: tracking, settling, decelerating or holding.
-        ended: (status, reason) when the goal ended this cycle, else None.
+        ended: how the goal ended this cycle, else None.
     """
 
     counts: np.ndarray
     reference: list[float]
     segment: int
     state: str
-    ended: tuple[str, str] | None = None
+    ended: End | None = None
 
 
 @dataclass
@@ -118,10 +158,11 @@ class TrajectoryRun:
         tols: tuple[np.ndarray, np.ndarray],
         snap_ns: int,
         scale: float,
+        law: ControlLaw,
     ) -> TrajectoryRun:
-        """A run whose first cycle is the snapshot at ``snap_ns`` [ns]."""
+        """A run whose first cycle is the snapshot at ``snap_ns`` [ns], following
+        ``law`` (the goal's mode: :data:`.modes.LAWS`)."""
         quantizer = make_quantizer(config.default_quantizer)
-        law = LAWS[goal.mode]
         run = cls(
             goal, ref, config, law, tols[0], tols[1], snap_ns, scale, goal.speed_scale, quantizer
         )
@@ -202,14 +243,16 @@ class TrajectoryRun:
         ref = self.ref.position(self.tau)
         if peak <= step:
             zero = np.zeros(6, dtype=np.int64)
-            return Step(zero, ref, self._segment(), "decelerating", ("cancelled", "cancelled"))
+            end = End(ResultStatus.CANCELLED, EndCause.CANCEL_REQUEST, "cancelled")
+            return Step(zero, ref, self._segment(), "decelerating", end)
         wanted = np.abs(last) * ((peak - step) / peak)
         mag = np.minimum(np.abs(last), np.floor(wanted + 0.5))
         return Step(np.asarray(np.sign(last) * mag, dtype=np.int64), ref, -1, "decelerating")
 
     def _abort(self, ref: list[float], reason: str) -> Step:
         zero = np.zeros(6, dtype=np.int64)
-        return Step(zero, ref, self._segment(), "holding", ("aborted", reason))
+        end = End(ResultStatus.ABORTED, EndCause.TOLERANCE, reason)
+        return Step(zero, ref, self._segment(), "holding", end)
 
     # -- via points and verdicts ---------------------------------------------------------
 
@@ -224,7 +267,7 @@ class TrajectoryRun:
         q: np.ndarray,
         xyz: Vec3,
         at_rest: bool,
-    ) -> tuple[str, str] | None:
+    ) -> End | None:
         """Success, abort, or None (keep going), once the reference has ended.
 
         ``at_rest``: nothing is in flight, so zeros from now on leave the arm where it is.
@@ -234,9 +277,11 @@ class TrajectoryRun:
         joints = violation(end - q, self.goal_tol, "goal")
         close = self.final_error <= goal.position_tolerance and joints is None
         if close and at_rest:
-            return "succeeded", (
+            return End(
+                ResultStatus.SUCCEEDED,
+                EndCause.REACHED,
                 f"reached the end within {self.final_error * 1000:.2f} mm "
-                f"(position_tolerance {goal.position_tolerance * 1000:.2f} mm)"
+                f"(position_tolerance {goal.position_tolerance * 1000:.2f} mm)",
             )
         late = (snap_ns - (self.end_ns or snap_ns)) / 1e9
         if late > goal.goal_time_tolerance:
@@ -246,7 +291,8 @@ class TrajectoryRun:
                 else f"final position error {self.final_error * 1000:.2f} mm exceeds "
                 f"position_tolerance {goal.position_tolerance * 1000:.2f} mm"
             )
-            return "aborted", f"{what} {late:.2f} s after the end (goal_time_tolerance)"
+            why = f"{what} {late:.2f} s after the end (goal_time_tolerance)"
+            return End(ResultStatus.ABORTED, EndCause.TOLERANCE, why)
         return self.law.unsettled(self, q)
 
     def replan(self, q: np.ndarray) -> None:

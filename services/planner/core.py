@@ -2,8 +2,10 @@
 
 It keeps what every kind of motion shares: the start configuration (the request's, else
 the newest valid joint state), the scene every plan is checked against (replaced at run
-time by ``planner/scene``, announced on ``planner/scene_state``), and the planner of each
-kind of motion (:data:`services.planner.registry.PLANNERS`; the interface:
+time by ``planner/scene``, announced on ``planner/scene_state``), the world model of
+objects (``perception/objects`` in, ``planner/objects`` out; an object attached to the
+gripper by ``planner/attach`` is part of the arm in every check from then on), and the
+planner of each kind of motion (:data:`services.planner.registry.PLANNERS`; the interface:
 :mod:`services.planner.planner`), to which it hands the request.
 
 No clock, no randomness, no I/O: the same request and joint state give the same reply.
@@ -19,13 +21,16 @@ from typing import Any
 import numpy as np
 
 from manus.collision import CollisionModel
+from manus.held import HeldBody, held_bodies
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
 from manus.validity import checker_for
 from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
 from schemas.motion import Motion
+from schemas.objects import AttachReply, AttachRequest, WorldUpdate
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
+from services.planner import attach
 from services.planner.config import PlannerConfig
 from services.planner.errors import PlanningError, refuse
 from services.planner.planner import Planner
@@ -55,12 +60,14 @@ class PlannerCore:
         scratch space shared by every check (a live shell plans on several threads)."""
         self.world = WorldModel(self.config.world)
         """The objects perception reports (``perception/objects`` -> ``planner/objects``)."""
+        self.held: tuple[HeldBody, ...] = ()
+        """The objects attached to the gripper: bodies of the arm in every check."""
         self.set_scene(scene_from_setting(self.config.scene))
         self.scene_state = start_scene_state(self.config.scene)
 
     def set_scene(self, scene: Scene | None) -> None:
         """Check every later plan against ``scene`` (None: no collision check)."""
-        model = None if scene is None else CollisionModel(scene, self.config.arm)
+        model = None if scene is None else CollisionModel(scene, self.config.arm, held=self.held)
         if model is not None:
             checker_for(model)  # the sweep's fast check: built (and compiled) at start
         with self.checking:
@@ -81,14 +88,34 @@ class PlannerCore:
         try:
             scene = parse_scene(update.text, update.source or "<scene update>")
             scene = dataclasses.replace(scene, version=version + 1)
-            model = CollisionModel(scene, self.config.arm)
+            model = CollisionModel(scene, self.config.arm, held=self.held)
             checker_for(model)
         except SceneError as exc:
             return SceneReply(accepted=False, version=version, error=str(exc))
         with self.checking:
+            if model.held != self.held:  # an attach while it was built
+                model = model.holding(self.held)
+                checker_for(model)
             self.collision = model
         self.scene_state = SceneState(version=scene.version, text=update.text, source=scene.source)
         return SceneReply(accepted=True, version=scene.version)
+
+    def attach(self, request: AttachRequest) -> tuple[AttachReply, list[WorldUpdate]]:
+        """Attach an object to the gripper or detach it (``planner/attach``,
+        :mod:`services.planner.attach`): the reply and the world model's updates; the
+        collision model carries what the arm holds from the next plan on. Never raises."""
+        scene = self.collision.scene if self.collision is not None else None
+        mount = scene.mount if scene is not None else np.eye(4)
+        names = [o.name for o in scene.objects] if scene is not None else []
+        reply, updates = attach.answer(self.world, request, mount, self.config.arm, names)
+        held = held_bodies(self.world.objects.values())
+        if held != self.held:
+            with self.checking:  # a scene update (another thread, live) sees one or the other
+                self.held = held
+                if self.collision is not None:
+                    self.collision = self.collision.holding(held)
+                    checker_for(self.collision)
+        return reply, updates
 
     def on_joint_state(self, js: JointState) -> SceneState | None:
         """Remember ``js`` as the default start if it is valid (invalid ones are ignored).

@@ -1,5 +1,6 @@
 """The planner's wiring: joint states (the default start), ``planner/plan``,
-``planner/scene`` and perception (the world model, ``planner/objects``).
+``planner/scene``, perception (the world model, ``planner/objects``) and
+``planner/attach`` (an object held by the arm, or released).
 
 Drives the live shell (:mod:`.shell`, which plans outside the node lock), the lock-step
 harness (``manus_stack.task_lockstep``) and the regression check
@@ -13,7 +14,7 @@ import logging
 from manus.wiring import Answer, Input, Publications, Wiring, messages
 from schemas import endpoints as ep
 from schemas.collision import SceneReply, SceneUpdate
-from schemas.objects import Perception
+from schemas.objects import AttachReply, AttachRequest, Perception
 from schemas.state import JointState
 from services.planner.core import PlannerCore
 
@@ -50,6 +51,16 @@ def _on_perception(core: PlannerCore, msg: Perception, t_ns: int) -> Publication
     return [(ep.OBJECTS, u) for u in updates]
 
 
+def _on_attach(
+    core: PlannerCore, request: AttachRequest, t_ns: int
+) -> tuple[AttachReply, Publications]:
+    """Attach or detach an object; an accepted change is a diff on ``planner/objects``."""
+    reply, updates = core.attach(request)
+    if not reply.accepted:
+        log.warning("refused to attach or detach: %s", reply.error)
+    return reply, [(ep.OBJECTS, u) for u in updates]
+
+
 def _on_scene(core: PlannerCore, update: SceneUpdate, t_ns: int) -> tuple[SceneReply, Publications]:
     """Replace the scene; an accepted one is published for the guard and the fold check."""
     reply = core.update_scene(update)
@@ -64,6 +75,7 @@ WIRING: Wiring[PlannerCore, Publications] = Wiring(
     answers=(
         Answer(ep.PLAN, lambda core, req, t: (core.plan(req), []), locked=False),
         Answer(ep.SCENE, _on_scene, locked=False),
+        Answer(ep.ATTACH, _on_attach),
     ),
 )
 """The planner's wiring map (its replies, the scene in use on ``planner/scene_state``,

@@ -3,7 +3,7 @@ them tens of thousands of times a plan, where NumPy's cost per call on six value
 times the arithmetic.
 
 ``geometry`` packs the arm: ``(l1, l2, l3, l4, work_floor_z, work_base_radius)`` [m].
-Cached on disk like :mod:`manus.validity_kernels` (the planner calls each once when it
+Cached on disk like :mod:`manus.distance_bounds` (the planner calls each once when it
 builds its work area, so a plan never compiles).
 """
 
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from manus.validity_kernels import jit
+from manus.distance_bounds import jit
 
 
 @jit

@@ -11,8 +11,8 @@ Four panels:
   points;
 - joint references vs actuals over time [deg] (controller feedback; actuals only from
   ``state/joints`` when there is no controller);
-- commanded increments per motor [counts of 0.1 deg per 20 ms], as the arm executed
-  them (``JointState.applied``);
+- commanded joint speeds [deg/s], as the arm executed them
+  (``JointState.applied_velocity``);
 - the via-point error table of every ``controller/result`` [mm] (mean, max);
 - when the simulator's truth carries clearances, the run's clearances over time [mm]
   (a fifth panel, :mod:`services.recorder.plot_clearance`): the true distance to the
@@ -71,7 +71,7 @@ class PlotData:
         executed_source: ``feedback`` or ``joint_states``.
         truth: the simulator's true path (t, 3) [m] (empty without ``sim/truth``).
         t_fb: feedback times (f,) [s]; ``reference``/``actual``: (f, 6) [rad].
-        t_js: joint-state times (j,) [s]; ``q_js``: (j, 6) [rad]; ``applied``: (j, 6) counts.
+        t_js: joint-state times (j,) [s]; ``q_js``: (j, 6) [rad]; ``applied``: (j, 6) [rad/s].
         results: every goal result.
         clearances: the run's clearances on the simulator's truth (empty without it).
     """
@@ -111,7 +111,7 @@ class _Series:
     fb_xyz: list[list[float]] = field(default_factory=list)
     js_t: list[float] = field(default_factory=list)
     js_q: list[list[float]] = field(default_factory=list)
-    js_applied: list[list[int]] = field(default_factory=list)
+    js_applied: list[list[float]] = field(default_factory=list)
     truth: list[list[float]] = field(default_factory=list)
     results: list[GoalResult] = field(default_factory=list)
 
@@ -122,7 +122,7 @@ class _Series:
             if msg.valid:
                 self.js_t.append(t)
                 self.js_q.append(msg.position)
-                self.js_applied.append(msg.applied[1:7])
+                self.js_applied.append(msg.applied_velocity)
         elif isinstance(msg, ControllerFeedback):
             if msg.goal_id:
                 self.fb_t.append(t)
@@ -319,12 +319,13 @@ def _joint_panel(a: Axes, data: PlotData) -> None:
 
 
 def _increment_panel(a: Axes, data: PlotData) -> None:
+    speeds = np.degrees(data.applied)
     for j in range(6):
-        a.step(data.t_js, data.applied[:, j] + 0.0, where="post", lw=0.9, label=f"motor {j + 1}")
+        a.step(data.t_js, speeds[:, j] + 0.0, where="post", lw=0.9, label=f"q{j + 1}")
     a.set_xlabel("time [s]")
-    a.set_ylabel("increment [0.1 deg / 20 ms]")
-    a.set_title("commanded increments, as executed")
-    a.set_ylim(-10.5, 10.5)
+    a.set_ylabel("joint speed [deg/s]")
+    a.set_title("commanded joint speeds, as executed")
+    a.set_ylim(-105.0, 105.0)  # q3 runs at the sum of two motors' 50 deg/s
     a.grid(True, alpha=0.3)
     a.legend(loc="best", fontsize=8, ncol=3)
 

@@ -54,7 +54,7 @@ class ChannelInfo:
     Attributes:
         key: full key expression (the MCAP topic).
         suffix: key after the prefix.
-        schema_name: message type name (``manus/JointState/1``).
+        schema_name: message type name (``manus/JointState/2``).
         schema: its JSON Schema.
         message_encoding: ``msgpack`` (or ``json`` for exports).
         messages: how many messages it holds (from the summary statistics).

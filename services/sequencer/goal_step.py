@@ -7,13 +7,16 @@ from schemas.base import Message
 from schemas.commands import ArmCommandReply
 from schemas.control import (
     CancelGoal,
+    CommandSourceKind,
+    EndCause,
     GoalAck,
     GoalResult,
     GripperGoal,
+    Refusal,
     ResultStatus,
     TrajectoryGoal,
 )
-from schemas.jog import JOGGING, USER_TOOK_OVER
+from schemas.jog import USER_TOOK_OVER
 from schemas.sequencing import TaskStep
 from services.sequencer.actions import Action
 from services.sequencer.step import BY_REQUEST, Phase, Step, StepContext, stop_command
@@ -41,7 +44,7 @@ class GoalStep(Step):
             return self.ctx.fail(f"controller: {error or 'bad reply'}")
         if not reply.accepted:
             self.goal_id = ""
-            return self._refused(reply.reason)
+            return self._refused(reply)
         self.phase = Phase.ACTIVE
         if self.ctx.cancel_requested:
             return self.cancel()
@@ -50,10 +53,10 @@ class GoalStep(Step):
             return self._stop_goal(Phase.PAUSING)
         return []
 
-    def _refused(self, reason: str) -> list[Action]:
-        if reason.startswith(JOGGING):  # the user jogs: pause, not fail
-            return self.ctx.paused(USER_TOOK_OVER)
-        return self.ctx.fail(f"controller refused the goal: {reason}")
+    def _refused(self, reply: GoalAck) -> list[Action]:
+        if reply.refusal == Refusal.BUSY and reply.held_by == CommandSourceKind.JOG:
+            return self.ctx.paused(USER_TOOK_OVER)  # the user jogs: pause, not fail
+        return self.ctx.fail(f"controller refused the goal: {reply.reason}")
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
@@ -71,7 +74,7 @@ class GoalStep(Step):
         if res.status == ResultStatus.CANCELLED and self.phase == Phase.PAUSING:
             self._remember_pause()
             return self.ctx.paused()
-        if res.status == ResultStatus.PREEMPTED and res.reason.startswith(USER_TOOK_OVER):
+        if res.status == ResultStatus.PREEMPTED and res.cause == EndCause.USER_TOOK_OVER:
             self._remember_pause()  # a jog took the arm: pause where it stopped
             return self.ctx.paused(USER_TOOK_OVER)
         return self.ctx.fail(f"controller: goal {res.status}: {res.reason}")

@@ -10,7 +10,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.control import ControllerFeedback, TrajectoryGoal
 from schemas.planning import Path, PlanReply, PlanRequest, PlanResume, Trajectory, ViaPointPath
-from schemas.sequencing import StepKind, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, TaskStep
 from services.sequencer.actions import Action
 from services.sequencer.goal_step import GoalStep
 from services.sequencer.poses import POSES, pose_path
@@ -40,9 +40,9 @@ class MoveStep(GoalStep):
             problems = []
             if spec.pose not in POSES:
                 problems.append(f"unknown pose {spec.pose!r} (known: {', '.join(POSES)})")
-            if not 0.0 < spec.duration <= MAX_WAIT_S:
+            if not 0.0 <= spec.duration <= MAX_WAIT_S:  # 0: the default
                 problems.append(
-                    f"pose duration {spec.duration:g} s is outside (0, {MAX_WAIT_S:g}] s"
+                    f"pose duration {spec.duration:g} s is outside [0, {MAX_WAIT_S:g}] s"
                 )
             return problems
         if spec.path is None:
@@ -134,6 +134,6 @@ def step_path(step: TaskStep, start: list[float] | None, arm: ArmConfig) -> Path
     other kinds or a bad pose name)."""
     if step.kind == StepKind.MOVE:
         return step.path
-    if step.kind == StepKind.POSE and step.pose in POSES and step.duration > 0.0:
-        return pose_path(step.pose, step.duration, arm, start=start)
+    if step.kind == StepKind.POSE and step.pose in POSES and step.duration >= 0.0:
+        return pose_path(step.pose, step.duration or DEFAULT_POSE_DURATION_S, arm, start=start)
     return None

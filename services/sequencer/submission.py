@@ -20,8 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from manus.scene import start_scene_state
+from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.collision import SceneState
+from schemas.objects import WorldUpdate
 from schemas.planning import PlanReply
 from schemas.sequencing import SubmitReply, Task, TaskState, TaskStatus
 from schemas.state import BridgePhase, BridgeState
@@ -67,7 +69,10 @@ class TaskSubmission(TaskRun):
         self.bridge_wait = BridgeWait(self.config.bridge_wait_s)
         self._bridge_state: BridgeState | None = None  # the newest, in the bridge's order
         self.fold_check = fold_checker(self.config.scene, self.config.arm)
-        """Checks folds against the scene during validation (None: no scene)."""
+        """Checks folds against the scene and what the arm holds during validation (None:
+        no scene)."""
+        self.world = WorldFollower()
+        """The world model as the planner publishes it (what the arm holds)."""
         self.scene_seen = start_scene_state(self.config.scene)
         """The scene folds are checked against, as the planner announces it
         (``config.scene``'s until the planner's differs; None: no scene)."""
@@ -225,7 +230,14 @@ class TaskSubmission(TaskRun):
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        check = scene_fold_checker(scene, self.config.arm)
+        check = scene_fold_checker(scene, self.config.arm, self.world.held)
         if check is not None and self.fold_check is not None:
             self.fold_check = check
+        return []
+
+    def on_objects(self, update: WorldUpdate) -> list[Action]:
+        """The world model's updates (``planner/objects``): later validations check folds
+        with the objects the arm holds (attached to the gripper) as part of it."""
+        if self.world.on_update(update) and self.fold_check is not None:
+            self.fold_check = self.fold_check.holding(self.world.held)
         return []

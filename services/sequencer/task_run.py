@@ -34,8 +34,9 @@ controller that does not confirm a cancel or pause within ``cancel_timeout_s`` g
 bridge's ``stop``.
 
 **The user takes over** (live control, ``schemas/jog.py``): when the controller ends the
-running goal because a jog command arrived (result ``preempted``, reason starting
-:data:`~schemas.jog.USER_TOOK_OVER`) or refuses a goal because the user jogs, the task
+running goal because a jog command arrived (result ``preempted``, cause
+``user_took_over``) or refuses a goal because the user jogs (refusal ``busy``, held by
+the ``jog``), the task
 pauses (event ``paused``, reason "user took over") instead of failing, and so it does when
 ``controller/jog_state`` shows a jog while it waits, plans or sends a goal (a fold cannot
 be jogged: the bridge holds the arm). It resumes only when asked, from wherever the user

@@ -54,7 +54,7 @@ from manus.errors import ManusError
 from manus.goal_spec import GoalSpecError, goal_from_spec
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
-from schemas.sequencing import StepKind, Task, TaskStep
+from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
 from services.sequencer.poses import POSES
 
 MAX_OPENING_MM = 90.0
@@ -62,9 +62,6 @@ MAX_OPENING_MM = 90.0
 
 MAX_WAIT_S = 3600.0
 """Longest wait step [s]."""
-
-DEFAULT_POSE_DURATION_S = 4.0
-"""Shortest time of a move to a named pose unless the step says otherwise [s]."""
 
 KINDS = tuple(StepKind)
 OPTIONS: dict[str, tuple[str, ...]] = {

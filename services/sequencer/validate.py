@@ -5,11 +5,12 @@ obey the via-point rules: each kind's :meth:`~services.sequencer.step.Step.probl
 and every move is planned from where the previous steps leave the arm: the arm's current
 configuration at first, the fold poses after a fold, the last knot of the previous plan
 after a move. A fold is the arm's own motion (a straight line in joint space to the fold
-pose), so it is checked against the scene here (``fold_check``: :func:`fold_checker`,
-:func:`manus.sweep.straight_motion_problem`). The :class:`Validator` hands out one
-:class:`~schemas.planning.PlanRequest` at a time (with an explicit ``start``) and takes
-the planner's reply; when it has none left, :attr:`Validator.errors` lists every problem
-in step order, each as ``<where>: step N (kind): <problem>``. :meth:`SequencerCore.submit
+pose), so it is checked against the scene here, the objects the arm holds included
+(``fold_check``: :class:`FoldChecker`, :func:`manus.sweep.straight_motion_problem`).
+The :class:`Validator` hands out one :class:`~schemas.planning.PlanRequest` at a time
+(with an explicit ``start``) and takes the planner's reply; when it has none left,
+:attr:`Validator.errors` lists every problem in step order, each as ``<where>: step N
+(kind): <problem>``. :meth:`SequencerCore.submit
 <services.sequencer.core.SequencerCore.submit>` drives it.
 """
 
@@ -17,12 +18,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from manus.collision import CollisionModel
 from manus.config import ArmConfig
+from manus.held import HeldBody
 from manus.scene import SceneError, parse_scene, scene_from_setting
 from manus.sweep import straight_motion_problem
 from manus.validity import checker_for
@@ -147,7 +149,29 @@ class Validator:
         self._q = list(reply.trajectory.positions[-1])
 
 
-def fold_checker(scene: str, arm: ArmConfig) -> FoldCheck | None:
+class FoldChecker:
+    """A :data:`FoldCheck` against a collision model: the scene, and what the arm holds.
+
+    Args:
+        model: the collision model.
+    """
+
+    def __init__(self, model: CollisionModel) -> None:
+        self.model = model
+        checker_for(model)  # the sweep's fast check: built (and compiled) now, not mid-task
+
+    def __call__(self, q_from: list[float], q_to: list[float], kind: str) -> str | None:
+        return straight_motion_problem(
+            self.model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"
+        )
+
+    def holding(self, held: Sequence[HeldBody]) -> FoldChecker:
+        """The same check with the arm holding ``held`` (the world model's attached
+        objects)."""
+        return FoldChecker(self.model.holding(held))
+
+
+def fold_checker(scene: str, arm: ArmConfig) -> FoldChecker | None:
     """The ``fold_check`` of a :class:`Validator` for the scene setting ``scene``
     (``default``, ``none`` or a file; None when ``none``).
 
@@ -157,28 +181,20 @@ def fold_checker(scene: str, arm: ArmConfig) -> FoldCheck | None:
     loaded = scene_from_setting(scene)
     if loaded is None:
         return None
-    return _checker(CollisionModel(loaded, arm))
+    return FoldChecker(CollisionModel(loaded, arm))
 
 
-def scene_fold_checker(state: SceneState, arm: ArmConfig) -> FoldCheck | None:
-    """The ``fold_check`` for a scene the planner published (None: it does not build)."""
+def scene_fold_checker(
+    state: SceneState, arm: ArmConfig, held: Sequence[HeldBody] = ()
+) -> FoldChecker | None:
+    """The ``fold_check`` for a scene the planner published, the arm holding ``held``
+    (None: it does not build)."""
     try:
         scene = dataclasses.replace(parse_scene(state.text, state.source), version=state.version)
-        model = CollisionModel(scene, arm)
+        model = CollisionModel(scene, arm, held=held)
     except SceneError:
         return None
-    return _checker(model)
-
-
-def _checker(model: CollisionModel) -> FoldCheck:
-    checker_for(model)  # the sweep's fast check: built (and compiled) now, not mid-task
-
-    def check(q_from: list[float], q_to: list[float], kind: str) -> str | None:
-        return straight_motion_problem(
-            model, np.asarray(q_from), np.asarray(q_to), f"{kind.replace('_', ' ')}"
-        )
-
-    return check
+    return FoldChecker(model)
 
 
 def _near(q: list[float], ref: list[float], tol_deg: float = 5.0) -> bool:

@@ -23,10 +23,14 @@ Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
   the scene's version in each entity's metadata): :meth:`ViewerCore.describe` gives the
   one in use (the ``scene`` setting at start), and each ``planner/scene_state`` (a scene
   replaced at run time) replaces every entity;
+- ``P/viz/objects`` [``foxglove.SceneUpdate``]: the world model's objects
+  (``planner/objects``, :mod:`services.viewer.objects`): free ones where perception saw
+  them, held ones in ``gripper_frame`` (they move with the gripper); each update replaces
+  every entity;
 - ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
   errors, bridge phases, goals and results, task events, e-stops, services appearing and
   vanishing;
-- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/1`` ...]: each message of
+- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/2`` ...]: each message of
   :data:`JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
 
 A payload that does not decode is counted (:attr:`ViewerStats.bad_payloads`), never
@@ -42,22 +46,26 @@ from dataclasses import replace
 from typing import Any, NamedTuple
 
 import msgpack
+import numpy as np
 from foxglove.messages import FrameTransforms, Log, PosesInFrame, SceneUpdate
 
 from manus.errors import ManusError
 from manus.kinematics import fk
 from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, start_scene_state
+from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
 from schemas.keys import Keys, channel_type
+from schemas.objects import WorldUpdate
 from schemas.planning import PlanReply, Trajectory
 from schemas.state import JointState, SimTruth
 from services.viewer import scene
 from services.viewer.config import ViewerConfig, ViewerStats
 from services.viewer.events import EventLog, LogLine
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
+from services.viewer.objects import drawn_objects
 from services.viewer.path import GripperPath
 from services.viewer.planned import planned_path
 from services.viewer.scene import SchemaInfo
@@ -75,6 +83,7 @@ JSON_SUFFIXES: tuple[str, ...] = (
     ep.ESTOP,
     ep.SIM_TRUTH,
     ep.LIVELINESS,
+    ep.OBJECTS,
 )
 """Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
 
@@ -153,6 +162,8 @@ class ViewerCore:
         self.scene: Scene | None = scene_from_setting(self.config.scene)
         self._scene_seen = start_scene_state(self.config.scene)  # what is drawn, as announced
         """The scene drawn now (None: none)."""
+        self.world = WorldFollower()
+        """The world model's objects drawn now (``planner/objects``)."""
         self._handlers = {
             ep.JOINTS: self._joints,
             ep.STATUS: self._logging(self.events.arm_status),
@@ -163,6 +174,7 @@ class ViewerCore:
             ep.SIM_TRUTH: self._truth,
             ep.LIVELINESS: self._logging(self.events.liveliness),
             ep.SCENE_STATE: self._scene_state,
+            ep.OBJECTS: self._objects,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
@@ -187,6 +199,7 @@ class ViewerCore:
             (self.topics.executed, SceneUpdate),
             (self.topics.true, SceneUpdate),
             (self.topics.scene, SceneUpdate),
+            (self.topics.objects, SceneUpdate),
             (self.topics.log, Log),
         ]
         out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
@@ -211,10 +224,20 @@ class ViewerCore:
         ents = [scene.solid_entity(d, ROOT_FRAME, t_ns) for d in drawn]
         return self._proto(self.topics.scene, scene.scene_update(ents, t_ns, clear=True), t_ns)
 
+    def objects_update(self, t_ns: int) -> FoxMessage:
+        """The world model's objects on ``P/viz/objects``: every entity before it deleted,
+        then one per object."""
+        mount = self.scene.mount if self.scene is not None else np.eye(4)
+        ents = [
+            scene.solid_entity(drawn, frame, t_ns)
+            for frame, drawn in drawn_objects(self.world.objects.values(), mount)
+        ]
+        return self._proto(self.topics.objects, scene.scene_update(ents, t_ns, clear=True), t_ns)
+
     def describe(self, t_ns: int) -> list[FoxMessage]:
         """What a new subscriber needs before the stream makes sense: the robot
-        description and the scene in use."""
-        return [self.robot_description(t_ns), self.scene_update(t_ns)]
+        description, the scene in use and the objects."""
+        return [self.robot_description(t_ns), self.scene_update(t_ns), self.objects_update(t_ns)]
 
     def on_sample(self, key: str, payload: bytes, t_ns: int) -> list[FoxMessage]:
         """Messages to show for one bus sample.
@@ -349,6 +372,14 @@ class ViewerCore:
             return self._logged(self.events.plan_refused(msg), t_ns)
         ent, _ = self._trajectory_scene("plan", msg.trajectory, PLAN_RGBA, t_ns)
         return [self._proto(self.topics.planned, scene.scene_update([ent], t_ns), t_ns)]
+
+    def _objects(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, WorldUpdate)
+        before = self.world.version
+        self.world.on_update(msg)
+        if self.world.version == before and msg.base_version != -1:
+            return []  # a diff it cannot apply: drawn again at the next whole set
+        return [self.objects_update(t_ns)]
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)

@@ -24,9 +24,9 @@ import numpy as np
 
 from manus.config import ArmConfig
 from manus.kinematics import dh_table
+from manus.urdf import GRIPPER_FRAME
 
 ROOT_FRAME = "base_link"
-GRIPPER_FRAME = "gripper_frame"
 JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
 LINK_NAMES = ("link1", "link2", "link3", "link4", "link5", "link6")
 FINGERS = (("finger_left", 1.0), ("finger_right", -1.0))

@@ -49,7 +49,7 @@ class SchemaInfo(NamedTuple):
     """A channel's schema as Foxglove receives it.
 
     Attributes:
-        name: schema name (``foxglove.FrameTransforms``, ``manus/JointState/1``).
+        name: schema name (``foxglove.FrameTransforms``, ``manus/JointState/2``).
         encoding: schema encoding (``protobuf``, ``jsonschema``).
         data: the schema itself (a FileDescriptorSet, a JSON Schema).
     """

@@ -83,7 +83,7 @@ def _z_to(normal: np.ndarray) -> np.ndarray:
     return np.asarray(np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K)
 
 
-def _primitive(body: Primitive, to_base: np.ndarray, rgba: tuple[float, ...]) -> list[Solid]:
+def primitive_solids(body: Primitive, to_base: np.ndarray, rgba: tuple[float, ...]) -> list[Solid]:
     """The solids of one primitive; ``to_base`` = mount⁻¹ (chair -> base_link)."""
     colour = (rgba[0], rgba[1], rgba[2], rgba[3])
     s = body.size
@@ -116,7 +116,7 @@ def solids(scene: Scene) -> list[Drawn]:
     for obj in scene.objects:
         rgba = CLASS_RGBA[obj.cls]
         meta = {"name": obj.name, "class": obj.cls, "shape": obj.body.shape, **common}
-        out.append(Drawn(f"object/{obj.name}", _primitive(obj.body, to_base, rgba), meta))
+        out.append(Drawn(f"object/{obj.name}", primitive_solids(obj.body, to_base, rgba), meta))
     for zone in scene.zones:
         meta = {
             "name": zone.name,
@@ -126,6 +126,6 @@ def solids(scene: Scene) -> list[Drawn]:
             "clearance_mm": f"{zone.clearance * 1e3:g}",
             **common,
         }
-        drawn = _primitive(zone.body, to_base, ZONE_RGBA[zone.kind])
+        drawn = primitive_solids(zone.body, to_base, ZONE_RGBA[zone.kind])
         out.append(Drawn(f"zone/{zone.name}", drawn, meta))
     return out

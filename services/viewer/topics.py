@@ -20,6 +20,7 @@ class Topics:
         self.executed = f"{viz}/executed"
         self.true = f"{viz}/true"
         self.scene = f"{viz}/scene"
+        self.objects = f"{viz}/objects"
         self.log = f"{viz}/log"
         self._json: dict[type[Message], SchemaInfo] = {}
 

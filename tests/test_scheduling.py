@@ -1,0 +1,94 @@
+"""The suite's own xdist scheduling (tests/scheduling.py): the live tests in one chain on
+one worker, in their order, the pure tests on every worker, every test run once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from tests import scheduling
+from tests.scheduling import LIVE_IDS, LiveApartScheduling
+
+
+@dataclass(eq=False)  # hashed by identity, as the scheduler keys its workers
+class FakeWorker:
+    """What the scheduler uses of xdist's WorkerController."""
+
+    name: str
+    sent: list[int] = field(default_factory=list)
+    shutting_down: bool = False
+
+    @property
+    def gateway(self) -> SimpleNamespace:
+        return SimpleNamespace(id=self.name)
+
+    def send_runtest_some(self, indices: list[int]) -> None:
+        self.sent += indices
+
+    def shutdown(self) -> None:
+        self.shutting_down = True
+
+
+def _run(
+    collection: list[str], live: list[str], workers: int, tmp_path: Path, mp: pytest.MonkeyPatch
+) -> tuple[dict[str, list[str]], list[tuple[str, str]]]:
+    """Schedule ``collection`` on ``workers`` fake workers that each run the tests they
+    hold, one at a time, keeping one back until told more or to shut down (as xdist's do);
+    the tests each one ran, and the (worker, test) order of the whole run."""
+    ids = tmp_path / "live.txt"
+    ids.write_text("".join(f"{n}\n" for n in live))
+    mp.setenv(LIVE_IDS, str(ids))
+    config = SimpleNamespace(getoption=lambda name: None)
+    mp.setattr("xdist.workermanage.parse_tx_spec_config", lambda c: ["popen"] * workers)
+    sched = LiveApartScheduling(config, SimpleNamespace(livesched=lambda *a: None))  # type: ignore[arg-type]
+    nodes = [FakeWorker(f"gw{i}") for i in reversed(range(workers))]  # gw0 not first
+    for node in nodes:
+        sched.add_node(node)
+        sched.add_node_collection(node, collection)
+    sched.schedule()
+    ran: dict[str, list[str]] = {n.name: [] for n in nodes}
+    order: list[tuple[str, str]] = []
+    done = {n.name: 0 for n in nodes}
+    for _ in range(10 * len(collection)):
+        runnable = [n for n in nodes if len(n.sent) - done[n.name] >= (1 if n.shutting_down else 2)]
+        if not runnable:
+            break
+        node = runnable[len(order) % len(runnable)]  # interleave the workers
+        index = node.sent[done[node.name]]
+        done[node.name] += 1
+        ran[node.name].append(collection[index])
+        order.append((node.name, collection[index]))
+        sched.mark_test_complete(node, index)
+    assert sched.tests_finished and not sched.has_pending
+    return ran, order
+
+
+def test_the_live_chain_runs_on_gw0_in_its_order_and_every_test_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    collection = [f"t{i}" for i in range(40)]
+    live = ["t3", "t17", "t30", "t5"]  # as tell_live wrote them: t5 marked last
+    ran, _ = _run(collection, live, 2, tmp_path, monkeypatch)
+    assert sorted(t for tests in ran.values() for t in tests) == sorted(collection)  # once each
+    assert [t for t in ran["gw0"] if t in live] == live  # one chain, in the order given
+    assert not set(ran["gw1"]) & set(live)
+    assert ran["gw0"][: len(live)] == live  # from the start
+
+
+def test_one_worker_runs_everything(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    collection = [f"t{i}" for i in range(9)]
+    ran, _ = _run(collection, ["t1", "t2"], 1, tmp_path, monkeypatch)
+    assert sorted(ran["gw0"]) == sorted(collection)
+
+
+def test_workers_for_the_whole_suite_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("PYTEST_XDIST_AUTO_NUM_WORKERS", raising=False)
+    whole = SimpleNamespace(args_source=pytest.Config.ArgsSource.TESTPATHS)
+    named = SimpleNamespace(args_source=pytest.Config.ArgsSource.ARGS)
+    assert 2 <= scheduling.workers(whole) <= scheduling.MAX_WORKERS  # type: ignore[arg-type]
+    assert scheduling.workers(named) == 0  # type: ignore[arg-type]
+    monkeypatch.setenv("PYTEST_XDIST_AUTO_NUM_WORKERS", "3")
+    assert scheduling.workers(named) == 3  # type: ignore[arg-type]
