@@ -1,9 +1,9 @@
 """``manus bench reach``: goal planning on the fixed goal set (``reach_goals.yaml``).
 
 - ``in_process``: every goal planned by the planner core's goal planning, each feasible
-  one with seeds 1..10 (``--quick``: 1..3), timed whole; success rate and planning time
-  of the feasible goals; for the infeasible ones, whether each was refused with the
-  reason the set names, and how fast.
+  one with seeds 1..10 (``--quick``: 1..3), timed whole (wall clock and CPU time); success
+  rate and planning time of the feasible goals; for the infeasible ones, whether each was
+  refused with the reason the set names, and how fast.
 - ``quality``: per feasible goal, each seed's joint path length (the knots' polyline,
   Euclidean in joint space) over the shortest of its seeds.
 - ``planner_service``: the same plans through ``manus planner`` in its own process, over
@@ -103,12 +103,14 @@ def _in_process(runs: dict[str, list[Outcome]]) -> dict[str, Any]:
             ),
             "not_planned": failed,
             "plan_time": stats_ms([o.seconds for o in feasible]),
+            "plan_cpu_time": stats_ms([o.cpu_seconds for o in feasible]),
         },
         "infeasible": {
             "goals": len(infeasible),
             "right_reason": sum(o.right for o in infeasible),
             "wrong": wrong,
             "refusal_time": stats_ms([o.seconds for o in infeasible]),
+            "refusal_cpu_time": stats_ms([o.cpu_seconds for o in infeasible]),
             "reasons": dict(Counter(o.error.reason for o in infeasible if o.error is not None)),
         },
     }
