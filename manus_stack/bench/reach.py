@@ -104,6 +104,7 @@ def _in_process(runs: dict[str, list[Outcome]]) -> dict[str, Any]:
             "not_planned": failed,
             "plan_time": stats_ms([o.seconds for o in feasible]),
             "plan_cpu_time": stats_ms([o.cpu_seconds for o in feasible]),
+            "slowest_goals": _slowest(feasible),
         },
         "infeasible": {
             "goals": len(infeasible),
@@ -114,6 +115,26 @@ def _in_process(runs: dict[str, list[Outcome]]) -> dict[str, Any]:
             "reasons": dict(Counter(o.error.reason for o in infeasible if o.error is not None)),
         },
     }
+
+
+def _slowest(outcomes: list[Outcome], n: int = 5) -> list[dict[str, Any]]:
+    """The ``n`` goals with the largest CPU time of a plan [ms], its median, and the most
+    knots of their plans (2: a straight joint motion)."""
+    by_goal: dict[str, list[Outcome]] = {}
+    for o in outcomes:
+        by_goal.setdefault(o.goal.id, []).append(o)
+    worst = sorted(by_goal.items(), key=lambda kv: -max(o.cpu_seconds for o in kv[1]))
+    return [
+        {
+            "goal": gid,
+            "cpu_max_ms": round(max(o.cpu_seconds for o in os_) * 1e3, 1),
+            "cpu_p50_ms": round(float(np.median([o.cpu_seconds for o in os_])) * 1e3, 1),
+            "knots_max": max(
+                (len(o.trajectory.times) for o in os_ if o.trajectory is not None), default=0
+            ),
+        }
+        for gid, os_ in worst[:n]
+    ]
 
 
 def _quality(runs: dict[str, list[Outcome]]) -> dict[str, Any]:
