@@ -7,18 +7,19 @@ when the plan is made; only the first and last velocities are used; ``time`` is 
 time since the first via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch)
 Rx(roll).
 
-A plan request asks for one kind of motion (:class:`Motion`, told apart by its ``kind``;
-:data:`MOTIONS` holds the kinds the planner serves: today the via-point path,
-:class:`ViaPointPath`). Each kind is served by its own planner and answered with the same
-:class:`Trajectory`. A request that resumes a paused plan (:class:`PlanResume`) carries
-that plan's trajectory and how far it got, and asks for the same motion again: the
-planner of its kind plans what is left from where the arm is.
+A plan request asks for one kind of motion (:class:`~schemas.motion.Motion`, told apart
+by its ``kind``; :data:`~schemas.motion.MOTIONS` holds the kinds the planner serves: the
+via-point path, :class:`ViaPointPath`, and the goals of :mod:`schemas.goals`,
+:data:`~schemas.goals.GOAL_MOTIONS`). Each kind is served by its own planner and answered
+with the same :class:`Trajectory`. A request that resumes a paused plan
+(:class:`PlanResume`) carries that plan's trajectory and how far it got, and asks for the
+same motion again: the planner of its kind plans what is left from where the arm is.
 
 A trajectory is piecewise Hermite in joint space: positions and velocities at each knot
 (cubic segments), plus accelerations when present (quintic segments). Its time starts at
 0 at the first knot; the controller anchors it when the goal starts. Each knot says what
 it is (:class:`KnotKind`): the start, a via point of the request's path (with its index
-there), or a waypoint the planner chose.
+there), a waypoint the planner chose, or the goal.
 """
 
 from __future__ import annotations
@@ -28,7 +29,9 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.collision import ClearanceReport
-from schemas.tagged import TaggedUnion, tag
+from schemas.goals import GOAL_MOTIONS
+from schemas.motion import MOTIONS, Motion
+from schemas.tagged import tag
 
 
 class Interpolation(StrEnum):
@@ -61,6 +64,13 @@ class PlanErrorReason(StrEnum):
     """the request itself is inconsistent"""
     COLLISION = "collision"
     """the arm would come too close to the scene, a protection zone or itself"""
+    GOAL_COLLISION = "goal_collision"
+    """every configuration that reaches the goal is too close to something (named)"""
+    ZONE = "zone"
+    """the goal lies inside a keep-out zone or outside the keep-in zone, or outside the
+    arm's own work area"""
+    NO_PATH = "no_path"
+    """no collision-free path was found within the search budget"""
 
 
 class KnotKind(StrEnum):
@@ -73,6 +83,8 @@ class KnotKind(StrEnum):
     """a via point of the request's path (``Trajectory.via_indices``: which one)"""
     WAYPOINT = "waypoint"
     """a configuration the planner chose on its way (no via point)"""
+    GOAL = "goal"
+    """the configuration reaching the goal a goal motion names (its last knot)"""
 
 
 INTERPOLATIONS = tuple(Interpolation)
@@ -108,19 +120,6 @@ class Path(Message):
     source: str = field("where it came from (file name), for error messages", default="")
 
 
-@dataclass(frozen=True)
-class Motion(Message):
-    """What a plan request asks for: one of the kinds in :data:`MOTIONS`.
-
-    The base of the kinds of motion; each is told apart by its ``kind`` field and served by
-    its own planner.
-    """
-
-
-MOTIONS: TaggedUnion[Motion] = TaggedUnion(Motion)
-"""The kinds of motion the planner serves, by ``kind`` (``PlanRequest.motion``)."""
-
-
 @MOTIONS.member
 @dataclass(frozen=True)
 class ViaPointPath(Motion):
@@ -141,6 +140,11 @@ class ViaPointPath(Motion):
     speed_scaling: bool = field(
         "stretch time to respect joint speed/acceleration limits instead of refusing", default=False
     )
+
+
+SERVED_MOTIONS: tuple[type[Motion], ...] = (ViaPointPath, *GOAL_MOTIONS)
+"""Every kind of motion a plan request may ask for (importing this module declares them
+all in :data:`~schemas.motion.MOTIONS`)."""
 
 
 @dataclass(frozen=True)

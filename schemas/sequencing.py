@@ -13,6 +13,7 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.control import ControlMode
+from schemas.motion import MOTIONS, Motion
 from schemas.planning import Interpolation, Path
 
 
@@ -25,6 +26,7 @@ class StepKind(StrEnum):
     FOLD_OUT = "fold_out"
     WAIT = "wait"
     POSE = "pose"
+    REACH = "reach"
 
 
 class TaskAction(StrEnum):
@@ -89,6 +91,12 @@ class TaskStep(Message):
         default=0.0,
     )
     pose: str = field("for pose: a named pose (home, folded, unfolded)", default="")
+    goal: Motion | None = field(
+        "for reach: the goal, one of the goal motions (joints, pose, named, object, line; "
+        "docs/reach.md), planned around the scene by the planner",
+        default=None,
+        union=MOTIONS,
+    )
     where: str = field("where the step was written (file:line), for errors", default="")
     interpolation: str = field(
         "for move and pose: cubic spline or quintic segments",

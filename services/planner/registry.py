@@ -11,11 +11,19 @@ from __future__ import annotations
 
 from typing import Any
 
-from schemas.planning import Motion, ViaPointPath
+from schemas.goals import JointGoal, LineMotion, NamedGoal, ObjectGoal, PoseGoal
+from schemas.motion import Motion
+from schemas.planning import ViaPointPath
+from services.planner.goal_planner import GoalPlanner, LinePlanner
 from services.planner.planner import Planner
 from services.planner.via_point_planner import ViaPointPlanner
 
 PLANNERS: dict[type[Motion], type[Planner[Any]]] = {
     ViaPointPath: ViaPointPlanner,
+    JointGoal: GoalPlanner,
+    PoseGoal: GoalPlanner,
+    NamedGoal: GoalPlanner,
+    ObjectGoal: GoalPlanner,
+    LineMotion: LinePlanner,
 }
 """The planner class of each kind of motion."""

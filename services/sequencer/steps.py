@@ -7,7 +7,9 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
   trajectory; a :class:`~services.sequencer.goal_step.GoalStep`, as the gripper's);
 - ``gripper``: :class:`~services.sequencer.gripper_step.GripperStep`;
 - ``fold_in`` and ``fold_out``: :class:`~services.sequencer.fold_step.FoldStep`;
-- ``wait``: :class:`~services.sequencer.wait_step.WaitStep`.
+- ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
+- ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
+  its way to).
 
 A new kind of step is one class and one entry here, its checks before the task starts
 included.
@@ -19,6 +21,7 @@ from schemas.sequencing import StepKind
 from services.sequencer.fold_step import FoldStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
+from services.sequencer.reach_step import ReachStep
 from services.sequencer.step import Step
 from services.sequencer.wait_step import WaitStep
 
@@ -29,5 +32,6 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_IN: FoldStep,
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
+    StepKind.REACH: ReachStep,
 }
 """The class of each kind of step."""

@@ -30,6 +30,10 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
     pose = "home"                    # home, unfolded or folded (planned like a path)
     duration = 4.0                   # optional: shortest time of that move [s]
     [[step]]
+    reach = {pose = [560, 100, -150, 0, 90, 0]}   # a goal the planner finds its way to
+                                     # (named, pose, joints, object, approach, line_to,
+                                     # line_tool: manus/goal_spec.py, docs/reach.md)
+    [[step]]
     fold_in = true
 
 Every problem of the file is found in one pass and reported together
@@ -47,6 +51,7 @@ from pathlib import Path as FilePath
 from typing import Any
 
 from manus.errors import ManusError
+from manus.goal_spec import GoalSpecError, goal_from_spec
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
 from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
@@ -66,6 +71,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.FOLD_IN: (),
     StepKind.FOLD_OUT: (),
     StepKind.WAIT: (),
+    StepKind.REACH: (),
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -231,6 +237,8 @@ class _StepContext:
             step = self._wait(value, where, errors)
         elif kind == StepKind.POSE:
             step = self._pose(value, where, errors, options)
+        elif kind == StepKind.REACH:
+            step = self._reach(value, where, errors)
         else:
             step = TaskStep(kind=kind, where=where)
             if value is not True:
@@ -328,6 +336,14 @@ class _StepContext:
                 )
             numeric.append([float(v) for v in row])
         return path_from_rows(numeric, source=self.source, lines=lines)
+
+    def _reach(self, value: Any, where: str, errors: list[str]) -> TaskStep | None:
+        try:
+            goal = goal_from_spec(value)
+        except GoalSpecError as exc:
+            self.error(errors, "reach", "reach", str(exc))
+            return None
+        return TaskStep(kind=StepKind.REACH, goal=goal, where=where)
 
     def _gripper(self, value: Any, where: str, errors: list[str]) -> TaskStep | None:
         if not _is_number(value):
