@@ -57,6 +57,12 @@ class ArmConfig:
         max_accel: per-joint acceleration limits used by trajectory checks [rad/s^2].
         gripper_max: largest gripper opening [m] (90 mm).
         singular_tol: |sin q5| below which the wrist counts as singular [-].
+        work_floor_z: the arm's own work area: the gripper may not go below this z in
+            the base frame [m] (the arm refuses with warning 1; docs/protocol.md, Limits).
+        work_base_radius: nor into the vertical cylinder of this radius about the base
+            axis [m] (warning 1).
+        stretched_margin: the elbow may not straighten closer than this to
+            |q3 - 90 deg| = 0 [rad] (warning 2).
     """
 
     l1: float = 0.105
@@ -71,6 +77,9 @@ class ArmConfig:
     )
     gripper_max: float = 0.090
     singular_tol: float = 1e-3
+    work_floor_z: float = -0.350
+    work_base_radius: float = 0.090
+    stretched_margin: float = 3.0 * DEG
 
     def __post_init__(self) -> None:
         for name in ("l1", "l2", "l3", "l4"):
@@ -95,8 +104,21 @@ class ArmConfig:
                     f"joint {j}: `max_speed` {v / DEG:.2f} deg/s must be in (0, 50] deg/s, "
                     "the arm's fastest speed"
                 )
+        self._check_work_area()
         if not 0.0 < self.gripper_max <= 0.2:
             raise ConfigError(f"`gripper_max` must be in (0, 0.2] m, got {self.gripper_max!r}")
+
+    def _check_work_area(self) -> None:
+        if not (math.isfinite(self.work_floor_z) and -2.0 <= self.work_floor_z <= 2.0):
+            raise ConfigError(f"`work_floor_z` must be in [-2, 2] m, got {self.work_floor_z!r}")
+        if not (math.isfinite(self.work_base_radius) and 0.0 <= self.work_base_radius <= 1.0):
+            raise ConfigError(
+                f"`work_base_radius` must be in [0, 1] m, got {self.work_base_radius!r}"
+            )
+        if not (math.isfinite(self.stretched_margin) and 0.0 <= self.stretched_margin <= 45 * DEG):
+            raise ConfigError(
+                f"`stretched_margin` must be in [0, 45] deg, got {self.stretched_margin!r} rad"
+            )
 
     @property
     def lower_array(self) -> np.ndarray:
@@ -113,7 +135,8 @@ class ArmConfig:
         """Build a config from thesis units: lengths in mm, angles in deg.
 
         Keys: ``l1_mm`` .. ``l4_mm``, ``lower_deg``, ``upper_deg``, ``max_speed_deg_s``,
-        ``max_accel_deg_s2``, ``gripper_max_mm``. Unknown keys are an error.
+        ``max_accel_deg_s2``, ``gripper_max_mm``, ``work_floor_z_mm``,
+        ``work_base_radius_mm``, ``stretched_margin_deg``. Unknown keys are an error.
 
         Raises:
             ConfigError: naming the source and the key.
@@ -128,6 +151,9 @@ class ArmConfig:
             "max_speed_deg_s": ("max_speed", DEG),
             "max_accel_deg_s2": ("max_accel", DEG),
             "gripper_max_mm": ("gripper_max", 1e-3),
+            "work_floor_z_mm": ("work_floor_z", 1e-3),
+            "work_base_radius_mm": ("work_base_radius", 1e-3),
+            "stretched_margin_deg": ("stretched_margin", DEG),
         }
         kwargs: dict[str, Any] = {}
         for key, value in data.items():

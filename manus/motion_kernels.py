@@ -75,12 +75,14 @@ def motion(
     scratch: Any,
     free: np.ndarray,
     levers: np.ndarray,
+    cap: float,
 ) -> float:
     """Conservative advancement along the straight line ``q0`` -> ``q1`` [rad]: at each
-    configuration the bodies' margins, then the longest step over which no point of a
-    body can travel as far as its margin. Returns 1.0 when the whole motion is proven,
-    else the fraction where a margin came below ``floor`` [m] (or ``max_steps`` ran
-    out): the first place it cannot prove."""
+    configuration the bodies' margins (each at most ``cap`` [m]: cheaper, shorter
+    steps), then the longest step over which no point of a body can travel as far as
+    its margin. Returns 1.0 when the whole motion is proven, else the fraction where a
+    margin came below ``floor`` [m] (or ``max_steps`` ran out): the first place it
+    cannot prove."""
     n = q0.shape[0]
     delta = np.abs(q1 - q0)
     box = np.empty(n)
@@ -89,7 +91,7 @@ def motion(
     for _ in range(max_steps):
         for j in range(n):
             q[j] = q0[j] + t * (q1[j] - q0[j])
-        tight, _, _ = margins(q, arm, scene, scratch, free, math.inf)
+        tight, _, _ = margins(q, arm, scene, scratch, free, cap)
         if tight < floor:
             return t
         reach(arm, scratch, levers)

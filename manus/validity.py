@@ -258,6 +258,7 @@ class ValidityChecker:
             self._scratch,
             self._free,
             self._levers,
+            math.inf,
         )
 
     def _follow_opening(self) -> None:
@@ -292,13 +293,13 @@ class ValidityChecker:
         proven valid)."""
         return self.margins(q).tight
 
-    def margins(self, q: np.ndarray) -> Margins:
-        """Lower bounds of each body's margin and the tightest check at ``q`` [rad]."""
+    def margins(self, q: np.ndarray, cap: float = math.inf) -> Margins:
+        """Lower bounds of each body's margin and the tightest check at ``q`` [rad], each
+        at most ``cap`` [m] (a finite cap skips the pairs that cannot come under it:
+        cheaper; a margin at the cap names no check)."""
         self._follow_opening()
         free = np.empty(len(self.bodies))
-        tight, body, other = k.margins(
-            _f64(q), self._arm, self._scene, self._scratch, free, math.inf
-        )
+        tight, body, other = k.margins(_f64(q), self._arm, self._scene, self._scratch, free, cap)
         return Margins(free, float(tight), self.check_of(int(body), int(other)))
 
     def margins_batch(self, Q: np.ndarray, cap: float = math.inf) -> BatchMargins:
@@ -343,12 +344,17 @@ class ValidityChecker:
         return self._lever_table
 
     def motion_valid(
-        self, q0: np.ndarray, q1: np.ndarray, floor: float = MOTION_FLOOR_M
+        self,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        floor: float = MOTION_FLOOR_M,
+        cap: float = math.inf,
     ) -> MotionCheck:
         """Whether the straight joint-space motion ``q0`` -> ``q1`` [rad] keeps every
         clearance, proven continuously (conservative advancement: no point of a body
         travels further than its margin between two configurations checked); a margin
-        below ``floor`` [m] on the way counts as invalid."""
+        below ``floor`` [m] on the way counts as invalid. ``cap`` [m]: margins above it
+        are not computed (each step is cheaper, the steps no longer than the cap)."""
         self._follow_opening()
         t = motion_kernels.motion(
             _f64(q0),
@@ -360,6 +366,7 @@ class ValidityChecker:
             self._scratch,
             self._free,
             self._levers,
+            cap,
         )
         return MotionCheck(t >= 1.0, min(float(t), 1.0))
 

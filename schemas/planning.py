@@ -7,19 +7,20 @@ when the plan is made; only the first and last velocities are used; ``time`` is 
 time since the first via point. Orientation is (yaw, pitch, roll) with R = Rz(yaw) Ry(pitch)
 Rx(roll).
 
-A plan request asks for one kind of motion (:class:`Motion`, told apart by its ``kind``;
-:data:`MOTIONS` holds the kinds the planner serves: the via-point path,
-:class:`ViaPointPath`, and the rest of a running one from its moving state,
-:class:`ViaPointContinuation`). Each kind is served by its own planner and answered with the same
-:class:`Trajectory`. A request that resumes a paused plan (:class:`PlanResume`) carries
-that plan's trajectory and how far it got, and asks for the same motion again: the
-planner of its kind plans what is left from where the arm is.
+A plan request asks for one kind of motion (:class:`~schemas.motion.Motion`, told apart
+by its ``kind``; :data:`~schemas.motion.MOTIONS` holds the kinds the planner serves: the
+via-point path, :class:`ViaPointPath`, the rest of a running one from its moving state,
+:class:`ViaPointContinuation` (streamed via points), and the goals of :mod:`schemas.goals`,
+:data:`~schemas.goals.GOAL_MOTIONS`). Each kind is served by its own planner and answered
+with the same :class:`Trajectory`. A request that resumes a paused plan
+(:class:`PlanResume`) carries that plan's trajectory and how far it got, and asks for the
+same motion again: the planner of its kind plans what is left from where the arm is.
 
 A trajectory is piecewise Hermite in joint space: positions and velocities at each knot
 (cubic segments), plus accelerations when present (quintic segments). Its time starts at
 0 at the first knot; the controller anchors it when the goal starts. Each knot says what
 it is (:class:`KnotKind`): the start, a via point of the request's path (with its index
-there), or a waypoint the planner chose.
+there), a waypoint the planner chose, or the goal.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.collision import ClearanceReport
-from schemas.tagged import TaggedUnion, tag
+from schemas.goals import GOAL_MOTIONS
+from schemas.motion import MOTIONS, Motion
+from schemas.tagged import tag
 
 
 class Interpolation(StrEnum):
@@ -62,6 +65,13 @@ class PlanErrorReason(StrEnum):
     """the request itself is inconsistent"""
     COLLISION = "collision"
     """the arm would come too close to the scene, a protection zone or itself"""
+    GOAL_COLLISION = "goal_collision"
+    """every configuration that reaches the goal is too close to something (named)"""
+    ZONE = "zone"
+    """the goal lies inside a keep-out zone or outside the keep-in zone, or outside the
+    arm's own work area"""
+    NO_PATH = "no_path"
+    """no collision-free path was found within the search budget"""
 
 
 class KnotKind(StrEnum):
@@ -74,6 +84,8 @@ class KnotKind(StrEnum):
     """a via point of the request's path (``Trajectory.via_indices``: which one)"""
     WAYPOINT = "waypoint"
     """a configuration the planner chose on its way (no via point)"""
+    GOAL = "goal"
+    """the configuration reaching the goal a goal motion names (its last knot)"""
 
 
 INTERPOLATIONS = tuple(Interpolation)
@@ -107,19 +119,6 @@ class Path(Message):
 
     via_points: list[ViaPoint] = field("the via points; the first is replaced by the current pose")
     source: str = field("where it came from (file name), for error messages", default="")
-
-
-@dataclass(frozen=True)
-class Motion(Message):
-    """What a plan request asks for: one of the kinds in :data:`MOTIONS`.
-
-    The base of the kinds of motion; each is told apart by its ``kind`` field and served by
-    its own planner.
-    """
-
-
-MOTIONS: TaggedUnion[Motion] = TaggedUnion(Motion)
-"""The kinds of motion the planner serves, by ``kind`` (``PlanRequest.motion``)."""
 
 
 @MOTIONS.member
@@ -173,6 +172,11 @@ class ViaPointContinuation(Motion):
         default="cubic",
         choices=Interpolation,
     )
+
+
+SERVED_MOTIONS: tuple[type[Motion], ...] = (ViaPointPath, ViaPointContinuation, *GOAL_MOTIONS)
+"""Every kind of motion a plan request may ask for (importing this module declares them
+all in :data:`~schemas.motion.MOTIONS`)."""
 
 
 @dataclass(frozen=True)

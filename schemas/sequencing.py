@@ -14,6 +14,7 @@ from enum import StrEnum
 from schemas.base import Message, field
 from schemas.control import ControlMode
 from schemas.follow import FollowGoal
+from schemas.motion import MOTIONS, Motion
 from schemas.planning import Interpolation, Path
 
 
@@ -27,6 +28,7 @@ class StepKind(StrEnum):
     WAIT = "wait"
     POSE = "pose"
     FOLLOW = "follow"
+    REACH = "reach"
 
 
 class TaskAction(StrEnum):
@@ -94,6 +96,12 @@ class TaskStep(Message):
         default=0.0,
     )
     pose: str = field("for pose: a named pose (home, folded, unfolded)", default="")
+    goal: Motion | None = field(
+        "for reach: the goal, one of the goal motions (joints, pose, named, object, line; "
+        "docs/reach.md), planned around the scene by the planner",
+        default=None,
+        union=MOTIONS,
+    )
     where: str = field("where the step was written (file:line), for errors", default="")
     interpolation: str = field(
         "for move and pose: cubic spline or quintic segments",

@@ -3,12 +3,13 @@ stopped at the clearance, judged on the simulator's truth; clear paths pass unch
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 
 from manus.collision import CollisionModel
-from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
+from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.quantize import step_rates
 from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
@@ -92,3 +93,66 @@ def test_idle_costs_nothing() -> None:
     assert verdict.scale == 1.0 and verdict.reason == "" and verdict.clearance is None
     assert (verdict.counts == zero).all()
     assert guard.computed == 0
+
+
+def ahead(q: np.ndarray, counts: np.ndarray, guard: Guard) -> np.ndarray:
+    """Where ``counts`` take the arm from ``q`` (nothing in flight): a cycle and the
+    run-out [rad]."""
+    rate = np.array(step_rates(counts.tolist()))
+    return np.asarray(q + rate * (guard.cycle_s + guard.runout_s))
+
+
+def smallest_margin(model: CollisionModel, q0: np.ndarray, q1: np.ndarray) -> float:
+    """The exact model's smallest margin at 41 configurations from ``q0`` to ``q1`` [m]."""
+    return min(model.clearance(q0 + s * (q1 - q0)).margin for s in np.linspace(0.0, 1.0, 41))
+
+
+def test_a_slowed_motion_keeps_one_count_where_it_is_proven_clear() -> None:
+    # Folded, the gripper's motor is 20 mm from the shoulder (10 mm needed): inside the
+    # slow zone, a closing motion is slowed to a third; one count times a third is none.
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    guard = Guard(model)
+    q = np.radians(FOLDED_Q_DEG)
+    counts = np.array([0, -1, -1, 0, 0, 0])
+    verdict = guard.filter(list(q), [0.0] * 6, counts, model.opening)
+    assert verdict.reason.startswith("slowed to 0.3"), verdict.reason
+    assert (verdict.counts == counts).all()
+    assert smallest_margin(model, q, ahead(q, verdict.counts, guard)) >= 0.0
+
+
+def test_what_the_guard_lets_through_keeps_the_clearance_near_the_head() -> None:
+    # 1.5 mm from the head's clearance: every command of at most one count per joint;
+    # what passes (slowed or not) must keep the clearance all along, on the exact model,
+    # and the commands that would break it are stopped.
+    blind = PlannerCore(PlannerConfig(scene="none"))
+    reply = blind.plan(
+        PlanRequest(
+            ViaPointPath(path=parse_viapoints(HEAD_PATH, "head.txt"), speed_scaling=True),
+            start=UNFOLDED,
+        )
+    )
+    assert reply.trajectory is not None
+    path = np.array(reply.trajectory.positions)
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    k = next(k for k in range(len(path)) if model.clearance(path[k]).margin < 0.002)
+    a, b = path[k - 1], path[k]
+    lo, hi = 0.0, 1.0
+    for _ in range(30):  # where the margin is 1.5 mm
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if model.clearance(a + mid * (b - a)).margin > 0.0015 else (lo, mid)
+    q = a + lo * (b - a)
+    guard = Guard(model)
+    stopped = passed = 0
+    for row in itertools.product((-1, 0, 1), repeat=6):
+        counts = np.array(row)
+        if not counts.any():
+            continue
+        guard.advance.forget()  # each command decided afresh, as the first of a motion
+        verdict = guard.filter(list(q), [0.0] * 6, counts, model.opening)
+        if verdict.counts.any():
+            passed += 1
+            assert smallest_margin(model, q, ahead(q, verdict.counts, guard)) >= 0.0
+        else:
+            stopped += 1
+            assert verdict.reason.startswith("stopped: ")
+    assert stopped > 0 and passed > 0

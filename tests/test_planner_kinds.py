@@ -14,8 +14,8 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import jacobian
 from manus.trajectory import JointTrajectory
 from manus.viapoints import load_path, parse_viapoints
+from schemas.motion import MOTIONS
 from schemas.planning import (
-    MOTIONS,
     KnotKind,
     PlanReply,
     PlanRequest,

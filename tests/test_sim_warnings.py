@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from manus.config import DEFAULT_ARM
 from manus.protocol import (
     GEN_GRIPPER_READY,
     WARN_MOTOR_BLOCKED,
@@ -67,7 +69,7 @@ def test_the_arm_refuses_to_straighten_the_elbow_inside_the_margin() -> None:
 
 
 def test_the_gripper_may_not_go_below_the_floor() -> None:
-    core, pc = _ready(start_pose="unfolded", floor_z_mm=150.0)
+    core, pc = _ready(start_pose="unfolded", arm=replace(DEFAULT_ARM, work_floor_z=0.150))
     pc.run_cycles(16, _cartesian(z=-100))  # -110 mm/s from z = 200 mm
     z = core.truth().xyz[2] * 1000.0
     assert 150.0 - 1e-6 <= z < 155.0
@@ -77,7 +79,7 @@ def test_the_gripper_may_not_go_below_the_floor() -> None:
 
 
 def test_the_gripper_may_not_enter_the_cylinder_around_the_base() -> None:
-    core, pc = _ready(start_pose="unfolded", base_radius_mm=200.0)
+    core, pc = _ready(start_pose="unfolded", arm=replace(DEFAULT_ARM, work_base_radius=0.200))
     pc.run_cycles(16, _cartesian(x=-100))  # toward the base axis from r = 233 mm
     x, y, _ = np.array(core.truth().xyz) * 1000.0
     assert 200.0 - 1e-6 <= math.hypot(x, y) < 205.0

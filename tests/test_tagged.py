@@ -10,7 +10,8 @@ import pytest
 
 from manus.errors import SchemaError
 from schemas.base import Message, field
-from schemas.planning import MOTIONS, Motion, Path, PlanRequest, ViaPointPath
+from schemas.motion import MOTIONS, Motion
+from schemas.planning import Path, PlanRequest, ViaPointPath
 from schemas.tagged import TaggedUnion, tag
 
 
@@ -130,16 +131,24 @@ def test_json_schema_is_one_of_the_members_by_their_tag() -> None:
 
 
 def test_the_plan_request_declares_only_the_kinds_served() -> None:
-    assert MOTIONS.kinds() == ["via_points"]
+    served = ["joints", "line", "named", "object", "pose", "via_points"]
+    assert sorted(MOTIONS.kinds()) == served
     schema = PlanRequest.json_schema()
     assert schema["$id"] == "manus/PlanRequest/2"
     motion = schema["properties"]["motion"]
-    assert [v["title"] for v in motion["oneOf"]] == ["ViaPointPath"]
+    assert sorted(v["title"] for v in motion["oneOf"]) == [
+        "JointGoal",
+        "LineMotion",
+        "NamedGoal",
+        "ObjectGoal",
+        "PoseGoal",
+        "ViaPointPath",
+    ]
     request = PlanRequest(ViaPointPath(path=Path(via_points=[])), start=[0.0] * 6)
     jsonschema.validate(msgpack.unpackb(request.encode()), schema)
     with pytest.raises(jsonschema.ValidationError):
-        jsonschema.validate({"motion": {"kind": "joints", "goal": [0.0] * 6}}, schema)
-    with pytest.raises(SchemaError, match=r"motion.kind: 'joints' is not one of \['via_points'\]"):
-        PlanRequest.decode(msgpack.packb({"motion": {"kind": "joints", "goal": [0.0] * 6}}))
+        jsonschema.validate({"motion": {"kind": "teleport", "goal": [0.0] * 6}}, schema)
+    with pytest.raises(SchemaError, match=r"motion.kind: 'teleport' is not one of \["):
+        PlanRequest.decode(msgpack.packb({"motion": {"kind": "teleport", "goal": [0.0] * 6}}))
     with pytest.raises(SchemaError, match="a Motion is not a member"):
         PlanRequest(Motion())

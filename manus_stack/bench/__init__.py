@@ -22,6 +22,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "flight": ("manus_stack.bench.flight", False),
     "chaos": ("manus_stack.bench.chaos", False),
     "objects": ("manus_stack.bench.objects", False),
+    "reach": ("manus_stack.bench.reach", False),
     "panel": ("manus_stack.bench.panel", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -121,7 +121,7 @@ class Guard:
             return Verdict(counts, 1.0, "", None)
         nxt = [a + v * self.cycle_s for a, v in zip(q, applied, strict=True)]
         end = [a + r * ahead for a, r in zip(nxt, rates, strict=True)]
-        return self._decide(counts, list(q), nxt, end, cmd_dh)
+        return self._decide(counts, list(q), nxt, end)
 
     def _decide(
         self,
@@ -129,14 +129,12 @@ class Guard:
         q: list[float],
         nxt: list[float],
         end: list[float],
-        cmd_dh: list[float],
     ) -> Verdict:
         """Compute the distances: pass, slow down or stop (not proven clear already)."""
         q_s, q_next, q_end = np.array(q, dtype=float), np.array(nxt), np.array(end)
         self.computed += 1
         if self.advance.anchor_fast(q_s) >= self.slow_zone_m and self.advance.proven(nxt, end):
             return Verdict(counts, 1.0, "", self._report(q_s))  # the fast bounds prove it
-        v_cmd = np.array(cmd_dh) * COUNT_RAD_S
         now = self._anchor_at(q_s)
         if now.margin >= self.slow_zone_m and self.advance.proven(nxt, end):
             return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
@@ -155,11 +153,10 @@ class Guard:
         if scale >= 1.0:
             return Verdict(counts, 1.0, "", now.clearance)
         scaled = np.trunc(counts * scale).astype(np.int64)
+        if scale > 0.0:
+            scaled = self._at_least_one(counts, scaled, q_next)
         if scale > 0.0 and scaled.any():
-            q_scaled = q_next + v_cmd * (scaled / np.where(counts != 0, counts, 1)).max() * (
-                self.cycle_s + self.runout_s
-            )
-            check = self._margin(q_scaled)
+            check = self._margin(self._ahead(q_next, scaled))
             if check.margin >= floor:
                 return Verdict(
                     scaled,
@@ -176,6 +173,34 @@ class Guard:
         by that much, so its proof stays conservative without a new distance."""
         if by > 0.0:
             self.advance.shrink(by)
+    def _at_least_one(
+        self, counts: np.ndarray, scaled: np.ndarray, q_next: np.ndarray
+    ) -> np.ndarray:
+        """``scaled`` with one count, in its direction, for every joint the command moves
+        that the slow-down truncated to none, when that motion is proven clear; else
+        ``scaled`` as it is.
+
+        A count is the arm's smallest speed step (5 deg/s): a trajectory's first and last
+        counts, slowed near something, would all become zero, and the motion stop there
+        ("stopped ... ahead") though one count is clear. The proof: the arm reaches
+        ``q_next`` whatever is sent now (the motion in flight, checked when it was sent
+        and again above); from there, the fast check proves the straight joint motion to
+        this command's end with the run-out continuously, on lower bounds of the margins
+        (:meth:`manus.validity.ValidityChecker.motion_valid`: conservative advancement,
+        every margin at least ``MOTION_FLOOR_M`` all along; no sampling).
+        """
+        least = np.where((counts != 0) & (scaled == 0), np.sign(counts), scaled)
+        if (least == scaled).all():
+            return scaled
+        if self.advance.checker.motion_valid(q_next, self._ahead(q_next, least)).ok:
+            return least
+        return scaled
+
+    def _ahead(self, q_next: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """Where ``counts`` [motor speed steps] take the arm from ``q_next`` [rad]: this
+        cycle and the run-out after it."""
+        rates = np.array(encoder_increments_to_dh_list(counts.tolist())) * COUNT_RAD_S
+        return np.asarray(q_next + rates * (self.cycle_s + self.runout_s))
 
     # --- internals ---------------------------------------------------------------------------
 

@@ -37,6 +37,11 @@ class PlannerConfig:
         resume_lead_s: time added to reach the first via point left when a paused path
             goes on [s]: the arm starts from rest (and the planner stretches more if the
             joint limits need it).
+        padding: margin a goal plan keeps beyond every clearance away from its start and
+            its end [m] (tracking errors and the sweep's resolution eat into it;
+            docs/reach.md).
+        poses: the user's named poses file (:mod:`manus.named_poses`: ``""`` =
+            ``$MANUS_POSES``, else only the shipped poses).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -48,6 +53,8 @@ class PlannerConfig:
     scene_every_ms: float = 1000.0
     world: WorldConfig = field(default_factory=WorldConfig)
     resume_lead_s: float = 0.6
+    padding: float = 0.005
+    poses: str = ""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.resume_lead_s) and 0.0 <= self.resume_lead_s <= 60.0):
@@ -56,6 +63,8 @@ class PlannerConfig:
             raise ConfigError(
                 f"`scene_every_ms` must be in [0, 60000] ms, got {self.scene_every_ms!r}"
             )
+        if not (math.isfinite(self.padding) and 0.0 <= self.padding <= 0.1):
+            raise ConfigError(f"`padding` must be in [0, 0.1] m, got {self.padding!r}")
         if not 0.0 < self.max_knot_jump <= 2.0 * math.pi:
             raise ConfigError(
                 f"`max_knot_jump` must be in (0, 2 pi] rad, got {self.max_knot_jump!r}"

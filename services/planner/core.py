@@ -26,8 +26,9 @@ from manus.scene import Scene, SceneError, parse_scene, scene_from_setting, star
 from manus.validity import checker_for
 from manus.world import WorldModel
 from schemas.collision import SceneReply, SceneState, SceneUpdate
+from schemas.motion import Motion
 from schemas.objects import AttachReply, AttachRequest, WorldUpdate
-from schemas.planning import Motion, PlanReply, PlanRequest, Trajectory
+from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.state import JointState
 from services.planner import attach
 from services.planner.config import PlannerConfig

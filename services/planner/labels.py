@@ -46,7 +46,7 @@ class KnotLabels:
 
     def label(self, k: int, *, with_source: bool = True) -> str:
         """How messages name knot ``k``: ``"square.txt line 5 (via point 3)"``, ``"the
-        start"``, ``"waypoint 2 (knot 4)"``."""
+        start"``, ``"waypoint 2 (knot 4)"``, ``"the goal"``."""
         source = self.source if with_source else ""
         index = self.via_indices[k]
         if index >= 0:
@@ -54,6 +54,8 @@ class KnotLabels:
         head = f"{source} " if source else ""
         if self.kinds[k] == KnotKind.START:
             return f"{head}the start"
+        if self.kinds[k] == KnotKind.GOAL:
+            return f"{head}the goal"
         waypoint = sum(kind == KnotKind.WAYPOINT for kind in self.kinds[:k]) + 1
         return f"{head}waypoint {waypoint} (knot {k})"
 

@@ -1,4 +1,5 @@
-"""``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON.
+"""``manus plan FILE``: plan a via-point file in-process and print the trajectory as JSON
+(the ``manus plan`` command is :mod:`manus_stack.commands.plan`, which adds the goals).
 
 The trajectory is checked against the scene (``--scene``); the smallest clearance and
 where it occurs go into the JSON (``clearance``) and on one line of standard error.
@@ -29,7 +30,9 @@ from services.planner.errors import PlanningError
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """FILE, ``--start-joints``, ``--quintic``, ``--speed-scaling``, ``--preview``."""
-    parser.add_argument("file", help="via-point file (14 columns, mm, deg, s)")
+    parser.add_argument(
+        "file", nargs="?", help="via-point file (14 columns, mm, deg, s); or give a goal option"
+    )
     parser.add_argument(
         "--start-joints",
         nargs=6,

@@ -36,7 +36,8 @@ import numpy as np
 from manus.collision import CollisionModel
 from manus.kinematics import fk_batch
 from schemas.collision import ClearanceReport
-from schemas.planning import Motion, PlanResume, Trajectory
+from schemas.motion import Motion
+from schemas.planning import PlanResume, Trajectory
 from services.planner.checks import RateCheck, check_rates
 from services.planner.collisions import check_collisions
 from services.planner.config import PlannerConfig

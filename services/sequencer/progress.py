@@ -34,6 +34,8 @@ def describe(task: Task, index: int) -> str:
         what = f"{step.duration:g} s"
     elif step.kind == StepKind.POSE:
         what = step.pose
+    elif step.kind == StepKind.REACH and step.goal is not None:
+        what = getattr(step.goal, "name", "") or str(getattr(step.goal, "kind", ""))
     else:
         what = ""
     return f"{step.kind} {what}".strip()

@@ -66,6 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--fold-in", action="store_true", help="fold the arm after the steps (thesis form)"
     )
+    add_bus_arguments(parser)
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the stack is and how to follow a task (``manus run``, ``manus reach``)."""
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--prefix", help="key prefix of the arm (default: manus)")
     parser.add_argument(
@@ -114,38 +119,44 @@ def run(args: argparse.Namespace) -> int:
     except TaskFileError as exc:
         _err("manus run: task refused:\n  " + "\n  ".join(exc.errors))
         return 2
+    return submit_and_follow(task, args)
+
+
+def submit_and_follow(task: Task, args: argparse.Namespace, command: str = "manus run") -> int:
+    """Submit ``task`` to the stack (``args``: :func:`add_bus_arguments`) and follow it to
+    its end; the exit status of the module docstring, messages starting ``command:``."""
     settings = settings_from_env(connect=args.connect, prefix=args.prefix)
     stop = wait_for_signal()
     with contextlib.ExitStack() as stack:
         node = stack.enter_context(Node("run", settings, liveliness=False))
         client = TaskClient(node)
         if "sequencer" not in node.alive_services(timeout=1.0):
-            _err("manus run: no sequencer is running: running one in this process")
+            _err(f"{command}: no sequencer is running: running one in this process")
             stack.enter_context(SequencerShell(settings, session=node.session))
         missing = client.wait_for_services((*REQUIRED_SERVICES, "sequencer"), args.wait)
         if missing:
             _err(
-                f"manus run: waited {args.wait:g} s; still missing: {', '.join(missing)} "
+                f"{command}: waited {args.wait:g} s; still missing: {', '.join(missing)} "
                 "(start them, e.g. with `manus up`)"
             )
         elif client.bridge_phase != "running":  # the sequencer holds the task meanwhile
             _err(
-                f"manus run: the bridge is not running yet (phase "
+                f"{command}: the bridge is not running yet (phase "
                 f"{client.bridge_phase or 'unknown'}): the sequencer waits for it (its "
                 "bridge_wait_s, 30 s by default) or refuses the task at once if it stopped"
             )
         try:
             reply = client.submit(task)
         except QueryError as exc:
-            _err(f"manus run: {exc}")
+            _err(f"{command}: {exc}")
             return 1
         if not reply.accepted:
-            _err("manus run: task refused:\n  " + "\n  ".join(reply.errors))
+            _err(f"{command}: task refused:\n  " + "\n  ".join(reply.errors))
             return 2
         _out(f"task {reply.task_id}: {task.name} ({len(task.steps)} steps)")
         view = ProgressView(task, sys.stdout, live=sys.stdout.isatty() and not args.plain)
         final = client.follow(reply.task_id, view.show, stop=stop, timeout=args.timeout)
-        return _outcome(client, reply.task_id, final, view, stop, args.timeout)
+        return _outcome(client, reply.task_id, final, view, stop, args.timeout, command)
 
 
 def _outcome(
@@ -155,35 +166,36 @@ def _outcome(
     view: ProgressView,
     stop: threading.Event,
     timeout: float | None,
+    command: str,
 ) -> int:
     """The exit status of a followed task (cancelling it when interrupted or too long)."""
     if final is None and client.sequencer_gone.is_set():
         _err(
-            f"manus run: the sequencer is gone (its liveliness token alive/sequencer "
+            f"{command}: the sequencer is gone (its liveliness token alive/sequencer "
             f"vanished: it died or hangs) while task {task_id} ran: its outcome is "
             "unknown; the controller's deadman stops the arm"
         )
         return 1
     if final is None and client.link_lost:
         _err(
-            f"manus run: no link to the router for {LINK_WAIT_S:g} s while task {task_id} "
+            f"{command}: no link to the router for {LINK_WAIT_S:g} s while task {task_id} "
             "ran: its outcome is unknown (`manus task history` tells it once the link is back)"
         )
         return 1
     if final is not None and final is client.recovered:
         _err(
-            f"manus run: the final event of task {task_id} was lost on the way (a link or "
+            f"{command}: the final event of task {task_id} was lost on the way (a link or "
             "the sequencer's session was down): read from sequencer/history"
         )
     if final is None:
         why = "interrupted" if stop.is_set() else f"no end within {timeout:g} s"
-        _err(f"manus run: {why}: cancelling task {task_id}")
+        _err(f"{command}: {why}: cancelling task {task_id}")
         with contextlib.suppress(QueryError):
             client.control(TaskAction.CANCEL, task_id)
         client.follow(task_id, view.show, timeout=10.0)
         return 130 if stop.is_set() else 1
     if final.event != TaskEventKind.SUCCEEDED:
-        _err(f"manus run: task {final.event}: {final.reason}")
+        _err(f"{command}: task {final.event}: {final.reason}")
         return 1
     _out(f"task {task_id}: succeeded")
     return 0

@@ -10,6 +10,8 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
 - ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
 - ``follow``: :class:`~services.sequencer.follow_step.FollowStep` (a controller follow
   goal, held for a time or until the supervisor's ``done``).
+- ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
+  its way to).
 
 A new kind of step is one class and one entry here, its checks before the task starts
 included.
@@ -22,6 +24,7 @@ from services.sequencer.fold_step import FoldStep
 from services.sequencer.follow_step import FollowStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
+from services.sequencer.reach_step import ReachStep
 from services.sequencer.step import Step
 from services.sequencer.wait_step import WaitStep
 
@@ -33,5 +36,6 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
     StepKind.FOLLOW: FollowStep,
+    StepKind.REACH: ReachStep,
 }
 """The class of each kind of step."""

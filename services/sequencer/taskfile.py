@@ -33,6 +33,9 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
     follow = "mouth"                 # follow a tracker's target to a standoff and hold it
     offset_mm = [0, 0, 60]           # optional keys: services/sequencer/follow_spec.py
     hold_s = 10                      # (without it: until `manus task done`)
+    reach = {pose = [560, 100, -150, 0, 90, 0]}   # a goal the planner finds its way to
+                                     # (named, pose, joints, object, approach, line_to,
+                                     # line_tool: manus/goal_spec.py, docs/reach.md)
     [[step]]
     fold_in = true
 
@@ -51,6 +54,7 @@ from pathlib import Path as FilePath
 from typing import Any
 
 from manus.errors import ManusError
+from manus.goal_spec import GoalSpecError, goal_from_spec
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
 from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
@@ -73,6 +77,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.FOLD_OUT: (),
     StepKind.WAIT: (),
     StepKind.FOLLOW: FOLLOW_OPTIONS,
+    StepKind.REACH: (),
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -240,6 +245,8 @@ class _StepContext:
             step = self._pose(value, where, errors, options)
         elif kind == StepKind.FOLLOW:
             step = follow_step(raw, where, lambda key, msg: self.error(errors, key, kind, msg))
+        elif kind == StepKind.REACH:
+            step = self._reach(value, where, errors)
         else:
             step = TaskStep(kind=kind, where=where)
             if value is not True:
@@ -337,6 +344,14 @@ class _StepContext:
                 )
             numeric.append([float(v) for v in row])
         return path_from_rows(numeric, source=self.source, lines=lines)
+
+    def _reach(self, value: Any, where: str, errors: list[str]) -> TaskStep | None:
+        try:
+            goal = goal_from_spec(value)
+        except GoalSpecError as exc:
+            self.error(errors, "reach", "reach", str(exc))
+            return None
+        return TaskStep(kind=StepKind.REACH, goal=goal, where=where)
 
     def _gripper(self, value: Any, where: str, errors: list[str]) -> TaskStep | None:
         if not _is_number(value):

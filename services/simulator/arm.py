@@ -137,6 +137,10 @@ class ArmModel:
         self.lower_deg = np.degrees(config.arm.lower_array)
         self.upper_deg = np.degrees(config.arm.upper_array)
         self.gripper_max_mm = config.arm.gripper_max * 1000.0
+        # The arm's own work area (warnings 1 and 2): the arm's, as the planner keeps it.
+        self.stretched_margin_deg = math.degrees(config.arm.stretched_margin)
+        self.floor_z_mm = config.arm.work_floor_z * 1000.0
+        self.radius_mm = config.arm.work_base_radius * 1000.0
         self._area_cache: dict[bytes, float] = {}
         # The power-up measurement of absolute angles is right; the scale error of joint 1's
         # transmission accumulates with its motion from there.
@@ -247,7 +251,7 @@ class ArmModel:
 
     def _refusal(self, x0: np.ndarray, x: np.ndarray) -> int | None:
         q0, q1 = motor_to_dh_deg(x0), motor_to_dh_deg(x)
-        margin = self.config.stretched_margin_deg
+        margin = self.stretched_margin_deg
         if stretch_violation(q1, margin) > stretch_violation(q0, margin) + _EPS:
             return WARN_STRETCHED
         if self._area(x, q1) > self._area(x0, q0) + _EPS:
@@ -259,8 +263,7 @@ class ArmModel:
         key = x.tobytes()
         cached = self._area_cache.get(key)
         if cached is None:
-            cfg = self.config
-            cached = area_violation(self.gripper_xyz_mm(q_deg), cfg.floor_z_mm, cfg.base_radius_mm)
+            cached = area_violation(self.gripper_xyz_mm(q_deg), self.floor_z_mm, self.radius_mm)
             if len(self._area_cache) >= 4:
                 self._area_cache.clear()
             self._area_cache[key] = cached

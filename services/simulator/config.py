@@ -80,11 +80,6 @@ class SimConfig:
         gripper_ready_ms: time of the general message "gripper ready" [ms].
         angles_measured_ms: time of "absolute angles measured"; no motion command is
             obeyed before it [ms].
-        stretched_margin_deg: the elbow may not straighten closer than this to
-            |q3 - 90 deg| = 0 (warning 2) [deg].
-        floor_z_mm: the gripper may not go below this z (warning 1) [mm].
-        base_radius_mm: the gripper may not enter this vertical cylinder around the base
-            axis (warning 1) [mm].
         garbage: what position fields carry before a move mode is active: ``noise``
             (seeded random 16-bit values) or ``max`` (0x7FFF).
         faults: injected faults (none by default).
@@ -118,9 +113,6 @@ class SimConfig:
     stale_duration_ms: float = 240.0
     gripper_ready_ms: float = 300.0
     angles_measured_ms: float = 600.0
-    stretched_margin_deg: float = 3.0
-    floor_z_mm: float = -350.0
-    base_radius_mm: float = 90.0
     garbage: str = "noise"
     faults: FaultConfig = field(default_factory=FaultConfig)
     scene: str = ""
@@ -166,9 +158,6 @@ class SimConfig:
         _finite("stale_duration_ms", self.stale_duration_ms, 0.0, 60_000.0)
         _finite("gripper_ready_ms", self.gripper_ready_ms, 0.0, 60_000.0)
         _finite("angles_measured_ms", self.angles_measured_ms, self.gripper_ready_ms, 60_000.0)
-        _finite("stretched_margin_deg", self.stretched_margin_deg, 0.0, 45.0)
-        _finite("floor_z_mm", self.floor_z_mm, -2000.0, 2000.0)
-        _finite("base_radius_mm", self.base_radius_mm, 0.0, 1000.0)
         _finite("grasp_tolerance_mm", self.grasp_tolerance_mm, 0.0, 100.0)
         if self.garbage not in GARBAGE_KINDS:
             raise ConfigError(f"`garbage` {self.garbage!r} must be one of {GARBAGE_KINDS}")
