@@ -123,8 +123,7 @@ class ValidityChecker:
         ]
         self._obstacles = obstacles(model, self.bodies)
         self._others = self._obstacles.others
-        self._opening = model.opening
-        self._moved = model.moved.version
+        self._opening, self._moved = model.opening, model.moved.version
         self._build()
 
     # --- building ----------------------------------------------------------------------------
@@ -262,14 +261,11 @@ class ValidityChecker:
         )
 
     def _follow_opening(self) -> None:
-        if self.model.moved.version != self._moved:  # cheap: no rebuild
-            self._moved = self.model.moved.version
-            place_moved(self.model, self._obstacles, self._scene)
+        self._moved = place_moved(self.model, self._obstacles, self._scene, self._moved)
         if self.model.opening != self._opening:
             self._opening = self.model.opening
             gripper = self.bodies.index("gripper")
-            index = self.model.body_index["gripper"]
-            self._shape_of[gripper] = self._shape(index)
+            self._shape_of[gripper] = self._shape(self.model.body_index["gripper"])
             self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover
             self._build()
 

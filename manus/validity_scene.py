@@ -135,12 +135,16 @@ def _static_pose(model: CollisionModel, joint: int, placement: np.ndarray) -> np
     return M
 
 
-def place_moved(model: CollisionModel, found: Obstacles, scene: tuple[np.ndarray, ...]) -> None:
+def place_moved(
+    model: CollisionModel, found: Obstacles, scene: tuple[np.ndarray, ...], placed: int
+) -> int:
     """Put every scene object the model moved where it is now, in ``found`` and in the
     kernels' scene arrays ``scene`` (:attr:`ValidityChecker._scene`: rotations, origins
-    and boxes, in place)."""
-    if model.scene is None:
-        return
+    and boxes, in place), unless they are there already (the model's moves, ``version``,
+    are ``placed``); returns the version placed (cheap: no rebuild)."""
+    version = model.moved.version
+    if model.scene is None or version == placed:
+        return version
     to_base = np.linalg.inv(model.scene.mount)
     for obj in model.scene.objects:
         if obj.name not in model.moved.poses:
@@ -150,3 +154,4 @@ def place_moved(model: CollisionModel, found: Obstacles, scene: tuple[np.ndarray
         _, R, t, _ = primitive_arrays([prim])
         scene[1][o], scene[2][o] = R[0], t[0]
         scene[12][o] = primitive_box(prim)
+    return version
