@@ -8,6 +8,8 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
 - ``gripper``: :class:`~services.sequencer.gripper_step.GripperStep`;
 - ``fold_in`` and ``fold_out``: :class:`~services.sequencer.fold_step.FoldStep`;
 - ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
+- ``follow``: :class:`~services.sequencer.follow_step.FollowStep` (a controller follow
+  goal, held for a time or until the supervisor's ``done``).
 - ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
   its way to).
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 from schemas.sequencing import StepKind
 from services.sequencer.fold_step import FoldStep
+from services.sequencer.follow_step import FollowStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
 from services.sequencer.reach_step import ReachStep
@@ -32,6 +35,7 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_IN: FoldStep,
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
+    StepKind.FOLLOW: FollowStep,
     StepKind.REACH: ReachStep,
 }
 """The class of each kind of step."""
