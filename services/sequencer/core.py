@@ -221,7 +221,8 @@ class SequencerCore(TaskSubmission):
         self.now = now_ns
         if alive:
             self.alive.add(service)
-            return []
+            self.seen.add(service)
+            return self._recheck_held()  # a submission may wait for it
         self.alive.discard(service)
         if self.busy and service in self.config.required_services:
             return self.fail(f"{service} is gone (its liveliness token vanished)")
