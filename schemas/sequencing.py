@@ -27,6 +27,9 @@ class StepKind(StrEnum):
     WAIT = "wait"
     POSE = "pose"
     REACH = "reach"
+    PICK = "pick"
+    PLACE = "place"
+    GIVE = "give"
 
 
 class TaskAction(StrEnum):
@@ -106,6 +109,19 @@ class TaskStep(Message):
     speed_scaling: bool = field(
         "for move: stretch time to respect joint limits instead of refusing (pose: always)",
         default=False,
+    )
+    object: str = field(
+        "for pick, place and give: the world model's object (its id, docs/pick.md)", default=""
+    )
+    at: list[float] | None = field(
+        "for place: where the object's centre goes, chair frame: x, y, z [m] and yaw, pitch, "
+        "roll [rad] (None: on `surface`)",
+        default=None,
+        length=6,
+    )
+    surface: str = field(
+        "for place: the scene object it is put on (its top, above where the object is held)",
+        default="",
     )
 
 

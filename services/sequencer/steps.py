@@ -9,7 +9,9 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
 - ``fold_in`` and ``fold_out``: :class:`~services.sequencer.fold_step.FoldStep`;
 - ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
 - ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
-  its way to).
+  its way to);
+- ``pick``, ``place`` and ``give``: :class:`~services.sequencer.object_step.ObjectStep`
+  (an object task run as stages by the steps above, docs/pick.md).
 
 A new kind of step is one class and one entry here, its checks before the task starts
 included.
@@ -21,6 +23,7 @@ from schemas.sequencing import StepKind
 from services.sequencer.fold_step import FoldStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
+from services.sequencer.object_step import ObjectStep
 from services.sequencer.reach_step import ReachStep
 from services.sequencer.step import Step
 from services.sequencer.wait_step import WaitStep
@@ -33,5 +36,8 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
     StepKind.REACH: ReachStep,
+    StepKind.PICK: ObjectStep,
+    StepKind.PLACE: ObjectStep,
+    StepKind.GIVE: ObjectStep,
 }
 """The class of each kind of step."""

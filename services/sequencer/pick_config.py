@@ -1,0 +1,53 @@
+"""Settings of the pick, place and give steps (frozen, validated at construction)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from manus.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class PickConfig:
+    """How the sequencer picks, places and gives objects (docs/pick.md).
+
+    Attributes:
+        grasps: the grasps file ('': the shipped ``manus/data/grasps.yaml``).
+        max_tilt_deg: a held object of a class kept level (a cup: it may hold a drink)
+            leans at most this far from upright while carried [deg]; every motion planned
+            while it is held is checked along its whole trajectory.
+        moved_m: the object moved farther than this from where the approach was planned
+            to (perception's newest sighting) during the approach: the approach stops and
+            is planned again [m].
+        max_replans: at most this many new approaches per pick; one more move stops
+            the task, saying so.
+        stale_s: the object not observed for longer than this while it is approached:
+            perception is lost, the task stops [s] (0: the world model's own
+            ``stale_after_s``).
+        handover_xyz: where ``give`` brings the object's centre, chair frame [m]: in front
+            of the user, within the reach of a hand.
+        handover_yaw_deg: the gripper's yaw there (the direction it points in, chair frame)
+            [deg].
+        drop_m: a placed object is let go this far above its resting place [m].
+    """
+
+    grasps: str = ""
+    max_tilt_deg: float = 10.0
+    moved_m: float = 0.025
+    max_replans: int = 2
+    stale_s: float = 0.0
+    handover_xyz: tuple[float, float, float] = (0.45, -0.22, 1.0)
+    handover_yaw_deg: float = 60.0
+    drop_m: float = 0.003
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.max_tilt_deg <= 90.0:
+            raise ConfigError(f"pick max_tilt_deg = {self.max_tilt_deg!r} is outside (0, 90] deg")
+        if not 0.0 < self.moved_m <= 0.5:
+            raise ConfigError(f"pick moved_m = {self.moved_m!r} is outside (0, 0.5] m")
+        if not 0 <= self.max_replans <= 10:
+            raise ConfigError(f"pick max_replans = {self.max_replans!r} is outside 0..10")
+        if not 0.0 <= self.stale_s <= 60.0:
+            raise ConfigError(f"pick stale_s = {self.stale_s!r} is outside 0..60 s")
+        if not 0.0 <= self.drop_m <= 0.05:
+            raise ConfigError(f"pick drop_m = {self.drop_m!r} is outside 0..0.05 m")
