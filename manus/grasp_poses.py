@@ -3,9 +3,9 @@ chair frame, from its class's :class:`~manus.grasps.GraspClass` (docs/pick.md).
 
 The gripper frame (the stack's gripper pose): z along the approach, x the jaw axis, the
 origin between the fingertips' pads. A **side** grasp comes in horizontally (or pitched
-down by the class's ``pitch``) with the gripper's y up (from the chair's z, not the object's noisy observed
-axis); its candidate directions turn about the vertical from the direction the
-arm's shoulder sees the object in, nearest first. A **top** grasp comes straight down,
+down by the class's ``pitch``) with the gripper's y up (from the chair's z, not the
+object's noisy observed axis); its candidate directions turn about the vertical from the
+direction the arm's shoulder sees the object in, nearest first. A **top** grasp comes straight down,
 its jaws across the object's y extent, turned by the class's yaw step.
 
 A candidate whose straight approach would run the gripper through another object of the
@@ -16,6 +16,7 @@ world is set aside (:func:`blocked_by`): the collision model does not hold free 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -85,13 +86,15 @@ def _turns(step: float, span: float) -> list[float]:
 
 
 def grasps_of(obj: WorldObject, how: GraspClass, shoulder: np.ndarray) -> list[Grasp]:
-    """The candidate grasps of ``obj`` (in the world, chair frame), preferred first.
+    """The candidate grasps of ``obj`` (in the world, chair frame), preferred first; it is
+    taken as standing upright (objects rest upright), its observed yaw kept.
 
     Args:
         obj: the object.
         how: its class's grasps.
         shoulder: the arm's shoulder in the chair frame [m], shape (3,).
     """
+    obj = replace(obj, ypr=[obj.ypr[0], 0.0, 0.0])  # it rests upright: no noisy lean
     centre = np.array(obj.xyz) + np.array([0.0, 0.0, how.height])
     up = np.array([0.0, 0.0, 1.0])
     out: list[Grasp] = []

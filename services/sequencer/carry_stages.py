@@ -18,13 +18,13 @@ from schemas.objects import ObjectShape, WorldObject
 from schemas.planning import Trajectory
 from services.sequencer.object_stages import (
     MAX_OPENING_M,
+    NEAR_SPEED,
     ObjectProblem,
     ObjectView,
     Stage,
     half_height,
     line_to,
-    line_tool,
-    pose_goal,
+    line_up,
     surface_top,
     surface_under,
 )
@@ -57,11 +57,21 @@ def _world_pose(view: ObjectView, held: WorldObject, q: np.ndarray) -> np.ndarra
     return np.asarray(view.gripper(q) @ object_pose(held))
 
 
+PLACE_TURNS_DEG = (0.0, 15.0, -15.0, 30.0, -30.0, 45.0, -45.0)
+"""The gripper's candidate yaws at a place, from pointing away from the shoulder [deg]
+(a symmetric object: its own yaw does not matter)."""
+
+
 def place_stages(
-    view: ObjectView, held: WorldObject, q: np.ndarray, at: list[float] | None, surface: str
+    view: ObjectView,
+    held: WorldObject,
+    q: np.ndarray,
+    at: list[float] | None,
+    surface: str,
+    turn_deg: float = 0.0,
 ) -> list[Stage]:
     """Carry the held object above its place (a straight line, else a search), lower it,
-    let it go there, retreat.
+    let it go there, retreat straight up (the open jaws rise off it).
 
     Args:
         view: what the sequencer knows.
@@ -70,6 +80,8 @@ def place_stages(
         at: the object's centre pose, chair frame (x, y, z [m], yaw, pitch, roll [rad]);
             None: on ``surface``, under where it is held.
         surface: the scene object to put it on (with ``at`` None).
+        turn_deg: a symmetric object: the gripper's yaw from pointing away from the
+            shoulder [deg] (:data:`PLACE_TURNS_DEG`).
 
     Raises:
         ObjectProblem: the place pose leans, is inside or far above a surface, or the
@@ -96,33 +108,27 @@ def place_stages(
     else:
         on = surface
         target = _on_surface(view, held, now, surface, hh)
-    if held.shape in SYMMETRIC or at is None:
-        target[:3, :3] = rot_z(_yaw(now[:3, :3]))
     T_g = target @ np.linalg.inv(object_pose(held))
+    if held.shape in SYMMETRIC:
+        # Its yaw does not matter: the gripper turns (about the vertical, so the object
+        # stays as level as it is) to point away from the shoulder, as a grasp there would.
+        seen = target[:2, 3] - view.mount[:2, 3]
+        z = T_g[:3, 2]
+        turn = math.atan2(seen[1], seen[0]) - math.atan2(z[1], z[0]) + math.radians(turn_deg)
+        centre = target[:3, 3].copy()
+        T_g = _turned(T_g, turn, centre)
     T_g[2, 3] += view.config.drop_m
     above = T_g.copy()
     above[2, 3] += view.how(held).lift
     width = extent_along(held, np.array([1.0, 0.0, 0.0]))
     return [
-        Stage("carry", motion=line_to(view, above), carrying=True, search=False),
-        Stage("lower", motion=line_to(view, T_g, speed=0.3), carrying=True),
+        Stage("carry", motion=line_to(view, above), carrying=True, retry=True),
         Stage("set down", attach=GRIPPER_FRAME, touch_objects=(on,)),
+        Stage("lower", motion=line_to(view, T_g, speed=NEAR_SPEED), carrying=True, retry=True),
         Stage("open", opening=min(MAX_OPENING_M, width + view.how(held).open_margin)),
         Stage("release", attach=""),
-        Stage("retreat", motion=line_tool(-view.how(held).pregrasp)),
+        Stage("retreat", motion=line_up(view, 2.0 * hh + 0.02)),
     ]
-
-
-def carry_fallback(view: ObjectView, stage: Stage, q: np.ndarray) -> Stage | None:
-    """The same carry as a search to the line's end pose (None: not a carry)."""
-    if stage.label not in ("carry", "hand over") or stage.motion is None:
-        return None
-    motion = stage.motion(q)
-    xyz, ypr = getattr(motion, "xyz", None), getattr(motion, "ypr", None)
-    if xyz is None or ypr is None:
-        return None
-    T = view.mount @ pose_matrix(np.array(xyz), (ypr[0], ypr[1], ypr[2]))
-    return Stage(stage.label, motion=pose_goal(view, T), carrying=True, search=True)
 
 
 def give_stages(view: ObjectView, held: WorldObject, q: np.ndarray) -> list[Stage]:
@@ -137,6 +143,25 @@ def give_stages(view: ObjectView, held: WorldObject, q: np.ndarray) -> list[Stag
     return [Stage("hand over", motion=line_to(view, T_g), carrying=True)]
 
 
+def plan_problem(
+    view: ObjectView, stage: Stage, trajectory: Trajectory, held: WorldObject | None
+) -> str:
+    """What keeps a stage's planned ``trajectory`` from being run ('' nothing): a
+    clearance within ``pick.margin_m`` of its limit (the controller's tracking error
+    would bring the guard's stop), or, carrying a level object, too much tilt."""
+    report = trajectory.clearance
+    margin = view.config.margin_m
+    if report is not None and report.distance - report.required < margin:
+        return (
+            f"{stage.label}: too tight: {report.body} {report.distance * 1e3:.1f} mm from "
+            f"{report.other} at {report.time:.2f} s ({report.cls}: needs "
+            f"{report.required * 1e3:.0f} mm, and {margin * 1e3:.0f} mm to spare for tracking)"
+        )
+    if stage.carrying and held is not None:
+        return tilt_problem(view, held, trajectory, stage.label)
+    return ""
+
+
 def held_as_world(held: WorldObject, pose: np.ndarray) -> WorldObject:
     """``held`` at the chair-frame pose ``pose`` (for its extents and surfaces)."""
     from dataclasses import replace
@@ -147,8 +172,12 @@ def held_as_world(held: WorldObject, pose: np.ndarray) -> WorldObject:
     return replace(held, xyz=[float(v) for v in pose[:3, 3]], ypr=ypr, link="")
 
 
-def _yaw(R: np.ndarray) -> float:
-    return math.atan2(R[1, 0], R[0, 0])
+def _turned(T: np.ndarray, turn: float, centre: np.ndarray) -> np.ndarray:
+    """The pose ``T`` turned by ``turn`` [rad] about the vertical through ``centre``."""
+    R = np.eye(4)
+    R[:3, :3] = rot_z(turn)
+    R[:3, 3] = centre - R[:3, :3] @ centre
+    return np.asarray(R @ T)
 
 
 def _on_surface(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,7 +31,8 @@ MAX_OPENING_M = 0.090
 """The gripper's widest opening [m]."""
 
 SURFACE_GAP_M = 0.015
-"""An object rests on a surface whose top is at most this far below its bottom [m]."""
+"""An object rests on a surface whose top is within this of its bottom [m] (perception's
+noise puts it a little above or below)."""
 
 
 class ObjectProblem(Exception):  # noqa: N818 (a reason, not a fault: it is reported)
@@ -128,14 +129,16 @@ class Stage:
         motion: a motion of the reach planner, built from where the stage starts.
         opening: a gripper opening [m] (with ``motion`` None and ``attach`` None).
         tolerance: the gripper's tolerance [m].
-        holds: after closing, the jaws must have stopped at least this wide [m] (the
-            object is between them); 0: no check.
+        holds: close on an object this wide [m]: the jaws stop at its width, short of
+            ``opening``, which they must not reach (they would have closed past it: the
+            grasp slipped); 0: an opening to reach.
         attach: ``gripper_frame``: attach the object; ``""``: detach it; None: no attach.
         touch_objects: scene objects the attached object may touch.
         upright: attach the object upright (its axis along the chair's z at the grasp).
         carrying: the object is held: the motion's tilt is checked.
         watch: the object is watched (moved, perception lost) while this stage runs.
-        search: the motion is a search (a goal), not a straight line.
+        retry: a refused or too tight plan of this stage moves on to the next candidate
+            (grasp, or yaw at a place).
     """
 
     label: str
@@ -148,7 +151,7 @@ class Stage:
     upright: bool = False
     carrying: bool = False
     watch: bool = False
-    search: bool = False
+    retry: bool = False
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:
@@ -165,9 +168,14 @@ def line_to(view: ObjectView, T: np.ndarray, speed: float = 0.5) -> MotionOf:
     return lambda q: LineMotion(xyz=xyz, ypr=ypr, frame=LineFrame.BASE, speed=speed)
 
 
-def line_tool(dz: float) -> MotionOf:
+NEAR_SPEED = 0.2
+"""The speed of lines near a surface (fraction of the line's top speed, 200 mm/s): the
+guard judges the clearance ahead at the commanded speed, and the approach runs close."""
+
+
+def line_tool(dz: float, speed: float = NEAR_SPEED) -> MotionOf:
     """A straight line along the gripper's own axis by ``dz`` [m] (negative: back)."""
-    return lambda q: LineMotion(xyz=[0.0, 0.0, dz], frame=LineFrame.TOOL)
+    return lambda q: LineMotion(xyz=[0.0, 0.0, dz], frame=LineFrame.TOOL, speed=speed)
 
 
 def line_up(view: ObjectView, dz: float) -> MotionOf:
@@ -182,6 +190,20 @@ def line_up(view: ObjectView, dz: float) -> MotionOf:
     return motion
 
 
+def line_toward(view: ObjectView, point: np.ndarray, length: float) -> MotionOf:
+    """A straight horizontal line by ``length`` [m] toward the chair-frame ``point``
+    (the shoulder: a retreat that stays within reach), the orientation kept."""
+
+    def motion(q: np.ndarray) -> Motion:
+        T = view.gripper(q)
+        d = point[:2] - T[:2, 3]
+        T[:2, 3] += length * d / max(float(np.linalg.norm(d)), 1e-9)
+        Tb = view.in_base(T)
+        return LineMotion(xyz=[float(v) for v in Tb[:3, 3]], frame=LineFrame.BASE)
+
+    return motion
+
+
 def surface_under(scene: Scene | None, obj: WorldObject, bottom: float) -> str:
     """The scene object whose top ``obj`` (bottom at ``bottom`` [m]) rests on ('' none)."""
     if scene is None:
@@ -190,7 +212,7 @@ def surface_under(scene: Scene | None, obj: WorldObject, bottom: float) -> str:
     best, best_top = "", -math.inf
     for s in scene.objects:
         top = surface_top(s.body.shape, s.body.size, s.body.pose, x, y)
-        if top is not None and bottom - SURFACE_GAP_M <= top <= bottom + 0.005 and top > best_top:
+        if top is not None and abs(top - bottom) <= SURFACE_GAP_M and top > best_top:
             best, best_top = s.name, top
     return best
 
@@ -211,8 +233,9 @@ def surface_top(
 
 
 def half_height(obj: WorldObject) -> float:
-    """Half the upright object's height [m]."""
-    return 0.5 * extent_along(obj, np.array([0.0, 0.0, 1.0]))
+    """Half the object's height standing upright [m] (perception's noisy lean left out)."""
+    upright = replace(obj, ypr=[obj.ypr[0], 0.0, 0.0])
+    return 0.5 * extent_along(upright, np.array([0.0, 0.0, 1.0]))
 
 
 # -- pick ------------------------------------------------------------------------------------
@@ -273,20 +296,17 @@ def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
     touch = (plan.surface,) if plan.surface else ()
     stages = [
         Stage("open", opening=min(MAX_OPENING_M, grasp.width + how.open_margin)),
-        Stage("pre-grasp", motion=pose_goal(view, grasp.pregrasp), watch=True, search=True),
-        Stage("approach", motion=line_tool(how.pregrasp), watch=True),
-        Stage(
-            "close",
-            opening=max(0.0, grasp.width - how.squeeze),
-            tolerance=how.squeeze + 0.001,
-            holds=grasp.width - how.squeeze / 2,
-        ),
+        Stage("pre-grasp", motion=pose_goal(view, grasp.pregrasp), watch=True, retry=True),
+        Stage("approach", motion=line_tool(how.pregrasp), watch=True, retry=True),
+        Stage("close", opening=max(0.0, grasp.width - how.squeeze), holds=grasp.width),
         Stage("attach", attach=GRIPPER_FRAME, touch_objects=touch, upright=how.keep_level),
-        Stage("lift", motion=line_up(view, how.lift), carrying=True),
+        Stage("lift", motion=line_up(view, how.lift), carrying=True, retry=True),
     ]
     if touch:
         stages.append(Stage("clear of the surface", attach=GRIPPER_FRAME))
-    stages.append(Stage("retreat", motion=line_tool(-how.pregrasp), carrying=True))
+    stages.append(
+        Stage("retreat", motion=line_toward(view, view.mount[:3, 3], how.pregrasp), carrying=True)
+    )
     return stages
 
 

@@ -19,7 +19,6 @@ import math
 import numpy as np
 
 from manus.orientation import matrix_to_ypr
-
 from schemas.base import Message
 from schemas.control import ControllerFeedback, GoalResult
 from schemas.objects import AttachRequest
@@ -27,26 +26,11 @@ from schemas.planning import PlanReply
 from schemas.sequencing import StepKind, TaskStep
 from schemas.state import BridgeState
 from services.sequencer.actions import Action
-from services.sequencer.carry_stages import (
-    carry_fallback,
-    give_stages,
-    held_object,
-    place_stages,
-    tilt_problem,
-)
-from services.sequencer.object_stages import (
-    ObjectProblem,
-    ObjectView,
-    PickPlan,
-    Stage,
-    held_upright,
-    pick_plan,
-    pick_stages,
-)
+from services.sequencer.carry_stages import plan_problem
+from services.sequencer.object_attempts import Attempts, attempts
+from services.sequencer.object_stages import ObjectProblem, ObjectView, Stage, held_upright
 from services.sequencer.stage_steps import AttachStage, StageContext, StageGrip, StageReach
 from services.sequencer.step import BY_REQUEST, Phase, Step, StepContext
-
-WATCH_REASONS = ("unreachable", "collision", "joint_limit", "singular", "no_path", "invalid")
 
 
 def object_problems(spec: TaskStep) -> list[str]:
@@ -67,16 +51,13 @@ class ObjectStep(Step):
 
     def __init__(self, spec: TaskStep, ctx: StepContext) -> None:
         super().__init__(spec, ctx)
-        self.stages: list[Stage] = []
-        self.index = 0
-        self.sub: Step | None = None
-        self.plan_: PickPlan | None = None
-        self.grasp = 0
-        self.refusals: list[str] = []
+        self.tries: Attempts | None = None
+        self.index = 0  # the stage running
+        self.sub: Step | None = None  # its step
+        self.committed = False  # the object was grasped or let go: no other candidate now
         self.aimed: np.ndarray | None = None  # the object's position the grasp aims at
         self.replans = 0
         self.replanning = False
-        self.fallback_used = False
         self.stage_ctx = StageContext(self)
 
     @classmethod
@@ -100,28 +81,21 @@ class ObjectStep(Step):
         start = self.ctx.start_configuration()
         return None if start is None else np.array(start)
 
+    @property
+    def stages(self) -> list[Stage]:
+        """The stages of the candidate being tried."""
+        return self.tries.stages if self.tries is not None else []
+
     def begin(self) -> list[Action]:
         q = self._q()
         if q is None:
             return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
-        try:
-            self.stages = self._make(self.view(), q)
-        except ObjectProblem as exc:
-            return self.ctx.fail(str(exc))
-        self.index = 0
+        found = attempts(self.spec, self.view(), q)
+        if isinstance(found, str):
+            return self.ctx.fail(found)
+        self.tries, self.index = found, 0
+        self.aimed = np.array(found.object.xyz) if found.pick is not None else None
         return self._run()
-
-    def _make(self, view: ObjectView, q: np.ndarray) -> list[Stage]:
-        spec = self.spec
-        if spec.kind == StepKind.PICK:
-            self.plan_ = pick_plan(view, spec.object)
-            self.grasp, self.refusals = 0, []
-            self.aimed = np.array(self.plan_.obj.xyz)
-            return pick_stages(self.plan_, self.plan_.grasps[0], view)
-        held = held_object(view, spec.object)
-        if spec.kind == StepKind.PLACE:
-            return place_stages(view, held, q, spec.at, spec.surface)
-        return give_stages(view, held, q)
 
     # -- running them -----------------------------------------------------------------------
 
@@ -167,15 +141,8 @@ class ObjectStep(Step):
 
     def stage_done(self) -> list[Action]:
         stage = self.stages[self.index]
-        if stage.holds > 0.0:
-            latest = self.ctx.latest
-            opening = latest.gripper if latest is not None else 0.0
-            if opening < stage.holds:
-                return self.stage_failed(
-                    f"the grasp did not hold: the jaws closed to {opening * 1e3:.1f} mm, the "
-                    f"object is {(stage.holds * 1e3):.0f} mm wide or more there (it slipped, "
-                    "or is not where perception saw it)"
-                )
+        if stage.holds or stage.attach == "":
+            self.committed = True
         self.index += 1
         self.sub = None
         if self.ctx.cancel_requested:
@@ -193,47 +160,38 @@ class ObjectStep(Step):
             return self.ctx.cancelled(reason)
         self.replanning = False
         self.sub = None
-        q = self._q()
-        if q is None:
-            return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
-        try:
-            self.stages = self._make(self.view(), q)
-        except ObjectProblem as exc:
-            return self.ctx.fail(str(exc))
-        self.index = 0
-        return self._run()
+        return self.begin()
 
     def stage_progress(self, progress: float) -> list[Action]:
         n = max(1, len(self.stages))
         return self.ctx.report(min(1.0, (self.index + progress) / n))
 
-    def plan_problem(self, reply: PlanReply) -> str:
+    def plan_problem(self, reply: PlanReply) -> list[Action] | None:
+        """A planned stage that must not run: another candidate, or the task fails."""
         stage = self.stages[self.index]
-        if not stage.carrying or reply.trajectory is None:
-            return ""
-        obj = self.view().objects.get(self.spec.object)
-        return tilt_problem(self.view(), obj, reply.trajectory, stage.label) if obj else ""
+        assert reply.trajectory is not None
+        held = self.view().objects.get(self.spec.object)
+        problem = plan_problem(self.view(), stage, reply.trajectory, held)
+        if not problem:
+            return None
+        word = "tight" if "too tight" in problem else "tilt"
+        return self._another(stage, word, problem)
 
     def plan_refused(self, reply: PlanReply) -> list[Action]:
         why = reply.error.message if reply.error is not None else "no trajectory"
         reason = reply.error.reason if reply.error is not None else "invalid"
-        stage = self.stages[self.index]
-        plan = self.plan_
-        if plan is not None and stage.watch:
-            self.refusals.append(f"{plan.grasps[self.grasp].label}: {stage.label}: {reason}")
-            self.grasp += 1
-            if self.grasp < len(plan.grasps):
-                self.stages = pick_stages(plan, plan.grasps[self.grasp], self.view())
-                self.index = 0
-                return self._run()
-            return self.ctx.fail(no_grasp(plan, self.refusals, why))
-        q = self._q()
-        fallback = carry_fallback(self.view(), stage, q) if q is not None else None
-        if fallback is not None and not self.fallback_used:
-            self.fallback_used = True
-            self.stages[self.index] = fallback
-            return self._run()
-        return self.stage_failed(f"planner refused ({reason}): {why}")
+        return self._another(self.stages[self.index], reason, f"planner refused ({reason}): {why}")
+
+    def _another(self, stage: Stage, reason: str, why: str) -> list[Action]:
+        """Try the next candidate (grasp, yaw), or fail naming every one tried."""
+        if self.tries is None or not stage.retry or self.committed:
+            return self.stage_failed(why)
+        final = self.tries.refused(stage, reason, why)
+        if final:
+            return self.ctx.fail(final)
+        self.index = 0
+        self.sub = None
+        return self._run()
 
     # -- watching the object ---------------------------------------------------------------
 
@@ -308,19 +266,3 @@ class ObjectStep(Step):
     @property
     def needs_joint_states(self) -> bool:
         return self.sub.needs_joint_states if self.sub is not None else False
-
-
-def no_grasp(plan: PickPlan, refusals: list[str], last: str) -> str:
-    """Why no grasp of ``plan``'s object can be planned: out of reach, or every grasp
-    collides (each grasp and its planner's reason)."""
-    obj = plan.obj
-    tried = "; ".join(refusals)
-    if all(r.endswith(("unreachable", "joint_limit", "singular")) for r in refusals):
-        return (
-            f"object {obj.id!r} ({obj.cls}) is out of reach: every grasp tried ({tried}); "
-            f"last: {last}"
-        )
-    return (
-        f"every grasp pose of object {obj.id!r} ({obj.cls}) collides or has no path "
-        f"({tried}); last: {last}"
-    )

@@ -17,25 +17,10 @@ from manus.orientation import matrix_to_ypr
 from manus.urdf import GRIPPER_FRAME
 from schemas.objects import WorldObject
 from schemas.planning import PlanReply, PlanRequest
-from schemas.sequencing import StepKind, TaskStep
-from services.sequencer.carry_stages import (
-    carry_fallback,
-    give_stages,
-    held_as_world,
-    held_object,
-    place_stages,
-    tilt_problem,
-)
-from services.sequencer.object_stages import (
-    ObjectProblem,
-    ObjectView,
-    PickPlan,
-    Stage,
-    pick_plan,
-    pick_stages,
-    predicted_hold,
-)
-from services.sequencer.object_step import no_grasp
+from schemas.sequencing import TaskStep
+from services.sequencer.carry_stages import held_as_world, plan_problem
+from services.sequencer.object_attempts import Attempts, attempts
+from services.sequencer.object_stages import ObjectView, Stage, predicted_hold
 
 
 class ObjectValidation:
@@ -54,37 +39,25 @@ class ObjectValidation:
     def __init__(self, spec: TaskStep, view: ObjectView, q: np.ndarray) -> None:
         self.spec = spec
         self.view = view
-        self.q = q
+        self.q0 = self.q = q
         self.objects = dict(view.objects)
         self.problems: list[str] = []
-        self.stages: list[Stage] = []
         self.index = 0
-        self.plan: PickPlan | None = None
-        self.grasp = 0
-        self.refusals: list[str] = []
-        self.fallback_used = False
         self._asked: Stage | None = None
-        try:
-            self.stages = self._make()
-        except ObjectProblem as exc:
-            self.problems.append(str(exc))
-
-    def _make(self) -> list[Stage]:
-        spec, view = self.spec, self.view
-        if spec.kind == StepKind.PICK:
-            self.plan = pick_plan(view, spec.object)
-            return pick_stages(self.plan, self.plan.grasps[0], view)
-        held = held_object(view, spec.object)
-        if spec.kind == StepKind.PLACE:
-            return place_stages(view, held, self.q, spec.at, spec.surface)
-        return give_stages(view, held, self.q)
+        found = attempts(spec, view, q)
+        if isinstance(found, str):
+            self.problems.append(found)
+            self.tries: Attempts | None = None
+        else:
+            self.tries = found
 
     def next_request(self) -> PlanRequest | None:
         """The next motion to plan (None: done; see :attr:`problems`)."""
-        if self.problems:
+        if self.problems or self.tries is None:
             return None
-        while self.index < len(self.stages):
-            stage = self.stages[self.index]
+        stages = self.tries.stages
+        while self.index < len(stages):
+            stage = stages[self.index]
             if stage.motion is not None:
                 self._asked = stage
                 return PlanRequest(stage.motion(self.q), start=list(self.q), preview_dt=0.0)
@@ -96,48 +69,43 @@ class ObjectValidation:
     def on_reply(self, reply: PlanReply | None, error: str = "") -> None:
         """The planner's answer to the last request (None with ``error``: none came)."""
         stage, self._asked = self._asked, None
-        assert stage is not None, "no request is waiting for a reply"
+        assert stage is not None and self.tries is not None, "no request is waiting"
         label = f"{self.spec.kind} {self.spec.object!r} ({stage.label})"
         if reply is None:
             self.problems.append(f"{label}: cannot plan: {error or 'the planner did not answer'}")
             return
         if reply.ok and reply.trajectory is not None:
-            if stage.carrying:
-                obj = self.objects.get(self.spec.object)
-                problem = tilt_problem(self.view, obj, reply.trajectory, stage.label) if obj else ""
-                if problem:
-                    self.problems.append(f"{label}: {problem}")
-                    return
-            self.q = np.array(reply.trajectory.positions[-1])
-            self.index += 1
-            return
-        why = reply.error.message if reply.error is not None else "no trajectory"
-        reason = reply.error.reason if reply.error is not None else "invalid"
-        plan = self.plan
-        if plan is not None and stage.watch:
-            self.refusals.append(f"{plan.grasps[self.grasp].label}: {stage.label}: {reason}")
-            self.grasp += 1
-            if self.grasp < len(plan.grasps):
-                self.stages = pick_stages(plan, plan.grasps[self.grasp], self.view)
-                self.index = 0
+            held = self.objects.get(self.spec.object)
+            problem = plan_problem(self.view, stage, reply.trajectory, held)
+            if not problem:
+                self.q = np.array(reply.trajectory.positions[-1])
+                self.index += 1
                 return
-            self.problems.append(no_grasp(plan, self.refusals, why))
+            word, why = ("tight" if "too tight" in problem else "tilt"), problem
+        else:
+            word = reply.error.reason if reply.error is not None else "invalid"
+            message = reply.error.message if reply.error is not None else "no trajectory"
+            why = f"planner refused ({word}): {message}"
+        if not stage.retry:
+            self.problems.append(f"{label}: {why}")
             return
-        fallback = carry_fallback(self.view, stage, self.q)
-        if fallback is not None and not self.fallback_used:
-            self.fallback_used = True
-            self.stages[self.index] = fallback
+        final = self.tries.refused(stage, word, why)
+        if final:
+            self.problems.append(final)
             return
-        self.problems.append(f"{label}: planner refused ({reason}): {why}")
+        self.index = 0
+        self.q = self.q0
+        self.objects = dict(self.view.objects)
 
     def _attach(self, stage: Stage) -> None:
         """The world model after an attach stage: a grasped object held where the grasp
         holds it, a released one in the world where it is let go."""
         obj = self.objects.get(self.spec.object)
-        if obj is None:
+        tries = self.tries
+        if obj is None or tries is None:
             return
-        if stage.attach and not obj.link and self.plan is not None:
-            T = predicted_hold(self.plan.grasps[self.grasp], obj)
+        if stage.attach and not obj.link and tries.pick is not None:
+            T = predicted_hold(tries.pick.grasps[tries.index], obj)
             self.objects[obj.id] = dataclasses.replace(
                 obj,
                 xyz=[float(v) for v in T[:3, 3]],

@@ -29,6 +29,10 @@ class PickConfig:
         handover_yaw_deg: the gripper's yaw there (the direction it points in, chair frame)
             [deg].
         drop_m: a placed object is let go this far above its resting place [m].
+        margin_m: every motion of an object task keeps this much beyond each clearance
+            (its plan is refused otherwise: another grasp is tried): near the table the
+            plans run close to the clearance, and the controller's tracking error must
+            not bring the guard's stop [m].
     """
 
     grasps: str = ""
@@ -39,6 +43,7 @@ class PickConfig:
     handover_xyz: tuple[float, float, float] = (0.45, -0.22, 1.0)
     handover_yaw_deg: float = 60.0
     drop_m: float = 0.003
+    margin_m: float = 0.004
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_tilt_deg <= 90.0:
@@ -49,5 +54,7 @@ class PickConfig:
             raise ConfigError(f"pick max_replans = {self.max_replans!r} is outside 0..10")
         if not 0.0 <= self.stale_s <= 60.0:
             raise ConfigError(f"pick stale_s = {self.stale_s!r} is outside 0..60 s")
+        if not 0.0 <= self.margin_m <= 0.05:
+            raise ConfigError(f"pick margin_m = {self.margin_m!r} is outside 0..0.05 m")
         if not 0.0 <= self.drop_m <= 0.05:
             raise ConfigError(f"pick drop_m = {self.drop_m!r} is outside 0..0.05 m")

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from schemas import endpoints as ep
 from schemas.base import Message
-from schemas.control import GripperGoal
+from schemas.control import EndCause, GoalResult, GripperGoal, ResultStatus
 from schemas.objects import AttachReply, AttachRequest
 from schemas.planning import PlanReply
 from services.sequencer.actions import Action, Query
@@ -36,7 +36,7 @@ class StageOwner(Protocol):
     def stage_cancelled(self, reason: str) -> list[Action]: ...
     def stage_progress(self, progress: float) -> list[Action]: ...
     def plan_refused(self, reply: PlanReply) -> list[Action]: ...
-    def plan_problem(self, reply: PlanReply) -> str: ...
+    def plan_problem(self, reply: PlanReply) -> list[Action] | None: ...
 
 
 class StageContext:
@@ -114,8 +114,8 @@ class StageContext:
 
 class StageReach(ReachStep):
     """A motion stage: a reach step whose refused plan goes to the object step (another
-    grasp, a search instead of a line), and whose plan, while a level object is held, is
-    checked for tilt before it is run."""
+    candidate), and whose plan is checked by it (clearance to spare, tilt while a level
+    object is held) before it is run."""
 
     def __init__(self, spec: object, ctx: StageContext, stage: Stage) -> None:
         super().__init__(spec, ctx)  # type: ignore[arg-type]
@@ -126,22 +126,53 @@ class StageReach(ReachStep):
         if self.phase == Phase.PLANNING and isinstance(reply, PlanReply):
             if not reply.ok or reply.trajectory is None:
                 return self.owner.plan_refused(reply)
-            problem = self.owner.plan_problem(reply)
-            if problem:
-                return self.ctx.fail(problem)
+            stopped = self.owner.plan_problem(reply)
+            if stopped is not None:
+                return stopped
         return super().on_reply(reply, error)
 
 
+    def on_result(self, res: GoalResult) -> list[Action]:
+        """A goal that ended within its position tolerance but not at rest (the
+        controller's dither at the goal, docs/reach.md, Known limits) is reached: the
+        controller holds the arm still from then on."""
+        if (
+            self.goal_id
+            and res.goal_id == self.goal_id
+            and self.phase == Phase.ACTIVE
+            and res.status == ResultStatus.ABORTED
+            and res.cause == EndCause.TOLERANCE
+            and res.final_error <= DITHER_TOLERANCE_M
+        ):
+            self.goal_id = ""
+            return self.ctx.step_done()
+        return super().on_result(res)
+
+
+DITHER_TOLERANCE_M = 0.002
+"""A trajectory goal's default ``position_tolerance`` [m]: ended within it, the arm is
+where the stage wanted it."""
+
+CLOSE_TIMEOUT_S = 2.5
+"""How long the jaws close on an object [s]: they stop at its width well within it, and
+the gripper goal ends at its timeout, short of its target."""
+
+HOLD_SLACK_M = 0.002
+"""The jaws stopped at most this much narrower than the object: they hold it [m]."""
+
+
 class StageGrip(GripperStep):
-    """A gripper stage, with the stage's tolerance (closing on an object, the jaws stop
-    at its width, short of the target)."""
+    """A gripper stage. Closing on an object (``stage.holds``): the target lies past the
+    object's width, so the jaws stop on it and the goal ends at its timeout; that end is
+    the grasp, if the jaws stopped at the object's width. Reaching the target means they
+    closed past it: the grasp did not hold."""
 
     def __init__(self, spec: object, ctx: StageContext, stage: Stage) -> None:
         super().__init__(spec, ctx)  # type: ignore[arg-type]
         self.stage = stage
 
     def begin(self) -> list[Action]:
-        timeout = self.ctx.config.gripper_timeout_s
+        timeout = CLOSE_TIMEOUT_S if self.stage.holds else self.ctx.config.gripper_timeout_s
         self.goal_id = self.ctx.new_goal_id()
         self.grip0 = None
         goal = GripperGoal(
@@ -152,6 +183,26 @@ class StageGrip(GripperStep):
             heartbeat_timeout=self.ctx.config.heartbeat_timeout_s,
         )
         return self._send(ep.GRIPPER_GOAL, goal, timeout + 5.0)
+
+    def on_result(self, res: GoalResult) -> list[Action]:
+        width = self.stage.holds
+        if not width or not self.goal_id or res.goal_id != self.goal_id:
+            return super().on_result(res)
+        if self.phase != Phase.ACTIVE:
+            return super().on_result(res)
+        latest = self.ctx.latest
+        opening = latest.gripper if latest is not None else 0.0
+        if res.status == ResultStatus.ABORTED and opening >= width - HOLD_SLACK_M:
+            self.goal_id = ""
+            return self.ctx.step_done()
+        if res.status in (ResultStatus.SUCCEEDED, ResultStatus.ABORTED):
+            self.goal_id = ""
+            return self.ctx.fail(
+                f"the grasp did not hold: the jaws closed to {opening * 1e3:.1f} mm, past the "
+                f"object's {width * 1e3:.1f} mm (it slipped, or it is not where perception "
+                "saw it)"
+            )
+        return super().on_result(res)
 
 
 class AttachStage(Step):
