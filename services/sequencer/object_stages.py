@@ -51,6 +51,7 @@ class ObjectView:
         config: the pick settings.
         now_ns: the sequencer's time [ns].
         stale_after_s: the world model's staleness limit [s].
+        world_ns: the world model's newest update's stamp (its newest camera frame) [ns].
     """
 
     objects: dict[str, WorldObject]
@@ -60,6 +61,7 @@ class ObjectView:
     config: PickConfig
     now_ns: int
     stale_after_s: float
+    world_ns: int
 
     @property
     def mount(self) -> np.ndarray:
@@ -74,9 +76,10 @@ class ObjectView:
         """A chair-frame pose in the base frame."""
         return np.asarray(np.linalg.solve(self.mount, T))
 
-    def stale_limit_s(self) -> float:
-        """How old a sighting may be before perception counts as lost [s]."""
-        return self.config.stale_s or self.stale_after_s or 2.0
+    def lost_limit_s(self) -> float:
+        """How long the world model may go without an update before perception counts
+        as lost [s]."""
+        return self.config.lost_s or self.stale_after_s or 2.0
 
     def find(self, object_id: str) -> WorldObject:
         """The object ``object_id``.
@@ -107,12 +110,20 @@ class ObjectView:
 
     def check_fresh(self, obj: WorldObject, when: str) -> None:
         """Raises:
-        ObjectProblem: ``obj`` not observed for longer than the limit (perception lost)."""
-        age, limit = self.age_s(obj), self.stale_limit_s()
-        if not obj.link and age > limit:
+        ObjectProblem: perception lost (no update of the world model for longer than
+            :meth:`lost_limit_s`), or ``obj`` not observed for longer than
+            ``pick.hidden_s``."""
+        quiet, lost = max(0.0, (self.now_ns - self.world_ns) / 1e9), self.lost_limit_s()
+        if quiet > lost:
             raise ObjectProblem(
-                f"object {obj.id!r} ({obj.cls}) {when}: perception lost: last observed "
-                f"{age:.1f} s ago by {obj.source} (limit {limit:g} s)"
+                f"object {obj.id!r} ({obj.cls}) {when}: perception lost: no update of the "
+                f"world model for {quiet:.1f} s (limit {lost:g} s)"
+            )
+        age, hidden = self.age_s(obj), self.config.hidden_s
+        if not obj.link and age > hidden:
+            raise ObjectProblem(
+                f"object {obj.id!r} ({obj.cls}) {when}: not seen for {age:.1f} s (last by "
+                f"{obj.source}; limit {hidden:g} s): it is hidden, or gone"
             )
 
 
@@ -139,6 +150,9 @@ class Stage:
         watch: the object is watched (moved, perception lost) while this stage runs.
         retry: a refused or too tight plan of this stage moves on to the next candidate
             (grasp, or yaw at a place).
+        search: the motion is a search to a pose (the pre-grasp): the object must stay in
+            perception's sight all along (a straight approach hides it behind the gripper:
+            it must be seen only when the approach begins).
     """
 
     label: str
@@ -152,6 +166,7 @@ class Stage:
     carrying: bool = False
     watch: bool = False
     retry: bool = False
+    search: bool = False
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:
@@ -199,7 +214,7 @@ def line_toward(view: ObjectView, point: np.ndarray, length: float) -> MotionOf:
         d = point[:2] - T[:2, 3]
         T[:2, 3] += length * d / max(float(np.linalg.norm(d)), 1e-9)
         Tb = view.in_base(T)
-        return LineMotion(xyz=[float(v) for v in Tb[:3, 3]], frame=LineFrame.BASE)
+        return LineMotion(xyz=[float(v) for v in Tb[:3, 3]], frame=LineFrame.BASE, speed=NEAR_SPEED)
 
     return motion
 
@@ -296,7 +311,13 @@ def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
     touch = (plan.surface,) if plan.surface else ()
     stages = [
         Stage("open", opening=min(MAX_OPENING_M, grasp.width + how.open_margin)),
-        Stage("pre-grasp", motion=pose_goal(view, grasp.pregrasp), watch=True, retry=True),
+        Stage(
+            "pre-grasp",
+            motion=pose_goal(view, grasp.pregrasp),
+            watch=True,
+            retry=True,
+            search=True,
+        ),
         Stage("approach", motion=line_tool(how.pregrasp), watch=True, retry=True),
         Stage("close", opening=max(0.0, grasp.width - how.squeeze), holds=grasp.width),
         Stage("attach", attach=GRIPPER_FRAME, touch_objects=touch, upright=how.keep_level),
@@ -304,9 +325,8 @@ def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
     ]
     if touch:
         stages.append(Stage("clear of the surface", attach=GRIPPER_FRAME))
-    stages.append(
-        Stage("retreat", motion=line_toward(view, view.mount[:3, 3], how.pregrasp), carrying=True)
-    )
+    retreat = line_toward(view, view.mount[:3, 3], how.pregrasp)
+    stages.append(Stage("retreat", motion=retreat, carrying=True))
     return stages
 
 

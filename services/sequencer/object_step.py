@@ -106,6 +106,12 @@ class ObjectStep(Step):
         q = self._q()
         if q is None:
             return self.ctx.fail("no valid joint state from the arm (is the bridge running?)")
+        obj = self.view().objects.get(self.spec.object)
+        if stage.watch and obj is not None:
+            try:  # seen until the approach begins (the gripper then hides it)
+                self.view().check_fresh(obj, f"before the {stage.label}")
+            except ObjectProblem as exc:
+                return self.ctx.fail(str(exc))
         if stage.motion is not None:
             spec = TaskStep(kind=StepKind.REACH, goal=stage.motion(q), where=self.spec.where)
             self.sub = StageReach(spec, self.stage_ctx, stage)
@@ -223,11 +229,11 @@ class ObjectStep(Step):
 
     def on_tick(self) -> list[Action] | None:
         stage = self.stages[self.index] if self.index < len(self.stages) else None
-        if stage is not None and stage.watch:
+        if stage is not None and stage.watch and stage.search:
             obj = self.view().objects.get(self.spec.object)
             if obj is not None:
                 try:
-                    self.view().check_fresh(obj, "during the approach")
+                    self.view().check_fresh(obj, f"during the {stage.label}")
                 except ObjectProblem as exc:
                     return self.ctx.fail(str(exc))
         return self.sub.on_tick() if self.sub is not None else None

@@ -21,9 +21,13 @@ class PickConfig:
             is planned again [m].
         max_replans: at most this many new approaches per pick; one more move stops
             the task, saying so.
-        stale_s: the object not observed for longer than this while it is approached:
-            perception is lost, the task stops [s] (0: the world model's own
-            ``stale_after_s``).
+        lost_s: no update of the world model for longer than this (on its stamps: the
+            newest camera frame's capture time) while an object is approached: perception
+            is lost, the task stops [s] (0: the world model's own ``stale_after_s``).
+        hidden_s: the object itself not observed for longer than this (the arm hides it
+            from the camera on its way) before and while the pre-grasp pose is reached:
+            the task stops [s]. A straight approach hides it behind the gripper: it is
+            not judged then.
         handover_xyz: where ``give`` brings the object's centre, chair frame [m]: in front
             of the user, within the reach of a hand.
         handover_yaw_deg: the gripper's yaw there (the direction it points in, chair frame)
@@ -39,11 +43,12 @@ class PickConfig:
     max_tilt_deg: float = 10.0
     moved_m: float = 0.025
     max_replans: int = 2
-    stale_s: float = 0.0
+    lost_s: float = 0.0
+    hidden_s: float = 5.0
     handover_xyz: tuple[float, float, float] = (0.45, -0.22, 1.0)
     handover_yaw_deg: float = 60.0
     drop_m: float = 0.003
-    margin_m: float = 0.004
+    margin_m: float = 0.010
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_tilt_deg <= 90.0:
@@ -52,8 +57,10 @@ class PickConfig:
             raise ConfigError(f"pick moved_m = {self.moved_m!r} is outside (0, 0.5] m")
         if not 0 <= self.max_replans <= 10:
             raise ConfigError(f"pick max_replans = {self.max_replans!r} is outside 0..10")
-        if not 0.0 <= self.stale_s <= 60.0:
-            raise ConfigError(f"pick stale_s = {self.stale_s!r} is outside 0..60 s")
+        if not 0.0 <= self.lost_s <= 60.0:
+            raise ConfigError(f"pick lost_s = {self.lost_s!r} is outside 0..60 s")
+        if not 0.1 <= self.hidden_s <= 60.0:
+            raise ConfigError(f"pick hidden_s = {self.hidden_s!r} is outside 0.1..60 s")
         if not 0.0 <= self.margin_m <= 0.05:
             raise ConfigError(f"pick margin_m = {self.margin_m!r} is outside 0..0.05 m")
         if not 0.0 <= self.drop_m <= 0.05:

@@ -131,7 +131,6 @@ class StageReach(ReachStep):
                 return stopped
         return super().on_reply(reply, error)
 
-
     def on_result(self, res: GoalResult) -> list[Action]:
         """A goal that ended within its position tolerance but not at rest (the
         controller's dither at the goal, docs/reach.md, Known limits) is reached: the

@@ -246,6 +246,7 @@ class TaskSubmission(TaskRun):
             self.fold_check = self.fold_check.holding(self.world.held)
         if update.stale_after_s > 0.0:
             self.stale_after_s = update.stale_after_s
+        self.world_ns = max(self.world_ns, update.stamp_ns)
         if self.state == TaskState.RUNNING and self._current is not None:
             return self._current.on_objects()
         return []

@@ -93,6 +93,7 @@ class TaskRun:
         self.world = WorldFollower()
         """The world model as the planner publishes it (the objects, what the arm holds)."""
         self.stale_after_s = 0.0  # the world model's, from its newest update [s]
+        self.world_ns = 0  # the world model's newest update's stamp [ns]
         self.grasps = load_grasps(self.config.pick.grasps)
         self.scene: Scene | None = scene_from_setting(self.config.scene)
         """The scene in use (the planner's, once it announced it)."""
@@ -143,6 +144,7 @@ class TaskRun:
             self.config.pick,
             self.now,
             self.stale_after_s,
+            self.world_ns,
         )
 
     def history(self, limit: int) -> TaskHistory:

@@ -34,6 +34,11 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
                                      # (named, pose, joints, object, approach, line_to,
                                      # line_tool: manus/goal_spec.py, docs/reach.md)
     [[step]]
+    pick = "cup"                     # pick, place and give: the world model's objects
+    [[step]]                         # (services/sequencer/taskfile_objects.py, docs/pick.md)
+    place = "cup"
+    at = [950, -150, 790, 0, 0, 0]   # or on = "table"
+    [[step]]
     fold_in = true
 
 Every problem of the file is found in one pass and reported together
@@ -56,6 +61,7 @@ from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
 from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
 from services.sequencer.poses import POSES
+from services.sequencer.taskfile_objects import OBJECT_OPTIONS, object_step
 
 MAX_OPENING_MM = 90.0
 """Largest gripper opening [mm] (the Manus gripper opens to 90 mm)."""
@@ -72,6 +78,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.FOLD_OUT: (),
     StepKind.WAIT: (),
     StepKind.REACH: (),
+    **OBJECT_OPTIONS,
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -239,6 +246,10 @@ class _StepContext:
             step = self._pose(value, where, errors, options)
         elif kind == StepKind.REACH:
             step = self._reach(value, where, errors)
+        elif kind in OBJECT_OPTIONS:
+            step = object_step(
+                kind, raw, where, lambda key, msg: self.error(errors, key, kind, msg)
+            )
         else:
             step = TaskStep(kind=kind, where=where)
             if value is not True:
