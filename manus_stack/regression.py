@@ -31,7 +31,10 @@ recording, only the life of the service's first process is compared
 (:mod:`manus_stack.service_window`). Inputs are fed up to the service's last recorded
 output: whether it saw the ones after it (as it stopped, or as the recorder stopped) the
 recording cannot tell. In a live recording a query and a joint state that arrive
-together may be recorded in the other order than the service saw them.
+together may be recorded in the other order than the service saw them: the controller
+publishes where it took each (``controller/query_taken``, ``controller/jog_taken``,
+``controller/token_gone``) and is fed in that order; the planner plans from the newest
+joint state it has, so the same reordering can still change a live planner check.
 """
 
 from __future__ import annotations
@@ -43,9 +46,12 @@ from pathlib import Path
 
 from manus.wiring import BAD_PAYLOAD
 from manus_stack.comparison import CPU_ROUNDING, CheckResult, Comparer, plain
-from manus_stack.service_window import Window, service_window
+from manus_stack.service_window import EARLY_OUTPUT_NS, EVERYTHING, Window, service_window
 from schemas import endpoints as ep
 from schemas.base import Message
+from schemas.commands import JointVelocityCommand
+from schemas.control import QueryTaken
+from schemas.endpoints import TRACE_PARTS
 from schemas.jog import JogTaken
 from schemas.liveliness import TokenGone
 from schemas.planning import PlanReply
@@ -139,6 +145,7 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         (ep.JOINTS,),
         CONTROLLER.output_suffixes,  # its clock
     )
+    window = _from_first_answered(recording, window)
     recorded, last_ns = _recorded_outputs(recording, CONTROLLER.output_suffixes, window)
     cmp = Comparer(recorded, last_ns, CPU_ROUNDING)  # its counts exactly: integers
     window = (window[0], last_ns)
@@ -164,42 +171,95 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
     return cmp.result(CONTROLLER.service, inputs)
 
 
+def _from_first_answered(recording: Recording, window: Window) -> Window:
+    """``window`` from the joint state the controller's first command answers (its
+    ``ref_seq``) when that state was recorded before the window's start: a loaded
+    controller may take it before the recorder hears its token (at most
+    :data:`~manus_stack.service_window.EARLY_OUTPUT_NS` before)."""
+    if window[0] == EVERYTHING[0]:
+        return window  # the whole recording: nothing before it
+    first = next(
+        (r for r in recording.messages([ep.JOINT_VELOCITY]) if r.log_ns >= window[0]), None
+    )
+    command = None if first is None else decode(first)
+    if first is None or not isinstance(command, JointVelocityCommand):
+        return window
+    start = window[0]
+    for rec in recording.messages([ep.JOINTS]):
+        if rec.log_ns >= start:
+            break
+        if rec.log_ns >= window[0] - EARLY_OUTPUT_NS:
+            state = decode(rec)
+            if isinstance(state, JointState) and state.seq == command.ref_seq:
+                start = rec.log_ns
+    return start, window[1]
+
+
 def _controller_inputs(
     recording: Recording, window: Window
 ) -> list[tuple[Recorded, Message | None]]:
     """The controller's inputs in the order it saw them.
 
-    The jog stream and the joint states come from two publishers, so a recorder may log a
-    command and a joint state that arrived together in the other order than the controller
-    saw them. The controller publishes each command it takes as a
-    :class:`~schemas.jog.JogTaken` saying after which joint state it came: when the
-    recording holds those, each is fed (as the command it carries) after that joint state
-    and before the next, at its log time within that span, instead of the raw stream.
-    A vanished liveliness token is no sample at all: the controller's
-    :class:`~schemas.liveliness.TokenGone` records are placed the same way.
+    The jog stream, the queries and the joint states come from different publishers, so a
+    recorder may log a command or a query and a joint state that arrived together in the
+    other order than the controller saw them. The controller publishes each jog command it
+    takes as a :class:`~schemas.jog.JogTaken` and each query as a
+    :class:`~schemas.control.QueryTaken`, saying after which joint state it came: when the
+    recording holds those, each command (the one the record carries) or query (the
+    mirrored request of the same rank on that queryable) is fed after that joint state
+    and before the next, at its log time within that span. A vanished liveliness token is
+    no sample at all: the controller's :class:`~schemas.liveliness.TokenGone` records are
+    placed the same way.
     """
     have = {c.suffix for c in recording.info.channels.values()}
-    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE) if s in have)
-    suffixes = CONTROLLER.input_suffixes
-    if ep.JOG_TAKEN in have:
-        suffixes = tuple(s for s in suffixes if s != ep.JOG)
-    base = list(_inputs(recording, suffixes, window))
+    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE, ep.QUERY_TAKEN) if s in have)
+    moved: set[str] = {ep.JOG} if ep.JOG_TAKEN in have else set()
+    requests = {a.endpoint.trace(TRACE_PARTS[0]): a.endpoint.suffix for a in CONTROLLER.answers}
+    if ep.QUERY_TAKEN in have:
+        moved |= set(requests)
+    everything = list(_inputs(recording, CONTROLLER.input_suffixes, window))
+    base = [item for item in everything if item[0].suffix not in moved]
     if not records:
         return base
+    # each query's records in order, to pair with its mirrored requests by rank
+    taken_at: dict[str, list[int]] = {}
+    placeable: list[tuple[Recorded, Message | None, int | None]] = []
+    for rec, msg in _inputs(recording, records, window):
+        if isinstance(msg, QueryTaken):
+            taken_at.setdefault(msg.query, []).append(msg.after_seq)
+        else:
+            assert isinstance(msg, JogTaken | TokenGone)
+            placeable.append((rec, msg, msg.after_seq))
+    rank: dict[str, int] = {}
+    for rec, msg in everything:
+        query = requests.get(rec.suffix)
+        if query is not None and ep.QUERY_TAKEN in have:
+            n = rank[query] = rank.get(query, -1) + 1
+            seqs = taken_at.get(query, [])
+            placeable.append((rec, msg, seqs[n] if n < len(seqs) else None))
+    return _placed(base, sorted(placeable, key=lambda p: p[0].log_ns))
+
+
+def _placed(
+    base: list[tuple[Recorded, Message | None]],
+    placeable: list[tuple[Recorded, Message | None, int | None]],
+) -> list[tuple[Recorded, Message | None]]:
+    """``base`` with each of ``placeable`` (record, message, after which joint state seq it
+    was taken; None: not known, at its log time) put in: after that joint state and before
+    the next, at its log time within that span (-1: before any joint state)."""
     times = [rec.log_ns for rec, _ in base]
     states = [i for i, (_, m) in enumerate(base) if isinstance(m, JointState)]
     at_seq = {m.seq: i for i, (_, m) in enumerate(base) if isinstance(m, JointState)}
     placed: list[tuple[int, int, Recorded, Message | None]] = []
-    for order, (rec, taken) in enumerate(_inputs(recording, records, window)):
-        assert isinstance(taken, JogTaken | TokenGone)
+    for order, (rec, msg, after_seq) in enumerate(placeable):
         pos = bisect.bisect_right(times, rec.log_ns)
-        after = at_seq.get(taken.after_seq)
+        after = None if after_seq is None else at_seq.get(after_seq)
         if after is not None:  # within (that joint state, the next one]
             nxt = next((i for i in states if i > after), len(base))
             pos = min(max(pos, after + 1), nxt)
-        elif taken.after_seq < 0 and states:  # before any joint state
+        elif after_seq is not None and after_seq < 0 and states:  # before any joint state
             pos = min(pos, states[0])
-        placed.append((pos, order, rec, taken))
+        placed.append((pos, order, rec, msg))
     out: list[tuple[Recorded, Message | None]] = []
     j = 0
     placed.sort(key=lambda p: (p[0], p[1]))

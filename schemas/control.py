@@ -252,6 +252,21 @@ class GoalAck(Message):
 
 
 @dataclass(frozen=True)
+class QueryTaken(Message):
+    """A query as the controller took it (key ``controller/query_taken``), published at
+    once: which queryable, after which joint state. A goal starts at the joint state after
+    it came, and the mirrored request (``trace/<q>/request``) and the joint states come
+    from two publishers, so a recorder may log them in the other order than the controller
+    took them; this record says where it took it, and the regression check (``manus replay
+    --check controller``) feeds the request there."""
+
+    TYPE_NAME = "manus/QueryTaken/1"
+
+    query: str = field("the queryable's key suffix (controller/goal, controller/gripper, ...)")
+    after_seq: int = field("seq of the newest joint state when it came (-1: none yet)")
+
+
+@dataclass(frozen=True)
 class ControllerFeedback(Message):
     """One cycle of the controller: reference vs actual."""
 

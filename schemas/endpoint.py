@@ -178,3 +178,33 @@ class Topic(Endpoint, Generic[M]):
 
 class Queryable(Endpoint, Generic[M, R]):
     """A queryable: request ``M`` -> reply ``R``."""
+
+
+def publication(
+    suffix: str, owner: str, msg: type[M], doc: str, audience: Audience = Audience.INTERNAL
+) -> Topic[M]:
+    """The publication ``suffix`` of ``owner``, carrying ``msg``."""
+    return Topic(suffix, Kind.PUBLICATION, owner, msg, audience=audience, doc=doc)  # type: ignore[no-any-return]
+
+
+def queryable(
+    suffix: str,
+    owner: str,
+    request: type[M],
+    reply: type[R],
+    doc: str,
+    audience: Audience = Audience.INTERNAL,
+    clients: tuple[str, ...] | None = None,
+) -> Queryable[M, R]:
+    """The queryable ``suffix`` of ``owner``: ``request`` in, ``reply`` out; ``clients``
+    (None: anyone of its audience) may ask it."""
+    return Queryable(  # type: ignore[no-any-return]
+        suffix,
+        Kind.QUERYABLE,
+        owner,
+        request,
+        reply,
+        audience=audience,
+        doc=doc,
+        clients=clients,
+    )

@@ -11,9 +11,10 @@ recorder's JSON Schemas), the schema export (``manus schemas``,
 access-control policy check, the services' wiring maps and the key table of
 docs/architecture.md (:func:`~schemas.endpoint_table.markdown_table`).
 
-Adding an endpoint is one :class:`Endpoint` here (and, for its owner's core, one line of
-the service's wiring map, ``services/<name>/wiring.py``). A key suffix is spelled as a
-string literal only here.
+Adding an endpoint is one :class:`Endpoint` here, or in a block module of its own that
+this one re-exports (:mod:`schemas.object_endpoints`), and, for its owner's core, one
+line of the service's wiring map (``services/<name>/wiring.py``). A key suffix is spelled
+as a string literal only in its declaration.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ from schemas import (
     health,
     jog,
     liveliness,
-    objects,
     planning,
     playback,
     sequencing,
@@ -42,41 +42,18 @@ from schemas.endpoint import TRACE_ROOT as TRACE_ROOT
 from schemas.endpoint import Audience as Audience
 from schemas.endpoint import Endpoint as Endpoint
 from schemas.endpoint import Kind as Kind
-from schemas.endpoint import M, R
 from schemas.endpoint import Queryable as Queryable
 from schemas.endpoint import Service as Service
 from schemas.endpoint import Topic as Topic
+from schemas.endpoint import publication as _pub
+from schemas.endpoint import queryable as _query
 from schemas.endpoint import trace_suffix as trace_suffix
 from schemas.endpoint_table import Table as Table
 from schemas.endpoint_table import markdown_table as markdown_table
-
-
-def _pub(
-    suffix: str, owner: str, msg: type[M], doc: str, audience: Audience = Audience.INTERNAL
-) -> Topic[M]:
-    return Topic(suffix, Kind.PUBLICATION, owner, msg, audience=audience, doc=doc)  # type: ignore[no-any-return]
-
-
-def _query(
-    suffix: str,
-    owner: str,
-    request: type[M],
-    reply: type[R],
-    doc: str,
-    audience: Audience = Audience.INTERNAL,
-    clients: tuple[str, ...] | None = None,
-) -> Queryable[M, R]:
-    return Queryable(  # type: ignore[no-any-return]
-        suffix,
-        Kind.QUERYABLE,
-        owner,
-        request,
-        reply,
-        audience=audience,
-        doc=doc,
-        clients=clients,
-    )
-
+from schemas.object_endpoints import ATTACH as ATTACH
+from schemas.object_endpoints import OBJECT_ENDPOINTS as OBJECT_ENDPOINTS
+from schemas.object_endpoints import OBJECTS as OBJECTS
+from schemas.object_endpoints import PERCEPTION as PERCEPTION
 
 SUPERVISOR = "supervisor"
 """The identity of a supervisor (user interfaces, other systems) in the deployment."""
@@ -194,6 +171,12 @@ TOKEN_GONE = _pub(
     liveliness.TokenGone,
     "each alive/<service> token vanishing as the controller took it: after which joint "
     "state (goals whose heartbeats that service sent stop at once; exact replays)",
+)
+QUERY_TAKEN = _pub(
+    "controller/query_taken",
+    _CTRL,
+    control.QueryTaken,
+    "each query as the controller took it: after which joint state (exact replays)",
 )
 JOG_STATE = _pub(
     "controller/jog_state",
@@ -322,33 +305,6 @@ PLAYBACK_CONTROL = _query(
     _SUP,
 )
 
-# -- objects: perception and the world model (docs/objects.md) -------------------------------
-PERCEPTION = _pub(
-    "perception/objects",
-    Service.SIMULATOR,
-    objects.Perception,
-    "one camera frame's objects (added or moved) and the ones known gone; the simulated "
-    "camera's, until a perception node of its own takes this key (and its ownership)",
-)
-OBJECTS = _pub(
-    "planner/objects",
-    Service.PLANNER,
-    objects.WorldUpdate,
-    "the world model's objects as versioned diffs, and the whole set every second",
-    _SUP,
-)
-ATTACH = _query(
-    "planner/attach",
-    Service.PLANNER,
-    objects.AttachRequest,
-    objects.AttachReply,
-    "attach a grasped object to the gripper (part of the arm from then on) or detach a "
-    "released one where it is: a diff on planner/objects",
-    clients=(_SEQ,),
-)
-OBJECT_ENDPOINTS = (PERCEPTION, OBJECTS, ATTACH)
-"""The objects' endpoints (a block of their own in :data:`TABLE`)."""
-
 
 TABLE = Table(
     (
@@ -375,6 +331,7 @@ TABLE = Table(
         JOG_LEVEL,
         JOG_TAKEN,
         TOKEN_GONE,
+        QUERY_TAKEN,
         JOG_STATE,
         HEARTBEAT,
         SUBMIT,

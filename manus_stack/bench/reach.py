@@ -1,9 +1,9 @@
 """``manus bench reach``: goal planning on the fixed goal set (``reach_goals.yaml``).
 
 - ``in_process``: every goal planned by the planner core's goal planning, each feasible
-  one with seeds 1..10 (``--quick``: 1..3), timed whole; success rate and planning time
-  of the feasible goals; for the infeasible ones, whether each was refused with the
-  reason the set names, and how fast.
+  one with seeds 1..10 (``--quick``: 1..3), timed whole (wall clock and CPU time); success
+  rate and planning time of the feasible goals; for the infeasible ones, whether each was
+  refused with the reason the set names, and how fast.
 - ``quality``: per feasible goal, each seed's joint path length (the knots' polyline,
   Euclidean in joint space) over the shortest of its seeds.
 - ``planner_service``: the same plans through ``manus planner`` in its own process, over
@@ -103,15 +103,38 @@ def _in_process(runs: dict[str, list[Outcome]]) -> dict[str, Any]:
             ),
             "not_planned": failed,
             "plan_time": stats_ms([o.seconds for o in feasible]),
+            "plan_cpu_time": stats_ms([o.cpu_seconds for o in feasible]),
+            "slowest_goals": _slowest(feasible),
         },
         "infeasible": {
             "goals": len(infeasible),
             "right_reason": sum(o.right for o in infeasible),
             "wrong": wrong,
             "refusal_time": stats_ms([o.seconds for o in infeasible]),
+            "refusal_cpu_time": stats_ms([o.cpu_seconds for o in infeasible]),
             "reasons": dict(Counter(o.error.reason for o in infeasible if o.error is not None)),
         },
     }
+
+
+def _slowest(outcomes: list[Outcome], n: int = 5) -> list[dict[str, Any]]:
+    """The ``n`` goals with the largest CPU time of a plan [ms], its median, and the most
+    knots of their plans (2: a straight joint motion)."""
+    by_goal: dict[str, list[Outcome]] = {}
+    for o in outcomes:
+        by_goal.setdefault(o.goal.id, []).append(o)
+    worst = sorted(by_goal.items(), key=lambda kv: -max(o.cpu_seconds for o in kv[1]))
+    return [
+        {
+            "goal": gid,
+            "cpu_max_ms": round(max(o.cpu_seconds for o in os_) * 1e3, 1),
+            "cpu_p50_ms": round(float(np.median([o.cpu_seconds for o in os_])) * 1e3, 1),
+            "knots_max": max(
+                (len(o.trajectory.times) for o in os_ if o.trajectory is not None), default=0
+            ),
+        }
+        for gid, os_ in worst[:n]
+    ]
 
 
 def _quality(runs: dict[str, list[Outcome]]) -> dict[str, Any]:

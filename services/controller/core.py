@@ -37,7 +37,7 @@ from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import ClearanceReport, SceneState
-from schemas.control import EndCause, Refusal, ResultStatus
+from schemas.control import EndCause, QueryTaken, Refusal, ResultStatus
 from schemas.liveliness import TokenGone
 from schemas.objects import WorldUpdate
 from schemas.state import ArmStatus, BridgeState, JointState
@@ -172,12 +172,17 @@ class ControllerCore:
             out.append(self._zeros_now(js))
         return out + self._flush(js.stamp_ns)
 
-    def ask(self, kind: type[S], handle: Callable[[S, Any], Message], request: Any) -> Message:
-        """A query for source ``kind``: its reply (results leave with the next joint state)."""
+    def ask(
+        self, kind: type[S], handle: Callable[[S, Any], Message], query: str, request: Any
+    ) -> tuple[Message, Output]:
+        """A query on ``query`` for source ``kind``: its reply (results leave with the next
+        joint state) and where it was taken (:class:`~schemas.control.QueryTaken`)."""
+        js = self._last_js
+        taken = QueryTaken(query=query, after_seq=-1 if js is None else js.seq)
         source = self.source(kind)
         reply = handle(source, request)
         self._preempt_below(source)
-        return reply
+        return reply, [(ep.QUERY_TAKEN, taken)]
 
     def _preempt_below(self, source: CommandSource) -> None:
         end = source.preemption()

@@ -31,8 +31,8 @@ def _input(kind: type[CommandSource], row: SourceInput) -> Input[ControllerCore,
 def _answer(
     kind: type[CommandSource], row: SourceAnswer
 ) -> Answer[ControllerCore, Any, Any, Output]:
-    handle = row.handle
-    return Answer(row.endpoint, lambda core, req, t: (core.ask(kind, handle, req), []))
+    handle, query = row.handle, row.endpoint.suffix
+    return Answer(row.endpoint, lambda core, req, t: core.ask(kind, handle, query, req))
 
 
 WIRING: Wiring[ControllerCore, Output] = Wiring(
