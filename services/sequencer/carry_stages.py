@@ -131,16 +131,25 @@ def place_stages(
     ]
 
 
-def give_stages(view: ObjectView, held: WorldObject, q: np.ndarray) -> list[Stage]:
-    """Carry the held object to the hand-over pose near the user and hold it there."""
+GIVE_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0)
+"""The gripper's candidate yaws at the hand-over, from ``pick.handover_yaw_deg`` [deg]."""
+
+
+def give_stages(
+    view: ObjectView, held: WorldObject, q: np.ndarray, turn_deg: float = 0.0
+) -> list[Stage]:
+    """Carry the held object to the hand-over pose near the user (the gripper's yaw
+    ``pick.handover_yaw_deg`` plus ``turn_deg``, turned about the vertical from where it
+    is, so a level object stays level) and hold it there."""
     T_now = view.gripper(q)
     z = T_now[:3, 2] if abs(T_now[2, 2]) < 0.9 else T_now[:3, 0]
-    turn = math.radians(view.config.handover_yaw_deg) - math.atan2(z[1], z[0])
+    yaw = math.radians(view.config.handover_yaw_deg + turn_deg)
+    turn = yaw - math.atan2(z[1], z[0])
     R = rot_z(turn) @ T_now[:3, :3]
     T_g = np.eye(4)
     T_g[:3, :3] = R
     T_g[:3, 3] = np.array(view.config.handover_xyz) - R @ np.array(held.xyz)
-    return [Stage("hand over", motion=line_to(view, T_g), carrying=True)]
+    return [Stage("hand over", motion=line_to(view, T_g), carrying=True, retry=True)]
 
 
 def plan_problem(

@@ -1,8 +1,8 @@
 """The candidates of an object step and the stages of the one being tried: the grasps of
-a pick (preferred first), the gripper's yaws at a place (:data:`.carry_stages.
-PLACE_TURNS_DEG`), the one hand-over pose of a give. Shared by the running step
-(:mod:`.object_step`) and the validation (:mod:`.object_validation`), so both try the
-same candidates in the same order and name the same reasons.
+a pick (preferred first), the gripper's yaws at a place or a hand-over
+(:data:`.carry_stages.PLACE_TURNS_DEG`, :data:`.carry_stages.GIVE_TURNS_DEG`). Shared by
+the running step (:mod:`.object_step`) and the validation (:mod:`.object_validation`), so
+both try the same candidates in the same order and name the same reasons.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ import numpy as np
 from schemas.objects import WorldObject
 from schemas.sequencing import StepKind, TaskStep
 from services.sequencer.carry_stages import (
+    GIVE_TURNS_DEG,
     PLACE_TURNS_DEG,
     SYMMETRIC,
     give_stages,
@@ -26,6 +27,10 @@ from services.sequencer.object_stages import (
     pick_plan,
     pick_stages,
 )
+
+OUT_OF_REACH = ("unreachable", "joint_limit", "singular", "zone")
+"""The planner's reasons that mean a grasp is beyond what the arm may reach (``zone``:
+outside the keep-in zone of its work space)."""
 
 
 class Attempts:
@@ -48,13 +53,19 @@ class Attempts:
         self.held: WorldObject | None = None
         self.index = 0
         self.refusals: list[str] = []
+        self.turns: tuple[float, ...] = ()  # a place's or give's candidate yaws [deg]
         if spec.kind == StepKind.PICK:
             self.pick = pick_plan(view, spec.object)
             self.labels = [g.label for g in self.pick.grasps]
         else:
             self.held = held_object(view, spec.object)
-            many = spec.kind == StepKind.PLACE and self.held.shape in SYMMETRIC
-            self.labels = [f"yaw {t:+.0f} deg" for t in PLACE_TURNS_DEG] if many else ["as held"]
+            if spec.kind == StepKind.GIVE:
+                self.turns = GIVE_TURNS_DEG
+            elif self.held.shape in SYMMETRIC:
+                self.turns = PLACE_TURNS_DEG
+            else:
+                self.turns = (0.0,)
+            self.labels = [f"yaw {t:+.0f} deg" for t in self.turns]
         self.stages = self._stages()
 
     @property
@@ -70,10 +81,10 @@ class Attempts:
         if self.pick is not None:
             return pick_stages(self.pick, self.pick.grasps[self.index], view)
         assert self.held is not None
+        turn = self.turns[self.index]
         if spec.kind == StepKind.PLACE:
-            turn = PLACE_TURNS_DEG[self.index] if len(self.labels) > 1 else 0.0
             return place_stages(view, self.held, self.q, spec.at, spec.surface, turn)
-        return give_stages(view, self.held, self.q)
+        return give_stages(view, self.held, self.q, turn)
 
     def refused(self, stage: Stage, reason: str, why: str) -> str:
         """A plan of ``stage`` of the candidate being tried was refused (``reason``, the
@@ -91,7 +102,7 @@ class Attempts:
                 f"object {obj.id!r} ({obj.cls}) cannot be {self.spec.kind}d: every way tried "
                 f"was refused ({tried}); last: {why}"
             )
-        if all(r.endswith(("unreachable", "joint_limit", "singular")) for r in self.refusals):
+        if all(r.endswith(OUT_OF_REACH) for r in self.refusals):
             return (
                 f"object {obj.id!r} ({obj.cls}) is out of reach: every grasp tried ({tried}); "
                 f"last: {why}"

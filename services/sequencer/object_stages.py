@@ -293,6 +293,7 @@ def pick_plan(view: ObjectView, object_id: str) -> PickPlan:
             f"object {object_id!r} ({obj.cls}) is {width:.0f} mm wide where it would be "
             f"grasped: wider than the gripper opens ({MAX_OPENING_M * 1e3:.0f} mm)"
         )
+    _check_reach(view, obj, narrow)
     others = [o for o in view.objects.values() if o.id != obj.id and not o.link]
     blocked = {g.label: blocked_by(g, others) for g in narrow}
     clear = [g for g in narrow if not blocked[g.label]]
@@ -303,6 +304,24 @@ def pick_plan(view: ObjectView, object_id: str) -> PickPlan:
         )
     surface = surface_under(view.scene, obj, obj.xyz[2] - half_height(obj))
     return PickPlan(obj, how, tuple(clear), surface)
+
+
+def _check_reach(view: ObjectView, obj: WorldObject, grasps: list[Grasp]) -> None:
+    """Raises:
+    ObjectProblem: no grasp brings the wrist centre within the arm's reach."""
+    arm = view.arm
+    nearest = math.inf
+    for g in grasps:
+        T = view.in_base(g.grasp)
+        p = T[:3, 3] - arm.l4 * T[:3, 2]
+        horizontal = math.hypot(p[0], p[1])
+        nearest = min(nearest, math.sqrt(max(0.0, horizontal**2 - arm.l1**2) + p[2] ** 2))
+    if nearest > arm.l2 + arm.l3:
+        raise ObjectProblem(
+            f"object {obj.id!r} ({obj.cls}) is out of reach: its nearest grasp needs the wrist "
+            f"centre {nearest * 1e3:.0f} mm from the shoulder (the arm reaches "
+            f"{(arm.l2 + arm.l3) * 1e3:.0f} mm)"
+        )
 
 
 def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:

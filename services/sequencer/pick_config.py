@@ -29,9 +29,11 @@ class PickConfig:
             the task stops [s]. A straight approach hides it behind the gripper: it is
             not judged then.
         handover_xyz: where ``give`` brings the object's centre, chair frame [m]: in front
-            of the user, within the reach of a hand.
+            of the user's chest, 450 mm ahead of the torso, within the reach of a hand.
         handover_yaw_deg: the gripper's yaw there (the direction it points in, chair frame)
-            [deg].
+            [deg]: 120, back toward the user, the object held out at its tip; other yaws
+            are tried (:data:`~services.sequencer.carry_stages.GIVE_TURNS_DEG`) when the
+            planner refuses this one.
         drop_m: a placed object is let go this far above its resting place [m].
         margin_m: every motion of an object task keeps this much beyond each clearance
             (its plan is refused otherwise: another grasp is tried): near the table the
@@ -45,8 +47,8 @@ class PickConfig:
     max_replans: int = 2
     lost_s: float = 0.0
     hidden_s: float = 5.0
-    handover_xyz: tuple[float, float, float] = (0.45, -0.22, 1.0)
-    handover_yaw_deg: float = 60.0
+    handover_xyz: tuple[float, float, float] = (0.50, -0.15, 0.95)
+    handover_yaw_deg: float = 120.0
     drop_m: float = 0.003
     margin_m: float = 0.010
 
