@@ -3,10 +3,11 @@ chair frame, from its class's :class:`~manus.grasps.GraspClass` (docs/pick.md).
 
 The gripper frame (the stack's gripper pose): z along the approach, x the jaw axis, the
 origin between the fingertips' pads. A **side** grasp comes in horizontally (or pitched
-down by the class's ``pitch``) with the gripper's y up (from the chair's z, not the
-object's noisy observed axis); its candidate directions turn about the vertical from the
-direction the arm's shoulder sees the object in, nearest first. A **top** grasp comes straight down,
-its jaws across the object's y extent, turned by the class's yaw step.
+down by each of the class's ``pitches``, one candidate each) with the gripper's y up (from
+the chair's z, not the object's noisy observed axis); its candidate directions turn about
+the vertical from the direction the arm's shoulder sees the object in, nearest first. A
+**top** grasp comes straight down, its jaws across the object's y extent, turned by the
+class's yaw step.
 
 A candidate whose straight approach would run the gripper through another object of the
 world is set aside (:func:`blocked_by`): the collision model does not hold free objects
@@ -103,13 +104,16 @@ def grasps_of(obj: WorldObject, how: GraspClass, shoulder: np.ndarray) -> list[G
         base = math.atan2(seen[1], seen[0])
         for turn in _turns(how.yaw_step, how.yaw_span):
             yaw = base + turn
-            c = math.cos(how.pitch)
-            z = np.array([c * math.cos(yaw), c * math.sin(yaw), -math.sin(how.pitch)])
-            y = up - (up @ z) * z
-            y /= np.linalg.norm(y)
-            T = _frame(np.cross(y, z), y, z, centre)
-            label = f"side, from yaw {math.degrees(math.remainder(yaw, math.tau)):.0f} deg"
-            out.append(_grasp(label, T, how, extent_along(obj, T[:3, 0])))
+            for pitch in how.pitches:
+                c = math.cos(pitch)
+                z = np.array([c * math.cos(yaw), c * math.sin(yaw), -math.sin(pitch)])
+                y = up - (up @ z) * z
+                y /= np.linalg.norm(y)
+                T = _frame(np.cross(y, z), y, z, centre)
+                label = f"side, from yaw {math.degrees(math.remainder(yaw, math.tau)):.0f} deg" + (
+                    f" pitch {math.degrees(pitch):.0f}" if len(how.pitches) > 1 else ""
+                )
+                out.append(_grasp(label, T, how, extent_along(obj, T[:3, 0])))
         return out
     R = object_pose(obj)[:3, :3]
     across = R[:, 1] - (R[:, 1] @ up) * up

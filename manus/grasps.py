@@ -5,7 +5,8 @@ docs/pick.md), read into :class:`GraspClass` values in SI units.
 
     version: 1
     classes:
-      cup: {approach: side, height_mm: 5, pitch_deg: 10, yaw_step_deg: 15, yaw_span_deg: 75,
+      cup: {approach: side, height_mm: 8, pitch_deg: [15, 5], yaw_step_deg: 15,
+            yaw_span_deg: 75,
             pregrasp_mm: 80, lift_mm: 60, open_margin_mm: 25, squeeze_mm: 4,
             keep_level: true}
 
@@ -55,8 +56,9 @@ class GraspClass:
         height: grasp point above the object's centre [m].
         yaw_step: between two candidate approach directions [rad].
         yaw_span: candidates within this of the preferred direction [rad].
-        pitch: a side approach points this far down from horizontal [rad] (its wrist
-            then stays higher above the surface the object stands on).
+        pitches: a side approach points this far down from horizontal [rad] (its wrist
+            then stays higher above the surface the object stands on; the gripper's
+            front lower): one candidate per pitch at each yaw, in this order.
         pregrasp: length of the straight approach and retreat [m].
         lift: straight up after the grasp, before the release [m].
         open_margin: the jaws open this much wider than the object [m].
@@ -70,7 +72,7 @@ class GraspClass:
     height: float
     yaw_step: float
     yaw_span: float
-    pitch: float
+    pitches: tuple[float, ...]
     pregrasp: float
     lift: float
     open_margin: float
@@ -80,7 +82,7 @@ class GraspClass:
 
 
 LENGTHS = ("height_mm", "pregrasp_mm", "lift_mm", "open_margin_mm", "squeeze_mm")
-ANGLES = ("yaw_step_deg", "yaw_span_deg", "pitch_deg")
+ANGLES = ("yaw_step_deg", "yaw_span_deg")
 
 
 def shipped_grasps_path() -> Path:
@@ -115,7 +117,9 @@ def parse_grasps(text: str, source: str = "<grasps>") -> dict[str, GraspClass]:
         path = join("classes", cls)
         if cls in out:
             raise reader.fail(key_node, path, "given twice")
-        fields = reader.mapping(node, path, ("approach", *LENGTHS, *ANGLES, "keep_level"), ())
+        fields = reader.mapping(
+            node, path, ("approach", *LENGTHS, *ANGLES, "pitch_deg", "keep_level"), ()
+        )
         approach = reader.text(fields["approach"], join(path, "approach"), tuple(Approach))
         mm, deg = _numbers(reader, fields, path)
         level = fields["keep_level"]
@@ -127,7 +131,7 @@ def parse_grasps(text: str, source: str = "<grasps>") -> dict[str, GraspClass]:
             height=mm["height_mm"] * 1e-3,
             yaw_step=math.radians(deg["yaw_step_deg"]),
             yaw_span=math.radians(deg["yaw_span_deg"]),
-            pitch=math.radians(deg["pitch_deg"]),
+            pitches=_pitches(reader, fields["pitch_deg"], join(path, "pitch_deg")),
             pregrasp=mm["pregrasp_mm"] * 1e-3,
             lift=mm["lift_mm"] * 1e-3,
             open_margin=mm["open_margin_mm"] * 1e-3,
@@ -152,11 +156,24 @@ def _numbers(
     deg = {k: reader.number(fields[k], join(path, k)) for k in ANGLES}
     if not 0.0 < deg["yaw_step_deg"] <= 360.0:
         raise reader.fail(fields["yaw_step_deg"], join(path, "yaw_step_deg"), "must be in (0, 360]")
-    if not 0.0 <= deg["pitch_deg"] <= 45.0:
-        raise reader.fail(fields["pitch_deg"], join(path, "pitch_deg"), "must be in [0, 45]")
     if not 0.0 <= deg["yaw_span_deg"] <= 180.0:
         raise reader.fail(fields["yaw_span_deg"], join(path, "yaw_span_deg"), "must be in [0, 180]")
     return mm, deg
+
+
+def _pitches(reader: FieldReader, node: yaml.Node, path: str) -> tuple[float, ...]:
+    """One pitch or a list of them [deg] -> [rad], each in [0, 45]."""
+    items = node.value if isinstance(node, yaml.SequenceNode) else [node]
+    if not items:
+        raise reader.fail(node, path, "give at least one pitch")
+    out = []
+    for i, item in enumerate(items):
+        where = f"{path}[{i}]" if isinstance(node, yaml.SequenceNode) else path
+        value = reader.number(item, where)
+        if not 0.0 <= value <= 45.0:
+            raise reader.fail(item, where, f"must be in [0, 45], got {value:g}")
+        out.append(math.radians(value))
+    return tuple(out)
 
 
 def load_grasps(path: str | Path = "") -> dict[str, GraspClass]:

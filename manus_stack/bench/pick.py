@@ -2,7 +2,8 @@
 
 Each run (seed k = 0, 1, ...): the default scene, the arm unfolded, the shipped cup
 (radius 40 mm, 100 mm tall) at a seeded position on the table, in every third run a
-bottle beside it (110-150 mm away, centre to centre), the simulated camera on with its
+bottle beside it (110-150 mm away, centre to centre, to its left or right within 60 deg
+as the camera sees it), the simulated camera on with its
 noise, latency and dropouts (the stack sees only what it publishes). After 1 s of
 camera frames a task of two steps is submitted to the sequencer: ``pick cup`` and
 ``place cup at`` a seeded target on the table (at least 150 mm from where the cup and
@@ -76,8 +77,11 @@ def _cup(xy: np.ndarray) -> SimObject:
 
 
 def _bottle(rng: np.random.Generator, cup: np.ndarray) -> SimObject:
+    """A bottle beside the cup as the camera sees it (to its left or right, not in front
+    of it or behind it: in front, it hides the cup and the pick is refused, the cup
+    unknown)."""
     while True:
-        turn = rng.uniform(-math.pi, math.pi)
+        turn = rng.choice([-1.0, 1.0]) * math.pi / 2 + rng.uniform(-math.pi / 3, math.pi / 3)
         xy = cup + rng.uniform(0.11, 0.15) * np.array([math.cos(turn), math.sin(turn)])
         if AREA[0][0] - 0.04 <= xy[0] <= 1.30 and -0.48 <= xy[1] <= 0.40:
             break

@@ -156,11 +156,12 @@ def plan_problem(
     view: ObjectView, stage: Stage, trajectory: Trajectory, held: WorldObject | None
 ) -> str:
     """What keeps a stage's planned ``trajectory`` from being run ('' nothing): a
-    clearance within ``pick.margin_m`` of its limit (the controller's tracking error
-    would bring the guard's stop), or, carrying a level object, too much tilt."""
+    clearance within ``pick.margin_m`` of its limit on the way (the controller's tracking
+    error would bring the guard's stop; at the start it is where the arm is, which the
+    motion cannot change), or, carrying a level object, too much tilt."""
     report = trajectory.clearance
     margin = view.config.margin_m
-    if report is not None and report.distance - report.required < margin:
+    if report is not None and report.time > 0.0 and report.distance - report.required < margin:
         return (
             f"{stage.label}: too tight: {report.body} {report.distance * 1e3:.1f} mm from "
             f"{report.other} at {report.time:.2f} s ({report.cls}: needs "

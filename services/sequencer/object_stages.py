@@ -153,6 +153,9 @@ class Stage:
         search: the motion is a search to a pose (the pre-grasp): the object must stay in
             perception's sight all along (a straight approach hides it behind the gripper:
             it must be seen only when the approach begins).
+        aim: the straight approach: when it runs, it is aimed at the object's position
+            averaged over perception's recent sightings (a line from where the pre-grasp
+            left the gripper to the grasp there).
     """
 
     label: str
@@ -167,6 +170,7 @@ class Stage:
     watch: bool = False
     retry: bool = False
     search: bool = False
+    aim: bool = False
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:
@@ -337,7 +341,7 @@ def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
             retry=True,
             search=True,
         ),
-        Stage("approach", motion=line_tool(how.pregrasp), watch=True, retry=True),
+        Stage("approach", motion=line_tool(how.pregrasp), watch=True, retry=True, aim=True),
         Stage("close", opening=max(0.0, grasp.width - how.squeeze), holds=grasp.width),
         Stage("attach", attach=GRIPPER_FRAME, touch_objects=touch, upright=how.keep_level),
         Stage("lift", motion=line_up(view, how.lift), carrying=True, retry=True),

@@ -34,7 +34,9 @@ class PickConfig:
             [deg]: 120, back toward the user, the object held out at its tip; other yaws
             are tried (:data:`~services.sequencer.carry_stages.GIVE_TURNS_DEG`) when the
             planner refuses this one.
-        drop_m: a placed object is let go this far above its resting place [m].
+        drop_m: a placed object is let go this far above its resting place [m]: the
+            stack knows where it holds it only as well as perception saw it (3 mm per
+            axis), and an object pressed onto a surface stops the arm.
         margin_m: every motion of an object task keeps this much beyond each clearance
             (its plan is refused otherwise: another grasp is tried): near the table the
             plans run close to the clearance, and the controller's tracking error must
@@ -49,7 +51,7 @@ class PickConfig:
     hidden_s: float = 5.0
     handover_xyz: tuple[float, float, float] = (0.50, -0.15, 0.95)
     handover_yaw_deg: float = 120.0
-    drop_m: float = 0.003
+    drop_m: float = 0.010
     margin_m: float = 0.010
 
     def __post_init__(self) -> None:
