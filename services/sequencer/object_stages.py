@@ -156,6 +156,8 @@ class Stage:
         aim: the straight approach: when it runs, it is aimed at the object's position
             averaged over perception's recent sightings (a line from where the pre-grasp
             left the gripper to the grasp there).
+        reach_tolerance: a motion that ends (aborted by the controller) at most this far
+            from its end counts as done [m] (0: the trajectory goal's own 2 mm).
     """
 
     label: str
@@ -171,6 +173,7 @@ class Stage:
     retry: bool = False
     search: bool = False
     aim: bool = False
+    reach_tolerance: float = 0.0
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:
@@ -186,6 +189,10 @@ def line_to(view: ObjectView, T: np.ndarray, speed: float = 0.5) -> MotionOf:
     xyz, ypr = [float(v) for v in Tb[:3, 3]], [float(v) for v in matrix_to_ypr(Tb[:3, :3])]
     return lambda q: LineMotion(xyz=xyz, ypr=ypr, frame=LineFrame.BASE, speed=speed)
 
+
+APPROACH_TOLERANCE_M = 0.005
+"""The approach may end this far short of the grasp [m] (the controller slowing close to
+the table): the jaws hold an object whose centre is within 15 mm of the grasp point."""
 
 NEAR_SPEED = 0.2
 """The speed of lines near a surface (fraction of the line's top speed, 200 mm/s): the
@@ -341,7 +348,14 @@ def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
             retry=True,
             search=True,
         ),
-        Stage("approach", motion=line_tool(how.pregrasp), watch=True, retry=True, aim=True),
+        Stage(
+            "approach",
+            motion=line_tool(how.pregrasp),
+            watch=True,
+            retry=True,
+            aim=True,
+            reach_tolerance=APPROACH_TOLERANCE_M,
+        ),
         Stage("close", opening=max(0.0, grasp.width - how.squeeze), holds=grasp.width),
         Stage("attach", attach=GRIPPER_FRAME, touch_objects=touch, upright=how.keep_level),
         Stage("lift", motion=line_up(view, how.lift), carrying=True, retry=True),

@@ -132,16 +132,17 @@ class StageReach(ReachStep):
         return super().on_reply(reply, error)
 
     def on_result(self, res: GoalResult) -> list[Action]:
-        """A goal that ended within its position tolerance but not at rest (the
-        controller's dither at the goal, docs/reach.md, Known limits) is reached: the
-        controller holds the arm still from then on."""
+        """A goal that ended short of its end by no more than the stage allows
+        (``stage.reach_tolerance``: by default the goal's own 2 mm, when the arm did not
+        come to rest there, the controller's dither at a goal, docs/reach.md, Known
+        limits) is reached: the controller holds the arm still from then on."""
         if (
             self.goal_id
             and res.goal_id == self.goal_id
             and self.phase == Phase.ACTIVE
             and res.status == ResultStatus.ABORTED
             and res.cause == EndCause.TOLERANCE
-            and res.final_error <= DITHER_TOLERANCE_M
+            and res.final_error <= max(self.stage.reach_tolerance, DITHER_TOLERANCE_M)
         ):
             self.goal_id = ""
             return self.ctx.step_done()
