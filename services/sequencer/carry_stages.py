@@ -32,6 +32,10 @@ from services.sequencer.object_stages import (
 UPRIGHT_DEG = 2.0
 """A place pose leaning more than this from upright is refused [deg]: objects rest upright."""
 
+LOWER_TOLERANCE_M = 0.004
+"""Lowering may end this far short of its end [m] (the controller slowing by the
+surface): the object drops ``pick.drop_m`` anyway."""
+
 TILT_SAMPLE_S = 0.02
 """Time between two samples of a trajectory's tilt check [s]."""
 
@@ -124,7 +128,13 @@ def place_stages(
     return [
         Stage("carry", motion=line_to(view, above), carrying=True, retry=True),
         Stage("set down", attach=GRIPPER_FRAME, touch_objects=(on,)),
-        Stage("lower", motion=line_to(view, T_g, speed=NEAR_SPEED), carrying=True, retry=True),
+        Stage(
+            "lower",
+            motion=line_to(view, T_g, speed=NEAR_SPEED),
+            carrying=True,
+            retry=True,
+            reach_tolerance=LOWER_TOLERANCE_M,
+        ),
         Stage("open", opening=min(MAX_OPENING_M, width + view.how(held).open_margin)),
         Stage("release", attach=""),
         Stage("retreat", motion=line_up(view, 2.0 * hh + 0.02)),
@@ -153,14 +163,19 @@ def give_stages(
 
 
 def plan_problem(
-    view: ObjectView, stage: Stage, trajectory: Trajectory, held: WorldObject | None
+    view: ObjectView,
+    stage: Stage,
+    trajectory: Trajectory,
+    held: WorldObject | None,
+    margin: float | None = None,
 ) -> str:
     """What keeps a stage's planned ``trajectory`` from being run ('' nothing): a
-    clearance within ``pick.margin_m`` of its limit on the way (the controller's tracking
-    error would bring the guard's stop; at the start it is where the arm is, which the
-    motion cannot change), or, carrying a level object, too much tilt."""
+    clearance within ``margin`` (default ``pick.margin_m``) of its limit on the way (the
+    controller's tracking error would bring the guard's stop; at the start it is where
+    the arm is, which the motion cannot change), or, carrying a level object, too much
+    tilt."""
     report = trajectory.clearance
-    margin = view.config.margin_m
+    margin = view.config.margin_m if margin is None else margin
     if report is not None and report.time > 0.0 and report.distance - report.required < margin:
         return (
             f"{stage.label}: too tight: {report.body} {report.distance * 1e3:.1f} mm from "

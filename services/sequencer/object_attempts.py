@@ -54,6 +54,9 @@ class Attempts:
         self.index = 0
         self.refusals: list[str] = []
         self.turns: tuple[float, ...] = ()  # a place's or give's candidate yaws [deg]
+        self.margin = view.config.margin_m
+        """The clearance to spare a plan must keep (``pick.margin_m``; once every
+        candidate was too tight for it, ``pick.min_margin_m``) [m]."""
         if spec.kind == StepKind.PICK:
             self.pick = pick_plan(view, spec.object)
             self.labels = [g.label for g in self.pick.grasps]
@@ -93,6 +96,14 @@ class Attempts:
         self.refusals.append(f"{self.labels[self.index]}: {stage.label}: {reason}")
         self.index += 1
         if self.index < len(self.labels):
+            self.stages = self._stages()
+            return ""
+        tight = any(r.endswith(": tight") for r in self.refusals)
+        if tight and self.margin > self.view.config.min_margin_m:
+            # Every candidate too tight for the margin: once more, with the least one.
+            self.margin = self.view.config.min_margin_m
+            self.index = 0
+            self.refusals.append(f"again with {self.margin * 1e3:.0f} mm to spare")
             self.stages = self._stages()
             return ""
         obj = self.object

@@ -211,7 +211,7 @@ def line_up(view: ObjectView, dz: float) -> MotionOf:
         T = view.gripper(q)
         T[2, 3] += dz
         Tb = view.in_base(T)
-        return LineMotion(xyz=[float(v) for v in Tb[:3, 3]], frame=LineFrame.BASE)
+        return LineMotion(xyz=[float(v) for v in Tb[:3, 3]], frame=LineFrame.BASE, speed=NEAR_SPEED)
 
     return motion
 

@@ -221,7 +221,8 @@ class ObjectStep(Step):
         stage = self.stages[self.index]
         assert reply.trajectory is not None
         held = self.view().objects.get(self.spec.object)
-        problem = plan_problem(self.view(), stage, reply.trajectory, held)
+        margin = self.tries.margin if self.tries is not None else None
+        problem = plan_problem(self.view(), stage, reply.trajectory, held, margin)
         if not problem:
             return None
         word = "tight" if "too tight" in problem else "tilt"

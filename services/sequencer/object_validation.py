@@ -76,7 +76,7 @@ class ObjectValidation:
             return
         if reply.ok and reply.trajectory is not None:
             held = self.objects.get(self.spec.object)
-            problem = plan_problem(self.view, stage, reply.trajectory, held)
+            problem = plan_problem(self.view, stage, reply.trajectory, held, self.tries.margin)
             if not problem:
                 self.q = np.array(reply.trajectory.positions[-1])
                 self.index += 1

@@ -41,6 +41,9 @@ class PickConfig:
             (its plan is refused otherwise: another grasp is tried): near the table the
             plans run close to the clearance, and the controller's tracking error must
             not bring the guard's stop [m].
+        min_margin_m: when every candidate is too tight for ``margin_m``, they are tried
+            again with this much to spare [m] (the guard may then stop the arm near the
+            table, safely; the figures in docs/pick.md).
     """
 
     grasps: str = ""
@@ -53,6 +56,7 @@ class PickConfig:
     handover_yaw_deg: float = 120.0
     drop_m: float = 0.010
     margin_m: float = 0.010
+    min_margin_m: float = 0.006
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_tilt_deg <= 90.0:
@@ -67,5 +71,10 @@ class PickConfig:
             raise ConfigError(f"pick hidden_s = {self.hidden_s!r} is outside 0.1..60 s")
         if not 0.0 <= self.margin_m <= 0.05:
             raise ConfigError(f"pick margin_m = {self.margin_m!r} is outside 0..0.05 m")
+        if not 0.0 <= self.min_margin_m <= self.margin_m:
+            raise ConfigError(
+                f"pick min_margin_m = {self.min_margin_m!r} is outside 0..margin_m "
+                f"({self.margin_m!r}) m"
+            )
         if not 0.0 <= self.drop_m <= 0.05:
             raise ConfigError(f"pick drop_m = {self.drop_m!r} is outside 0..0.05 m")
