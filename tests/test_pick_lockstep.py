@@ -59,8 +59,8 @@ def run_watching(ts: TaskLockStep, limit_s: float = 90.0) -> float:
     end = ts.ls.t_ns + round(limit_s * 1e9)
     while ts.seq.busy and ts.ls.t_ns < end:
         ts.ls.run_for(0.02)
-        cup = next(o for o in ts.ls.sim.truth().objects if o.id == "cup")
-        if cup.held:
+        cup = next((o for o in ts.ls.sim.truth().objects if o.id == "cup"), None)
+        if cup is not None and cup.held:
             worst = max(worst, tilt(ypr_to_matrix(*cup.ypr)))
     return worst
 
@@ -214,3 +214,15 @@ def test_pick_then_give_keeps_the_person_clear_and_the_cup_level() -> None:
     assert math.degrees(worst) <= 10.0
     assert truth.held_min_person is not None and truth.held_min_person >= 0.05
     assert not [c for c in truth.object_contacts if c.cls == ContactClass.PERSON]
+
+
+def test_a_grasp_that_does_not_hold_stops_saying_so() -> None:
+    ts = rig()
+    assert ts.submit(steps(PICK)).accepted
+    run_until_stage(ts, "close")
+    ts.ls.sim.objects.remove("cup")  # gone from between the jaws: they close past it
+    run_watching(ts, 20.0)
+    assert ts.seq.state == TaskState.FAILED
+    assert "pick 'cup' (close): the grasp did not hold: the jaws closed to" in ts.seq.reason
+    assert "past the object's 80.0 mm" in ts.seq.reason
+    assert not any(o.link for o in ts.seq.world.objects.values())  # never attached
