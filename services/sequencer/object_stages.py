@@ -158,6 +158,11 @@ class Stage:
             left the gripper to the grasp there).
         reach_tolerance: a motion that ends (aborted by the controller) at most this far
             from its end counts as done [m] (0: the trajectory goal's own 2 mm).
+        onto: the surface the held object is lowered onto: its clearance to it is not
+            judged for spare (it is meant to come close).
+        raised: the motion the validation plans instead when the object is held already
+            (the planner knows the surface as a touch object only once the stage before
+            attached it): the same, stopping just outside the surface's clearance.
     """
 
     label: str
@@ -174,6 +179,8 @@ class Stage:
     search: bool = False
     aim: bool = False
     reach_tolerance: float = 0.0
+    onto: str = ""
+    raised: MotionOf | None = None
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:
