@@ -31,6 +31,7 @@ def live(zenoh_settings: ZenohSettings) -> Iterator[LiveStack]:
         eventually(lambda: "cup" in stack.sequencer.core.world.objects, timeout=10.0)
         yield stack
     finally:
+        stack.sim.on_message = None  # the node closes first
         stack.close()
 
 
