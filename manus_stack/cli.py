@@ -31,6 +31,12 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("services.sequencer.run_cli", "run a task: PATH.txt MM PATH.txt ... or TASK.toml"),
     "reach": ("manus_stack.commands.reach", "move to a goal (pose, joints, named, object, line)"),
     "move-to": ("manus_stack.commands.move_to", "move to a named pose (home, drink, ...)"),
+    "pick": ("manus_stack.commands.pick", "pick an object of the world model up (e.g. cup)"),
+    "place": (
+        "manus_stack.commands.place",
+        "put the held object down --at a pose or --on a surface",
+    ),
+    "give": ("manus_stack.commands.give", "hand the held object to the user"),
     "jog": ("manus_stack.commands.jog", "drive the arm from the keyboard (live control)"),
     "panel": ("manus_stack.commands.panel", "the web page for the user: tasks, jog pad, STOP"),
     "track": ("manus_stack.commands.track", "follow a tracker's target (a mouth) to a standoff"),

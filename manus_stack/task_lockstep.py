@@ -29,6 +29,7 @@ from services.controller.wiring import WIRING as CONTROLLER
 from services.planner.core import PlannerCore
 from services.planner.wiring import WIRING as PLANNER
 from services.sequencer.actions import Action, Publish, Reply
+from services.sequencer.config import SequencerConfig
 from services.sequencer.core import SequencerCore
 from services.sequencer.wiring import WIRING as SEQUENCER
 from services.simulator.config import SimConfig
@@ -43,15 +44,19 @@ class TaskLockStep:
         sim: simulator settings.
         controller: the controller core (default: a new one; tests pass one they can
             kill).
+        sequencer: the sequencer's settings (default: its defaults).
     """
 
     def __init__(
-        self, sim: SimConfig | None = None, controller: ControllerCore | None = None
+        self,
+        sim: SimConfig | None = None,
+        controller: ControllerCore | None = None,
+        sequencer: SequencerConfig | None = None,
     ) -> None:
         self.ls = LockStep(sim)
         self.controller = controller or ControllerCore()
         self.planner = PlannerCore()
-        self.seq = SequencerCore()
+        self.seq = SequencerCore(sequencer)
         self.events: list[TaskEvent] = []
         self.requests: list[Message] = []
         self.replies: dict[str, SubmitReply] = {}  # answers to submissions, by task id

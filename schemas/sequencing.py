@@ -29,6 +29,9 @@ class StepKind(StrEnum):
     POSE = "pose"
     FOLLOW = "follow"
     REACH = "reach"
+    PICK = "pick"
+    PLACE = "place"
+    GIVE = "give"
 
 
 class TaskAction(StrEnum):
@@ -116,6 +119,19 @@ class TaskStep(Message):
         "for follow: the tracker, standoff, approach and tracked point (its goal_id is the "
         "sequencer's)",
         default=None,
+    )
+    object: str = field(
+        "for pick, place and give: the world model's object (its id, docs/pick.md)", default=""
+    )
+    at: list[float] | None = field(
+        "for place: where the object's centre goes, chair frame: x, y, z [m] and yaw, pitch, "
+        "roll [rad] (None: on `surface`)",
+        default=None,
+        length=6,
+    )
+    surface: str = field(
+        "for place: the scene object it is put on (its top, above where the object is held)",
+        default="",
     )
 
 

@@ -50,11 +50,15 @@ def test_every_trouble_has_one_plain_sentence() -> None:
         ("step 1 (move): planner refused: the path leaves the workspace", Trouble.OUT_OF_REACH),
         ("step 1 (fold_out): e-stop engaged by panel: STOP pressed", Trouble.STOPPED),
         ("step 1 (fold_in): can_bridge: phase arm_error: arm error 3", Trouble.ARM_ERROR),
-        ("step 1 (fold_out): can_bridge: phase stopped: fold_out stopped: lost the "
-         "supervisor's heartbeat (newest echo 212 ms old)",
-         Trouble.HELD_STOPPED),
-        ("the bridge is not running (stopped: frames from the arm again); a task starts only",
-         Trouble.HELD_STOPPED),
+        (
+            "step 1 (fold_out): can_bridge: phase stopped: fold_out stopped: lost the "
+            "supervisor's heartbeat (newest echo 212 ms old)",
+            Trouble.HELD_STOPPED,
+        ),
+        (
+            "the bridge is not running (stopped: frames from the arm again); a task starts only",
+            Trouble.HELD_STOPPED,
+        ),
         (
             "step 2 (move): controller: goal aborted: lost the supervisor's heartbeat: ...",
             Trouble.LINK_LOST,
@@ -87,8 +91,10 @@ def test_the_jog_says_why_it_stopped() -> None:
     assert jog_trouble(late, refused=False) is Trouble.JOG_LATE
     held = "stopped: jog command seq 7 refused: bridge phase estopped; release the controls"
     assert jog_trouble(held, refused=True) is Trouble.STOPPED
-    stopped = ("stopped: jog command seq 9 refused: the bridge is in phase 'stopped', not "
-               "'running' (clear it or wait for it first); release the controls")
+    stopped = (
+        "stopped: jog command seq 9 refused: the bridge is in phase 'stopped', not "
+        "'running' (clear it or wait for it first); release the controls"
+    )
     assert jog_trouble(stopped, refused=True) is Trouble.HELD_STOPPED
     # a stop keeps its words while it holds commands back (JogState, docs/jog.md)
     phase = "stopped: bridge phase stopped: stop requested by t; release the controls"

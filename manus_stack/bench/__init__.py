@@ -24,5 +24,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "objects": ("manus_stack.bench.objects", False),
     "reach": ("manus_stack.bench.reach", False),
     "panel": ("manus_stack.bench.panel", False),
+    "pick": ("manus_stack.bench.pick", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ConfigError
+from services.sequencer.pick_config import PickConfig
 
 REQUIRED_SERVICES = ("planner", "controller", "can_bridge")
 """Services a task needs (liveliness names, ``schemas.keys.SERVICES``)."""
@@ -44,6 +45,7 @@ class SequencerConfig:
         scene: the scene folds are checked against (``""`` = ``$MANUS_SCENE`` or the
             shipped one, ``default``, ``none`` or a file; the planner checks every move
             against its own, the same by default).
+        pick: the pick, place and give steps (:class:`PickConfig`).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -59,6 +61,7 @@ class SequencerConfig:
     history: int = 100
     bridge_wait_s: float = 30.0
     scene: str = ""
+    pick: PickConfig = field(default_factory=PickConfig)
 
     def __post_init__(self) -> None:
         for name in ("result_margin_s", "gripper_timeout_s", "fold_timeout_s", "cancel_timeout_s"):

@@ -30,7 +30,7 @@ from :meth:`Step.pause`, :meth:`Step.on_bridge_state` and :meth:`Step.on_tick` m
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from manus.config import ArmConfig
 from schemas.base import Message
@@ -39,9 +39,12 @@ from schemas.control import ControllerFeedback, GoalResult
 from schemas.follow import FollowState
 from schemas.planning import PlanRequest
 from schemas.sequencing import Task, TaskStep
-from schemas.state import BridgeState
+from schemas.state import BridgeState, JointState
 from services.sequencer.actions import Action, Query
 from services.sequencer.config import SequencerConfig
+
+if TYPE_CHECKING:
+    from services.sequencer.object_stages import ObjectView
 
 MAX_WAIT_S = 3600.0
 """Longest wait [s]."""
@@ -69,14 +72,23 @@ class Phase(StrEnum):
 class StepContext(Protocol):
     """What a step may see and do of its task (the core implements it)."""
 
-    config: SequencerConfig
-    now: int  # time of the input being handled [ns]
-    task: Task | None
-    step_progress: float  # fraction of the running step done, 0..1
     pause_requested: bool
-    cancel_requested: bool
+
+    @property
+    def config(self) -> SequencerConfig: ...
+    @property
+    def now(self) -> int: ...  # time of the input being handled [ns]
+    @property
+    def task(self) -> Task | None: ...
+    @property
+    def step_progress(self) -> float: ...  # fraction of the running step done, 0..1
+    @property
+    def cancel_requested(self) -> bool: ...
+    @property
+    def latest(self) -> JointState | None: ...  # the newest valid joint state
 
     def start_configuration(self) -> list[float] | None: ...
+    def object_view(self) -> ObjectView: ...
     def new_goal_id(self) -> str: ...
     def query(
         self, suffix: str, request: Message, reply_type: type[Message], *, wait: bool = False
@@ -173,6 +185,10 @@ class Step:
     def cancel(self) -> list[Action]:
         """Stop for good (by default at once: the task is cancelled)."""
         return self.ctx.cancelled(BY_REQUEST)
+
+    def on_objects(self) -> list[Action]:
+        """The world model changed (the sequencer's follower holds the new objects)."""
+        return []
 
     def on_deadline(self) -> list[Action]:
         """The deadline the step set (:meth:`StepContext.set_deadline`) passed."""

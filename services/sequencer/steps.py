@@ -11,7 +11,9 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
 - ``follow``: :class:`~services.sequencer.follow_step.FollowStep` (a controller follow
   goal, held for a time or until the supervisor's ``done``).
 - ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
-  its way to).
+  its way to);
+- ``pick``, ``place`` and ``give``: :class:`~services.sequencer.object_step.ObjectStep`
+  (an object task run as stages by the steps above, docs/pick.md).
 
 A new kind of step is one class and one entry here, its checks before the task starts
 included.
@@ -24,6 +26,7 @@ from services.sequencer.fold_step import FoldStep
 from services.sequencer.follow_step import FollowStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
+from services.sequencer.object_step import ObjectStep
 from services.sequencer.reach_step import ReachStep
 from services.sequencer.step import Step
 from services.sequencer.wait_step import WaitStep
@@ -37,5 +40,8 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.WAIT: WaitStep,
     StepKind.FOLLOW: FollowStep,
     StepKind.REACH: ReachStep,
+    StepKind.PICK: ObjectStep,
+    StepKind.PLACE: ObjectStep,
+    StepKind.GIVE: ObjectStep,
 }
 """The class of each kind of step."""

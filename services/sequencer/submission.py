@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from manus.scene import start_scene_state
-from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.collision import SceneState
 from schemas.objects import WorldUpdate
@@ -74,8 +73,6 @@ class TaskSubmission(TaskRun):
         self.fold_check = fold_checker(self.config.scene, self.config.arm)
         """Checks folds against the scene and what the arm holds during validation (None:
         no scene)."""
-        self.world = WorldFollower()
-        """The world model as the planner publishes it (what the arm holds)."""
         self.scene_seen = start_scene_state(self.config.scene)
         """The scene folds are checked against, as the planner announces it
         (``config.scene``'s until the planner's differs; None: no scene)."""
@@ -198,7 +195,9 @@ class TaskSubmission(TaskRun):
 
     def _begin(self, task_id: str, task: Task) -> list[Action]:
         """Validate ``task`` (plan queries), then start it."""
-        validator = Validator(task, self.start_configuration(), self.config.arm, self.fold_check)
+        validator = Validator(
+            task, self.start_configuration(), self.config.arm, self.fold_check, self.object_view
+        )
         self._submission = Submission(task_id, task, validator)
         return self._validate()
 
@@ -243,13 +242,23 @@ class TaskSubmission(TaskRun):
             return []
         self.scene_seen = scene
         check = scene_fold_checker(scene, self.config.arm, self.world.held)
-        if check is not None and self.fold_check is not None:
-            self.fold_check = check
+        if check is not None:
+            self.scene = check.model.scene
+            if self.fold_check is not None:
+                self.fold_check = check
         return []
 
-    def on_objects(self, update: WorldUpdate) -> list[Action]:
+    def on_objects(self, update: WorldUpdate, now_ns: int | None = None) -> list[Action]:
         """The world model's updates (``planner/objects``): later validations check folds
-        with the objects the arm holds (attached to the gripper) as part of it."""
+        with the objects the arm holds (attached to the gripper) as part of it; a running
+        object step watches the object it approaches."""
+        if now_ns is not None:
+            self.now = now_ns
         if self.world.on_update(update) and self.fold_check is not None:
             self.fold_check = self.fold_check.holding(self.world.held)
+        if update.stale_after_s > 0.0:
+            self.stale_after_s = update.stale_after_s
+        self.world_ns = max(self.world_ns, update.stamp_ns)
+        if self.state == TaskState.RUNNING and self._current is not None:
+            return self._current.on_objects()
         return []

@@ -45,6 +45,9 @@ left the arm.
 
 from __future__ import annotations
 
+from manus.grasps import load_grasps
+from manus.scene import Scene, scene_from_setting
+from manus.world_follower import WorldFollower
 from schemas.base import Message
 from schemas.sequencing import (
     Task,
@@ -57,6 +60,7 @@ from schemas.sequencing import (
 from schemas.state import JointState
 from services.sequencer.actions import EVENTS_SUFFIX, Action, Publish, Query
 from services.sequencer.config import SequencerConfig
+from services.sequencer.object_stages import ObjectView
 from services.sequencer.step import BY_REQUEST, NS, Phase, Step
 from services.sequencer.steps import STEP_TYPES
 from services.sequencer.validate import step_label
@@ -86,6 +90,13 @@ class TaskRun:
         self._started_ns = 0
         self._history: list[TaskRecord] = []  # ended tasks, oldest first
         self._reset_step()
+        self.world = WorldFollower()
+        """The world model as the planner publishes it (the objects, what the arm holds)."""
+        self.stale_after_s = 0.0  # the world model's, from its newest update [s]
+        self.world_ns = 0  # the world model's newest update's stamp [ns]
+        self.grasps = load_grasps(self.config.pick.grasps)
+        self.scene: Scene | None = scene_from_setting(self.config.scene)
+        """The scene in use (the planner's, once it announced it)."""
 
     def _reset_step(self) -> None:
         self._current: Step | None = None  # the running step (None: not begun)
@@ -122,6 +133,19 @@ class TaskRun:
         if self.latest is None or not self.latest.valid:
             return None
         return list(self.latest.position)
+
+    def object_view(self) -> ObjectView:
+        """What an object step knows of the world now."""
+        return ObjectView(
+            self.world.objects,
+            self.scene,
+            self.config.arm,
+            self.grasps,
+            self.config.pick,
+            self.now,
+            self.stale_after_s,
+            self.world_ns,
+        )
 
     def history(self, limit: int) -> TaskHistory:
         """The ``limit`` most recent tasks, newest first (``sequencer/history``)."""

@@ -37,6 +37,11 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
                                      # (named, pose, joints, object, approach, line_to,
                                      # line_tool: manus/goal_spec.py, docs/reach.md)
     [[step]]
+    pick = "cup"                     # pick, place and give: the world model's objects
+    [[step]]                         # (services/sequencer/taskfile_objects.py, docs/pick.md)
+    place = "cup"
+    at = [950, -150, 790, 0, 0, 0]   # or on = "table"
+    [[step]]
     fold_in = true
 
 Every problem of the file is found in one pass and reported together
@@ -61,6 +66,7 @@ from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
 from services.sequencer.follow_spec import OPTIONS as FOLLOW_OPTIONS
 from services.sequencer.follow_spec import follow_step
 from services.sequencer.poses import POSES
+from services.sequencer.taskfile_objects import OBJECT_OPTIONS, object_step
 
 MAX_OPENING_MM = 90.0
 """Largest gripper opening [mm] (the Manus gripper opens to 90 mm)."""
@@ -78,6 +84,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.WAIT: (),
     StepKind.FOLLOW: FOLLOW_OPTIONS,
     StepKind.REACH: (),
+    **OBJECT_OPTIONS,
 }
 """Keys a step of each kind may carry besides its kind."""
 
@@ -247,6 +254,10 @@ class _StepContext:
             step = follow_step(raw, where, lambda key, msg: self.error(errors, key, kind, msg))
         elif kind == StepKind.REACH:
             step = self._reach(value, where, errors)
+        elif kind in OBJECT_OPTIONS:
+            step = object_step(
+                kind, raw, where, lambda key, msg: self.error(errors, key, kind, msg)
+            )
         else:
             step = TaskStep(kind=kind, where=where)
             if value is not True:

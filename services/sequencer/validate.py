@@ -29,10 +29,16 @@ from manus.scene import SceneError, parse_scene, scene_from_setting
 from manus.sweep import straight_motion_problem
 from manus.validity import checker_for
 from schemas.collision import SceneState
+from schemas.objects import WorldObject
 from schemas.planning import PlanReply, PlanRequest, Trajectory
 from schemas.sequencing import StepKind, Task, TaskStep
 from services.sequencer.fold_step import FOLD_END
+from services.sequencer.object_stages import ObjectView
+from services.sequencer.object_validation import ObjectValidation
 from services.sequencer.steps import STEP_TYPES
+
+OBJECT_KINDS = (StepKind.PICK, StepKind.PLACE, StepKind.GIVE)
+"""Steps planned as stages (:mod:`services.sequencer.object_validation`)."""
 
 
 def step_label(step: TaskStep, index: int) -> str:
@@ -66,8 +72,12 @@ class Validator:
         start: list[float] | None,
         arm: ArmConfig,
         fold_check: FoldCheck | None = None,
+        view: Callable[[], ObjectView] | None = None,
     ) -> None:
         self.task = task
+        self._view = view
+        self._objects: dict[str, WorldObject] | None = None  # as the steps so far leave them
+        self._object: ObjectValidation | None = None  # the object step being planned
         self.arm = arm
         self._fold_check = fold_check
         self._problems: list[list[str]] = [[] for _ in task.steps]
@@ -75,6 +85,7 @@ class Validator:
         self._q: list[float] | None = list(start) if start is not None else None
         self._unknown = "no joint state from the arm yet (is the bridge running?)"
         self._cursor = 0
+        self._object_step = -1
         self._asked: int | None = None
         self._planner_down = ""
         if not task.steps:
@@ -97,6 +108,10 @@ class Validator:
         """The next plan to ask for (None: validation is complete)."""
         assert self._asked is None, "on_reply() must answer the previous request first"
         steps = self.task.steps
+        if self._object is not None:
+            request = self._object_request()
+            if request is not None:
+                return request
         while self._cursor < len(steps):
             i = self._cursor
             step = steps[i]
@@ -110,7 +125,7 @@ class Validator:
                         self._problems[i].append(problem)
                 self._q = end
                 continue
-            if not kind.planned:
+            if not kind.planned and step.kind not in OBJECT_KINDS:
                 continue
             if self._problems[i]:
                 self._q, self._unknown = None, f"step {i + 1} is invalid"
@@ -121,14 +136,57 @@ class Validator:
             if self._q is None:
                 self._problems[i].append(f"not planned: its start is unknown ({self._unknown})")
                 continue
+            if step.kind in OBJECT_KINDS:
+                request = self._begin_object(i, step)
+                if request is not None:
+                    return request
+                continue
             self._asked = i
             return kind.plan(step, self._q, self.arm)
+        return None
+
+    def _begin_object(self, i: int, step: TaskStep) -> PlanRequest | None:
+        """Start planning the object step ``i`` (its first request, or None: done)."""
+        if self._view is None:
+            self._problems[i].append("not planned: no world model of objects here")
+            self._q, self._unknown = None, f"step {i + 1} could not be planned"
+            return None
+        view = self._view()
+        held_now = frozenset(o.id for o in view.objects.values() if o.link)
+        if self._objects is None:
+            self._objects = dict(view.objects)
+        assert self._q is not None
+        view = dataclasses.replace(view, objects=self._objects)
+        self._object = ObjectValidation(step, view, np.array(self._q), held_now)
+        self._object_step = i
+        return self._object_request()
+
+    def _object_request(self) -> PlanRequest | None:
+        """The object step's next request; at its end, its problems and where it leaves
+        the arm and the objects."""
+        planning = self._object
+        assert planning is not None
+        i = self._object_step
+        request = planning.next_request()
+        if request is not None:
+            self._asked = i
+            return request
+        self._object = None
+        if planning.problems:
+            self._problems[i].extend(planning.problems)
+            self._q, self._unknown = None, f"step {i + 1} could not be planned"
+        else:
+            self._q = [float(v) for v in planning.q]
+            self._objects = planning.objects
         return None
 
     def on_reply(self, reply: PlanReply | None, error: str = "") -> None:
         """The planner's answer to the last request (None with ``error``: no answer)."""
         assert self._asked is not None, "no request is waiting for a reply"
         i, self._asked = self._asked, None
+        if self._object is not None:
+            self._object.on_reply(reply, error)
+            return
         if reply is None:
             self._planner_down = error or "the planner did not answer"
             self._problems[i].append(f"cannot plan: {self._planner_down}")

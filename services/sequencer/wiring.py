@@ -41,7 +41,7 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
         Input(ep.FOLLOW_STATE, lambda core, msg, t: core.on_follow_state(msg, t)),
         Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
-        Input(ep.OBJECTS, lambda core, update, t: core.on_objects(update)),
+        Input(ep.OBJECTS, lambda core, update, t: core.on_objects(update, t)),
         Input(ep.JOG_STATE, lambda core, msg, t: core.on_jog_state(msg, t)),
         Input(ep.GUARDIAN_REPORT, lambda core, msg, t: core.on_guardian_report(msg, t)),
     ),
