@@ -151,3 +151,24 @@ def test_a_real_time_thread_that_never_sleeps_is_put_back_to_normal() -> None:
         f"a thread ran {RT_TIME_SOFT_US // 1000} ms at real-time priority without sleeping: "
         f"back to normal nice {nice}"
     ) in out.stderr
+
+
+@needs_root
+@pytest.mark.slow  # tests/live_priority.py: a live test's process, its threads, not its children
+def test_a_live_test_runs_real_time_and_the_processes_it_starts_do_not() -> None:
+    import threading
+
+    from tests.live_priority import LIVE_TEST_PRIORITY
+
+    level = f"rr {LIVE_TEST_PRIORITY.level}"
+    assert describe() == level
+    seen: list[str] = []
+    thread = threading.Thread(target=lambda: seen.append(describe(threading.get_native_id())))
+    thread.start()
+    thread.join()
+    assert seen == [level]
+    child = subprocess.run(
+        [sys.executable, "-c", "from manus.realtime import describe; print(describe())"],
+        capture_output=True, text=True, timeout=60, cwd=ROOT,
+    )  # fmt: skip
+    assert child.stdout.strip().startswith("normal nice"), child
