@@ -10,18 +10,20 @@ them gets the core: late joint states and echoes stop a path ("no joint state fo
 scheduling priority once it has started (:func:`raise_priority`), as ros2_control does
 for its control loop:
 
-- ``rr:PRIO`` (the default, :data:`DEFAULT`): the real-time policy ``SCHED_RR`` at PRIO
-  (1..99). The process takes a core from any ordinary process as soon as it wakes.
+- ``rr:PRIO`` (the default: :data:`CAN_EDGE`, ``rr:20``, for the simulator, the bridge and
+  the guardian; :data:`DEFAULT`, ``rr:10``, for the others): the real-time policy
+  ``SCHED_RR`` at PRIO (1..99). The process takes a core from any ordinary process (and
+  any of a lower priority) as soon as it wakes.
 - ``fifo:PRIO``: ``SCHED_FIFO`` (no round robin between processes of equal priority).
 - ``nice:N``: the ordinary policy at niceness N (-20..19): a larger share of a contended
   core, but no promise of when it gets it.
 - ``off``: keep whatever the process was started with.
 
-The setting: ``--realtime`` of the command, else ``MANUS_REALTIME`` (:data:`ENV`), else
-:data:`DEFAULT`. Raising needs ``CAP_SYS_NICE`` (root, or ``cap_add: [SYS_NICE]`` in
-compose.yaml) or a large enough ``RLIMIT_RTPRIO`` / ``RLIMIT_NICE``. When it is not
-permitted the process says so in one warning naming what is missing and runs on at its
-normal priority.
+The setting: ``--realtime`` of the command, else ``MANUS_REALTIME`` (:data:`ENV`, the
+same for every process), else the process's default. Raising needs ``CAP_SYS_NICE``
+(root, or ``cap_add: [SYS_NICE]`` in compose.yaml) or a large enough ``RLIMIT_RTPRIO``
+/ ``RLIMIT_NICE``. When it is not permitted the process says so in one warning naming
+what is missing and runs on at its normal priority.
 
 A real-time process that never sleeps would starve every ordinary process of its core.
 Besides the kernel's own throttling (real-time processes get at most
@@ -118,27 +120,36 @@ class Priority:
 
 
 DEFAULT = Priority("rr", RT_PRIORITY)
-"""The setting when neither ``--realtime`` nor ``MANUS_REALTIME`` gives one (decided by
-measurement, docs/deployment.md)."""
+"""The setting when neither ``--realtime`` nor ``MANUS_REALTIME`` gives one: the router,
+the controller, the sequencer."""
+CAN_EDGE = Priority("rr", 2 * RT_PRIORITY)
+"""... and of the processes on the CAN bus (simulator, bridge, guardian): above the rest,
+whose message handling (a burst of payloads, a plan check) may take a core for tens of
+milliseconds, while the bridge has 20 ms to answer a sync (under ``SCHED_RR`` a process
+waits behind every other one of its priority that is running; measured: 463 ms without
+the arm's frames during a fuzz of every key, all at one priority)."""
 
 
-def add_realtime_argument(parser: argparse.ArgumentParser) -> None:
-    """``--realtime POLICY`` (over ``MANUS_REALTIME``, over :data:`DEFAULT`)."""
+def add_realtime_argument(parser: argparse.ArgumentParser, default: Priority = DEFAULT) -> None:
+    """``--realtime POLICY`` (over ``MANUS_REALTIME``, over ``default``)."""
     parser.add_argument(
         "--realtime",
         metavar="POLICY",
         help=f"scheduling priority once started: off, rr[:PRIO], fifo[:PRIO], nice[:N] "
-        f"(default: ${ENV}, else {DEFAULT}; needs CAP_SYS_NICE)",
+        f"(default: ${ENV}, else {default}; needs CAP_SYS_NICE)",
     )
 
 
-def setting(args: argparse.Namespace, env: dict[str, str] | None = None) -> Priority:
-    """The command line's ``--realtime``, else ``MANUS_REALTIME``, else :data:`DEFAULT`."""
+def setting(
+    args: argparse.Namespace, env: dict[str, str] | None = None, default: Priority = DEFAULT
+) -> Priority:
+    """The command line's ``--realtime``, else ``MANUS_REALTIME``, else ``default``
+    (:data:`DEFAULT`, or :data:`CAN_EDGE` for the processes on the CAN bus)."""
     given = getattr(args, "realtime", None)
     if given:
         return Priority.parse(given)
     value = (os.environ if env is None else env).get(ENV, "")
-    return Priority.parse(value, ENV) if value.strip() else DEFAULT
+    return Priority.parse(value, ENV) if value.strip() else default
 
 
 def raise_priority(priority: Priority, who: str) -> str:

@@ -19,7 +19,7 @@ import yaml
 import zenoh
 
 from manus.certs import ARM_USERS, BASE_USERS
-from manus.realtime import DEFAULT
+from manus.realtime import CAN_EDGE, DEFAULT
 from manus_stack.cli import COMMANDS, build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -159,7 +159,7 @@ def _takes_realtime(command: str) -> bool:
 
 def test_the_services_on_the_60_ms_path_may_raise_their_priority() -> None:
     """The commands that take --realtime (manus.realtime) are the ones on the arm's loop;
-    their containers permit a real-time priority as high as the default (ulimits rtprio:
+    their containers permit a real-time priority as high as the defaults (ulimits rtprio:
     Docker does not make cap_add effective for the image's user; SYS_NICE for root)."""
     services = _compose()["services"]
     commands = {s["command"][0] for s in services.values()}
@@ -170,5 +170,5 @@ def test_the_services_on_the_60_ms_path_may_raise_their_priority() -> None:
             assert "cap_add" not in service and "ulimits" not in service, name
             continue
         assert "SYS_NICE" in service["cap_add"], name
-        assert service["ulimits"]["rtprio"] >= DEFAULT.level, name
+        assert service["ulimits"]["rtprio"] >= max(DEFAULT.level, CAN_EDGE.level), name
         assert service["environment"]["MANUS_REALTIME"] == "${MANUS_REALTIME:-}", name

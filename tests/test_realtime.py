@@ -15,6 +15,7 @@ import pytest
 
 from manus.errors import ConfigError
 from manus.realtime import (
+    CAN_EDGE,
     CAP_SYS_NICE,
     DEFAULT,
     ENV,
@@ -79,6 +80,9 @@ def test_the_command_line_wins_over_the_environment_over_the_default() -> None:
     parser = argparse.ArgumentParser()
     add_realtime_argument(parser)
     assert setting(parser.parse_args([]), env={}) == DEFAULT
+    assert setting(parser.parse_args([]), env={}, default=CAN_EDGE) == CAN_EDGE  # on the bus
+    assert CAN_EDGE.level > DEFAULT.level  # the bus's processes go first
+    assert setting(parser.parse_args([]), env={ENV: "rr:3"}, default=CAN_EDGE) == Priority("rr", 3)
     assert setting(parser.parse_args([]), env={ENV: "nice:-5"}) == Priority("nice", -5)
     assert setting(parser.parse_args(["--realtime", "off"]), env={ENV: "nice:-5"}) == Priority(
         "off"

@@ -99,7 +99,8 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="POLICY",
         help="scheduling of the services on the 60 ms path (router, simulator, bridge, "
         "guardian, controller, sequencer): off, rr[:PRIO], fifo[:PRIO], nice[:N] "
-        "(default: $MANUS_REALTIME, else rr:10; docs/deployment.md)",
+        "(default: $MANUS_REALTIME, else rr:20 on the CAN bus, rr:10 the rest; "
+        "docs/deployment.md)",
     )
     parser.add_argument(
         "--start-timeout",

@@ -51,7 +51,7 @@ import can
 from manus.can_sharing import DISABLED_SINGLE_READER, claim_channel, second_reader_refusal
 from manus.errors import ConfigError
 from manus.protocol import BITRATE
-from manus.realtime import add_realtime_argument, raise_priority, setting
+from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
 from services.guardian.core import DEFAULT_DEADLINE_MS, Action, GuardianCore
 from services.guardian.loop import LoopStats, run_loop
 
@@ -103,7 +103,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router (reporter)")
     parser.add_argument("--prefix", help="key prefix (reporter; default $MANUS_PREFIX)")
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
-    add_realtime_argument(parser)
+    add_realtime_argument(parser, CAN_EDGE)
 
 
 def guardian_channel(args: argparse.Namespace) -> str:
@@ -214,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    priority = setting(args)
+    priority = setting(args, default=CAN_EDGE)
     channel = guardian_channel(args)
     bridge_interface = args.bridge_interface or args.can_interface
     why = second_reader_refusal(args.can_interface, channel, bridge_interface, args.bridge_channel)
