@@ -52,6 +52,16 @@ def _raise_this_thread(frame: FrameType, event: str, arg: Any) -> None:
         os.sched_setscheduler(0, os.SCHED_RR, param)
 
 
+def permitted() -> bool:
+    """This process may take :data:`LIVE_TEST_PRIORITY` (tried on this thread, undone)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(LIVE_TEST_PRIORITY.level))
+    except PermissionError:
+        return False
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    return True
+
+
 def _is_realtime() -> bool:
     return describe().split()[0] in ("rr", "fifo")
 

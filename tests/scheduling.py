@@ -11,8 +11,9 @@ time: the tests of a module whose fixtures outlive a test (a module-scoped stack
 one unit, so that the module's fixture is built once, on one lane; every other live test
 is a unit of its own. The units marked ``slow(long=True)`` (the chaos soak) go first, then
 the larger units, so that the lanes end together. The other workers take the pure tests
-at a lower priority (:data:`PURE_NICE`), so the test processes of the live lanes get the
-CPU first; once no live unit is left, the lanes take pure tests too.
+at a lower priority where the live ones cannot run real-time (:data:`PURE_NICE`), so the
+test processes of the live lanes get the CPU first; once no live unit is left, the lanes
+take pure tests too.
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway. The whole suite, ``python -m pytest`` from the
@@ -29,6 +30,8 @@ from typing import Any
 
 import pytest
 
+from tests import live_priority
+
 LIVE_IDS = "MANUS_TEST_LIVE_IDS"
 """Environment variable: the file where the workers write the live tests for the
 scheduler (xdist sends the controlling process ids only, not markers)."""
@@ -40,9 +43,13 @@ LIVE_LANES = 3
 MAX_PURE = 8
 """Workers of pure tests at most (one per CPU)."""
 PURE_NICE = 5
-"""Niceness of the workers of pure tests: the lanes' test processes (niceness 0) get
-three times their share of a contended core, yet a pure test keeps a quarter of a core
-when a CPU hog (niceness 0) loads every core, so its own bounded waits still hold."""
+"""Niceness of the workers of pure tests where a live test cannot run real-time
+(:mod:`tests.live_priority`): the lanes' test processes (niceness 0) get three times their
+share of a contended core, yet a pure test keeps a quarter of a core when a CPU hog
+(niceness 0) loads every core, so its own bounded waits still hold. Where they can, the
+pure tests run at niceness 0: the live ones take a core first anyway, and a CPU-bound
+property test (25 s alone) took more than pytest-timeout's 120 s at a quarter of a core
+beside two hogs."""
 _OWN_FILE = pytest.StashKey[str]()
 
 
@@ -63,7 +70,7 @@ def pytest_configure(config: pytest.Config) -> None:
     find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
     worker = getattr(config, "workerinput", None)
     if worker is not None and not is_lane(worker["workerid"], worker["workercount"]):
-        os.nice(PURE_NICE)
+        os.nice(0 if live_priority.permitted() else PURE_NICE)
     if worker is None and LIVE_IDS not in os.environ:
         handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
         os.close(handle)
