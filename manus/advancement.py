@@ -60,6 +60,12 @@ class Advancement:
         self._free[:] = -math.inf
         self.margin = -math.inf
 
+    def shrink(self, by: float) -> None:
+        """Every margin of the anchor less ``by`` [m] (something it keeps clear of moved
+        by at most that much): what it proves stays conservative without a new distance."""
+        self._free -= by
+        self.margin -= by
+
     def proven(self, *qs: Sequence[float] | np.ndarray) -> bool:
         """Whether the box from the anchor to ``qs`` [rad] (each 6 values) keeps every
         body within its margin (see the module docstring)."""

@@ -25,6 +25,9 @@ moves both close a pair's gap: in the per-body margins (:meth:`CollisionModel.pr
 half its margin for each of the two, and a pair with a body on the held body's own
 joint (the gripper's: their distance never changes) bounds neither.
 
+A scene object may be placed elsewhere than the scene puts it (a person who moves,
+:meth:`CollisionModel.move_object`, :mod:`manus.moved_objects`).
+
 :func:`manus.sweep.sweep` checks a whole motion through
 :meth:`CollisionModel.pair_margins` (each moving body's margin to what it must keep
 clear of) and :class:`manus.travel.BodyPoints` (the cover points over the motion, the
@@ -36,7 +39,7 @@ keep-in zones), with the pairs that cannot come near the motion set aside
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import coal
@@ -45,9 +48,10 @@ import pinocchio as pin
 
 from manus.body_cover import BodyCover
 from manus.clearance import Check, Clearance, Probe
-from manus.collision_pairs import STATIC_BODIES, build_pairs
+from manus.collision_pairs import STATIC_BODIES, base_overlaps, build_pairs
 from manus.config import ArmConfig
 from manus.held import HeldBody, HeldError
+from manus.moved_objects import MovedObjects
 from manus.scene import Primitive, Scene, SceneError
 from manus.shapes import coal_shape, fresh_guesses, partner_boxes
 from manus.urdf import FINGER_THICKNESS, GRIPPER_FRAME, Shape, build_urdf, collision_shapes
@@ -69,6 +73,8 @@ class CollisionModel:
         opening: gripper opening the gripper box is sized for [m] (default: fully open,
             the planner's choice: it does not know the opening a move will have).
         held: the objects the arm holds.
+        moved: scene objects placed elsewhere than the scene puts them (name -> pose,
+            4x4, chair frame; :meth:`move_object`).
 
     Raises:
         HeldError: a held object named like an arm body, or given twice.
@@ -80,6 +86,7 @@ class CollisionModel:
         cfg: ArmConfig,
         opening: float | None = None,
         held: Sequence[HeldBody] = (),
+        moved: Mapping[str, np.ndarray] | None = None,
     ) -> None:
         self.cfg = cfg
         self.scene = scene
@@ -132,6 +139,26 @@ class CollisionModel:
         if overlaps:
             raise SceneError(overlaps[0])
         self.set_opening(self.cfg.gripper_max if opening is None else opening)
+        self.moved = MovedObjects(scene)
+        """The scene objects placed elsewhere than the scene puts them."""
+        for name, pose in (moved or {}).items():
+            self.move_object(name, pose)
+
+    def move_object(self, name: str, pose: np.ndarray) -> float:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame) in every check
+        against it (:mod:`manus.moved_objects`; within its ``MOVE_BOUND_M`` of its scene
+        pose the pairs kept stay right).
+
+        Returns:
+            how far any point of the object moved at most [m].
+
+        Raises:
+            SceneError: no scene object of that name.
+        """
+        models = [self.geom, *(gm for gm, _, _ in self._per_body)]
+        moved = self.moved.move(name, pose, models)
+        self._partner_boxes = []  # built again at the next restrict
+        return moved
 
     # --- configuration queries ----------------------------------------------------------
 
@@ -181,28 +208,7 @@ class CollisionModel:
 
     def base_overlaps(self) -> list[str]:
         """Scene objects that touch the arm's fixed base (column, shoulder), one line each."""
-        out = []
-        for i, j, check in self._static:
-            res = coal.DistanceResult()
-            placement = self.geom.geometryObjects[i].placement
-            other = self.geom.geometryObjects[j]
-            distance = coal.distance(
-                self.geom.geometryObjects[i].geometry,
-                coal.Transform3s(placement.rotation, placement.translation),
-                other.geometry,
-                coal.Transform3s(other.placement.rotation, other.placement.translation),
-                coal.DistanceRequest(),
-                res,
-            )
-            distance += check.required  # the object carries its clearance
-            if distance <= 0.0:
-                where = self.scene.where(_line_of(self.scene, check.other)) if self.scene else ""
-                out.append(
-                    f"{where}: objects.{check.other}: overlaps the arm's {check.body} (its "
-                    f"base, at the mount) by {-distance * 1e3:.1f} mm: move the object or "
-                    "the mount"
-                )
-        return out
+        return base_overlaps(self.geom, self._static, self.scene)
 
     # --- motions --------------------------------------------------------------------------
 
@@ -284,8 +290,9 @@ class CollisionModel:
         self._set_aside = self._no_margin
 
     def holding(self, held: Sequence[HeldBody]) -> CollisionModel:
-        """This model (scene, arm, gripper opening) with the arm holding ``held``."""
-        return CollisionModel(self.scene, self.cfg, self.opening, held)
+        """This model (scene, arm, gripper opening, moved objects) with the arm holding
+        ``held``."""
+        return CollisionModel(self.scene, self.cfg, self.opening, held, self.moved.poses)
 
     def _add_held(self, gm: Any, body: HeldBody) -> Shape:
         """Put ``body`` on joint 6 of ``gm``, where the gripper frame holds it."""
@@ -367,10 +374,3 @@ class CollisionModel:
                     rows.append(k)
             out.append((gm, fresh_guesses(pin.GeometryData(gm)), rows))
         return out
-
-
-def _line_of(scene: Scene, name: str) -> int:
-    for obj in scene.objects:
-        if obj.name == name:
-            return obj.line
-    return 0

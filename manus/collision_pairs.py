@@ -32,6 +32,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
+import coal
 import numpy as np
 import pinocchio as pin
 
@@ -171,3 +172,28 @@ def _keep_in_zones(shapes: list[Shape], scene: Scene, held: set[str], out: Pairs
             check = Check("", f"keep_in {zone.name}", "zone", zone.clearance)
             body = Primitive(zone.body.shape, zone.body.size, to_base @ zone.body.pose)
             out.keep_in.append((check, body, bodies))
+
+
+def base_overlaps(gm: Any, static: list[tuple[int, int, Check]], scene: Scene | None) -> list[str]:
+    """The scene objects of ``static`` (:attr:`Pairs.static`, in the geometry model
+    ``gm``) that touch the arm's fixed base (column, shoulder), one line each."""
+    out = []
+    for i, j, check in static:
+        body, other = gm.geometryObjects[i], gm.geometryObjects[j]
+        distance = coal.distance(
+            body.geometry,
+            coal.Transform3s(body.placement.rotation, body.placement.translation),
+            other.geometry,
+            coal.Transform3s(other.placement.rotation, other.placement.translation),
+            coal.DistanceRequest(),
+            coal.DistanceResult(),
+        )
+        distance += check.required  # the object carries its clearance
+        if distance <= 0.0:
+            line = next((o.line for o in scene.objects if o.name == check.other), 0) if scene else 0
+            where = scene.where(line) if scene is not None else ""
+            out.append(
+                f"{where}: objects.{check.other}: overlaps the arm's {check.body} (its "
+                f"base, at the mount) by {-distance * 1e3:.1f} mm: move the object or the mount"
+            )
+    return out

@@ -271,6 +271,7 @@ def open_session(settings: ZenohSettings | None = None) -> zenoh.Session:
     """
     settings = settings or settings_from_env()
     config = build_config(settings)
+    zenoh.try_init_log_from_env()  # Zenoh's own log on stderr when RUST_LOG is set
     try:
         return zenoh.open(config)
     except Exception as exc:

@@ -15,8 +15,8 @@ keep-in zones (the same cover points and radii as the model), the objects the ar
 included (:attr:`CollisionModel.held`: bodies of the model like the arm's, their pairs
 with the arm's moving bodies shared the same way, :mod:`manus.validity_kernels`). Built
 from a model, so a changed scene or held object means a new model and a new checker
-(:func:`checker_for` keeps one per model); a changed gripper opening of the model is
-followed on the next call.
+(:func:`checker_for` keeps one per model); a changed gripper opening of the model, and a
+scene object it moved (:attr:`CollisionModel.moved`), are followed on the next call.
 
 First use compiles the kernels (or loads them from numba's cache, next to this module's
 source): :meth:`ValidityChecker.__init__` does it, so build the checker at a service's
@@ -45,7 +45,7 @@ from manus.validity_parts import (
     primitive_arrays,
     primitive_box,
 )
-from manus.validity_scene import obstacles, static_shapes
+from manus.validity_scene import obstacles, place_moved, static_shapes
 
 MOTION_FLOOR_M = 0.0005
 """Along a motion, a configuration whose margin bound is below this [m] ends the proof:
@@ -123,7 +123,7 @@ class ValidityChecker:
         ]
         self._obstacles = obstacles(model, self.bodies)
         self._others = self._obstacles.others
-        self._opening = model.opening
+        self._opening, self._moved = model.opening, model.moved.version
         self._build()
 
     # --- building ----------------------------------------------------------------------------
@@ -261,11 +261,11 @@ class ValidityChecker:
         )
 
     def _follow_opening(self) -> None:
+        self._moved = place_moved(self.model, self._obstacles, self._scene, self._moved)
         if self.model.opening != self._opening:
             self._opening = self.model.opening
             gripper = self.bodies.index("gripper")
-            index = self.model.body_index["gripper"]
-            self._shape_of[gripper] = self._shape(index)
+            self._shape_of[gripper] = self._shape(self.model.body_index["gripper"])
             self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover
             self._build()
 

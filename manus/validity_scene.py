@@ -3,7 +3,9 @@ the arm's fixed base (column and shoulder, with the ``self`` clearance), the sce
 objects and keep-out zones (with their class's clearance), in the base frame; the arm's
 moving bodies a held object keeps the ``self`` clearance from (*movers*, placed by the
 kernels at each configuration); and which (body, thing) pairs the collision model checks
-(exactly its :attr:`CollisionModel.checks`).
+(exactly its :attr:`CollisionModel.checks`). A scene object the model moved
+(:attr:`CollisionModel.moved`, a person a tracker follows) is where the model has it:
+:func:`place_moved` places it anew in the kernels' arrays, no rebuild.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 from manus.collision import CollisionModel
 from manus.collision_pairs import STATIC_BODIES
 from manus.scene import Primitive
+from manus.validity_parts import primitive_arrays, primitive_box
 
 
 class Obstacles(NamedTuple):
@@ -28,6 +31,7 @@ class Obstacles(NamedTuple):
         rigid: a mover on the joint of every body checked against it (their distance
             never changes), bool (O,).
         joint: a mover's joint (0: fixed), (O,).
+        placed: each scene object's index among the things (where a moved one goes).
     """
 
     prims: list[Primitive]
@@ -36,13 +40,16 @@ class Obstacles(NamedTuple):
     partner: np.ndarray
     rigid: np.ndarray
     joint: np.ndarray
+    placed: dict[str, int]
 
 
 def obstacles(model: CollisionModel, bodies: list[str]) -> Obstacles:
-    """Every thing a body of ``bodies`` may be checked against (see :class:`Obstacles`)."""
+    """Every thing a body of ``bodies`` may be checked against (see :class:`Obstacles`);
+    a scene object where the model has it now (:attr:`CollisionModel.moved`)."""
     scene = model.scene
     prims: list[Primitive] = []
     others: list[tuple[str, str, float]] = []
+    placed: dict[str, int] = {}
     for name in STATIC_BODIES:
         i = model.body_index[name]
         obj = model.geom.geometryObjects[i]
@@ -54,11 +61,12 @@ def obstacles(model: CollisionModel, bodies: list[str]) -> Obstacles:
     if scene is not None:
         to_base = np.linalg.inv(scene.mount)
         for thing in scene.objects:
-            prims.append(_in_base(thing.body, to_base))
+            placed[thing.name] = len(prims)
+            prims.append(in_base(model.moved.body(thing), to_base))
             others.append((thing.name, thing.cls, scene.clearance[thing.cls]))
         for zone in scene.zones:
             if zone.kind == "keep_out":
-                prims.append(_in_base(zone.body, to_base))
+                prims.append(in_base(zone.body, to_base))
                 others.append((zone.name, "zone", zone.clearance))
     fixed = len(prims)
     joints = [0] * fixed
@@ -85,7 +93,9 @@ def obstacles(model: CollisionModel, bodies: list[str]) -> Obstacles:
         ],
         dtype=np.bool_,
     )
-    return Obstacles(prims, others, applies, partner.astype(np.int64), rigid, np.array(joints))
+    return Obstacles(
+        prims, others, applies, partner.astype(np.int64), rigid, np.array(joints), placed
+    )
 
 
 def static_shapes(model: CollisionModel) -> list[tuple[str, tuple[float, ...], np.ndarray, int]]:
@@ -102,7 +112,7 @@ def static_shapes(model: CollisionModel) -> list[tuple[str, tuple[float, ...], n
     return out
 
 
-def _in_base(body: Primitive, to_base: np.ndarray) -> Primitive:
+def in_base(body: Primitive, to_base: np.ndarray) -> Primitive:
     """``body`` placed in the base frame (a plane's normal turned with it)."""
     size = body.size
     if body.shape == "plane":
@@ -123,3 +133,25 @@ def _static_pose(model: CollisionModel, joint: int, placement: np.ndarray) -> np
     ):
         raise ValueError("a static body must be on the base or turn about joint 1's axis")
     return M
+
+
+def place_moved(
+    model: CollisionModel, found: Obstacles, scene: tuple[np.ndarray, ...], placed: int
+) -> int:
+    """Put every scene object the model moved where it is now, in ``found`` and in the
+    kernels' scene arrays ``scene`` (:attr:`ValidityChecker._scene`: rotations, origins
+    and boxes, in place), unless they are there already (the model's moves, ``version``,
+    are ``placed``); returns the version placed (cheap: no rebuild)."""
+    version = model.moved.version
+    if model.scene is None or version == placed:
+        return version
+    to_base = np.linalg.inv(model.scene.mount)
+    for obj in model.scene.objects:
+        if obj.name not in model.moved.poses:
+            continue
+        o = found.placed[obj.name]
+        prim = found.prims[o] = in_base(model.moved.body(obj), to_base)
+        _, R, t, _ = primitive_arrays([prim])
+        scene[1][o], scene[2][o] = R[0], t[0]
+        scene[12][o] = primitive_box(prim)
+    return version

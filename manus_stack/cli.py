@@ -39,6 +39,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "give": ("manus_stack.commands.give", "hand the held object to the user"),
     "jog": ("manus_stack.commands.jog", "drive the arm from the keyboard (live control)"),
     "panel": ("manus_stack.commands.panel", "the web page for the user: tasks, jog pad, STOP"),
+    "track": ("manus_stack.commands.track", "follow a tracker's target (a mouth) to a standoff"),
     "task": ("services.sequencer.task_cli", "pause, resume, cancel or show the running task"),
     "schemas": ("manus_stack.commands.schemas", "write the JSON Schema of every bus message"),
     "router": ("manus_stack.commands.router", "a Zenoh router on loopback (Python, no zenohd)"),

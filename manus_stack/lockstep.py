@@ -13,7 +13,8 @@ path takes a fraction of a second and gives the same result on every run:
 - a core attached with :meth:`LockStep.attach` gets what its service's wiring map
   subscribes, its queryables' requests as their ``trace/<q>/request`` mirrors (its
   answers go out on ``trace/<q>/reply``), as the live shells wire them;
-- the simulator's own publications (its camera's frames on ``perception/objects``,
+- the simulator's own publications (its camera's frames on ``perception/objects``, its
+  moving target's tracker on ``target/pose``,
   :meth:`services.simulator.core.SimCore.take_messages`) are published when it makes them;
 - the bridge's ``on_tick`` runs every 20 ms;
 - other PC-side nodes on the bus (:meth:`LockStep.attach_node`, e.g. the guardian) get

@@ -56,6 +56,7 @@ from schemas.jog import JogTaken
 from schemas.liveliness import TokenGone
 from schemas.planning import PlanReply
 from schemas.state import JointState
+from schemas.target import TargetTaken
 from services.controller.config import ControllerConfig
 from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER
@@ -145,7 +146,7 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
         (ep.JOINTS,),
         CONTROLLER.output_suffixes,  # its clock
     )
-    window = _from_first_answered(recording, window)
+    window = _from_first_taken(recording, _from_first_answered(recording, window))
     recorded, last_ns = _recorded_outputs(recording, CONTROLLER.output_suffixes, window)
     cmp = Comparer(recorded, last_ns, CPU_ROUNDING)  # its counts exactly: integers
     window = (window[0], last_ns)
@@ -159,6 +160,13 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
                 CONTROLLER.feed(core, ep.JOG, taken, t)
                 if taken is not None
                 else CONTROLLER.feed_bad(core, ep.JOG, msg.error, t)
+            )
+        elif isinstance(msg, TargetTaken):  # the same for a tracker's frames
+            frame = msg.target
+            outputs = (
+                CONTROLLER.feed(core, ep.TARGET, frame, t)
+                if frame is not None
+                else CONTROLLER.feed_bad(core, ep.TARGET, msg.error, t)
             )
         elif isinstance(msg, TokenGone):  # a token is no sample: its record, in place
             outputs = CONTROLLER.feed_token_gone(core, msg.service, t)
@@ -195,6 +203,24 @@ def _from_first_answered(recording: Recording, window: Window) -> Window:
     return start, window[1]
 
 
+def _from_first_taken(recording: Recording, window: Window) -> Window:
+    """``window`` from the controller's first record of a taken input (a tracker's frame,
+    a jog command) before any joint state, when that comes before the window's start (at
+    most :data:`~manus_stack.service_window.EARLY_OUTPUT_NS` before): a tracker publishing
+    before the controller listens is taken at once, and every frame taken shapes its
+    prediction."""
+    start, end = window
+    if start == EVERYTHING[0]:
+        return window
+    for rec in recording.messages((ep.TARGET_TAKEN, ep.JOG_TAKEN)):
+        if rec.log_ns >= start:
+            break
+        msg = decode(rec)
+        if rec.log_ns >= start - EARLY_OUTPUT_NS and getattr(msg, "after_seq", 0) < 0:
+            return rec.log_ns, end
+    return window
+
+
 def _controller_inputs(
     recording: Recording, window: Window
 ) -> list[tuple[Recorded, Message | None]]:
@@ -207,13 +233,16 @@ def _controller_inputs(
     :class:`~schemas.control.QueryTaken`, saying after which joint state it came: when the
     recording holds those, each command (the one the record carries) or query (the
     mirrored request of the same rank on that queryable) is fed after that joint state
-    and before the next, at its log time within that span. A vanished liveliness token is
-    no sample at all: the controller's :class:`~schemas.liveliness.TokenGone` records are
-    placed the same way.
+    and before the next, at its log time within that span; a tracker's frames likewise
+    (:class:`~schemas.target.TargetTaken`). A vanished liveliness token is no sample at
+    all: the controller's :class:`~schemas.liveliness.TokenGone` records are placed the
+    same way.
     """
     have = {c.suffix for c in recording.info.channels.values()}
-    records = tuple(s for s in (ep.JOG_TAKEN, ep.TOKEN_GONE, ep.QUERY_TAKEN) if s in have)
-    moved: set[str] = {ep.JOG} if ep.JOG_TAKEN in have else set()
+    taken = (ep.JOG_TAKEN, ep.TARGET_TAKEN, ep.TOKEN_GONE, ep.QUERY_TAKEN)
+    records = tuple(s for s in taken if s in have)
+    raw_of = ((ep.JOG_TAKEN, ep.JOG), (ep.TARGET_TAKEN, ep.TARGET))
+    moved: set[str] = {raw for record, raw in raw_of if record in have}
     requests = {a.endpoint.trace(TRACE_PARTS[0]): a.endpoint.suffix for a in CONTROLLER.answers}
     if ep.QUERY_TAKEN in have:
         moved |= set(requests)
@@ -228,7 +257,7 @@ def _controller_inputs(
         if isinstance(msg, QueryTaken):
             taken_at.setdefault(msg.query, []).append(msg.after_seq)
         else:
-            assert isinstance(msg, JogTaken | TokenGone)
+            assert isinstance(msg, JogTaken | TargetTaken | TokenGone)
             placeable.append((rec, msg, msg.after_seq))
     rank: dict[str, int] = {}
     for rec, msg in everything:

@@ -75,6 +75,18 @@ class EndCause(StrEnum):
     """a jog: a command that cannot be executed (values, units, caps, or not decodable)"""
     NOT_READY = "not_ready"
     """a jog: a command while nothing may move (no joint state, arm error, bridge phase)"""
+    TARGET_LOST = "target_lost"
+    """a follow goal: no new target frame within ``lost_after``, or the tracker lost it"""
+    TARGET_JUMP = "target_jump"
+    """a follow goal: the target moved faster than a person can, or its body left the
+    bound about its place in the scene"""
+    OUT_OF_REACH = "out_of_reach"
+    """a follow goal: the standoff point is beyond the arm's reach or a joint limit"""
+    KEEP_OUT = "keep_out"
+    """a follow goal: the standoff point is in a keep-out zone or outside the workspace"""
+    SINGULARITY = "singularity"
+    """a follow goal: the way to the standoff point is behind the wrist or elbow
+    singularity"""
 
 
 class Refusal(StrEnum):
@@ -104,6 +116,8 @@ class CommandSourceKind(StrEnum):
     """trajectory and gripper goals (``controller/goal``, ``controller/gripper``)"""
     JOG = "jog"
     """live control (the ``jog`` stream)"""
+    FOLLOW = "follow"
+    """following a moving target (``controller/follow``, ``target/pose``)"""
 
 
 class GoalKind(StrEnum):
@@ -111,6 +125,7 @@ class GoalKind(StrEnum):
 
     TRAJECTORY = "trajectory"
     GRIPPER = "gripper"
+    FOLLOW = "follow"
 
 
 class TrackState(StrEnum):
@@ -171,6 +186,13 @@ class TrajectoryGoal(Message):
     replace: bool = field(
         "splice into the running trajectory at the next cycle instead of preempting it",
         default=False,
+    )
+    splice_at: float = field(
+        "with replace: the running trajectory's time that this one's time 0 stands for, so "
+        "that its knots keep the running one's clock (a continuation planned from the running "
+        "reference at that time: streamed via points); -1: the moment of the splice",
+        unit="s",
+        default=-1.0,
     )
     speed_scale: float = field(
         "initial speed scaling (1: as planned)", default=1.0, minimum=0.05, maximum=1.0
@@ -312,7 +334,7 @@ class GoalResult(Message):
     )
     seq: int = field("sequence number", minimum=0)
     goal_id: str = field("the goal")
-    kind: str = field("trajectory or gripper", choices=GoalKind)
+    kind: str = field("trajectory, gripper or follow", choices=GoalKind)
     status: str = field("how it ended", choices=ResultStatus)
     cause: str = field("why it ended: the kind a client decides on", choices=EndCause)
     reason: str = field("why it ended that way, in words")

@@ -50,6 +50,11 @@ from schemas.endpoint import queryable as _query
 from schemas.endpoint import trace_suffix as trace_suffix
 from schemas.endpoint_table import Table as Table
 from schemas.endpoint_table import markdown_table as markdown_table
+from schemas.follow_endpoints import FOLLOW as FOLLOW
+from schemas.follow_endpoints import FOLLOW_ENDPOINTS as FOLLOW_ENDPOINTS
+from schemas.follow_endpoints import FOLLOW_STATE as FOLLOW_STATE
+from schemas.follow_endpoints import TARGET as TARGET
+from schemas.follow_endpoints import TARGET_TAKEN as TARGET_TAKEN
 from schemas.object_endpoints import ATTACH as ATTACH
 from schemas.object_endpoints import OBJECT_ENDPOINTS as OBJECT_ENDPOINTS
 from schemas.object_endpoints import OBJECTS as OBJECTS
@@ -348,6 +353,7 @@ TABLE = Table(
         FLIGHT_TRIGGER,
         PLAYBACK_CONTROL,
         *OBJECT_ENDPOINTS,
+        *FOLLOW_ENDPOINTS,
     )
 )
 """Every endpoint of the stack."""

@@ -9,7 +9,8 @@ Rx(roll).
 
 A plan request asks for one kind of motion (:class:`~schemas.motion.Motion`, told apart
 by its ``kind``; :data:`~schemas.motion.MOTIONS` holds the kinds the planner serves: the
-via-point path, :class:`ViaPointPath`, and the goals of :mod:`schemas.goals`,
+via-point path, :class:`ViaPointPath`, the rest of a running one from its moving state,
+:class:`ViaPointContinuation` (streamed via points), and the goals of :mod:`schemas.goals`,
 :data:`~schemas.goals.GOAL_MOTIONS`). Each kind is served by its own planner and answered
 with the same :class:`Trajectory`. A request that resumes a paused plan
 (:class:`PlanResume`) carries that plan's trajectory and how far it got, and asks for the
@@ -142,7 +143,38 @@ class ViaPointPath(Motion):
     )
 
 
-SERVED_MOTIONS: tuple[type[Motion], ...] = (ViaPointPath, *GOAL_MOTIONS)
+@MOTIONS.member
+@dataclass(frozen=True)
+class ViaPointContinuation(Motion):
+    """The rest of a running path from a moving state: streamed via points appended to it,
+    or replacing those not yet reached (docs/follow.md, Streamed via points).
+
+    Via point 0 stands for the running reference's state at the splice (the request's
+    ``start``: its joint angles; ``velocity``: its joint velocities); the others are
+    absolute (type 0), their times counted from the splice. Never stretched in time: the
+    continuation keeps the path's clock, so one the joint limits do not allow is refused.
+    """
+
+    TYPE_NAME = "manus/ViaPointContinuation/1"
+
+    kind: str = tag("continuation", "the rest of a running path, from its moving state")
+    path: Path = field("via point 0 the state at the splice, then the via points to pass")
+    velocity: list[float] = field(
+        "the joint velocities at the splice (the running reference's)", unit="rad/s", length=6
+    )
+    first_index: int = field(
+        "index of via point 1 in the whole streamed path (its knots are labelled by it)",
+        default=1,
+        minimum=1,
+    )
+    interpolation: str = field(
+        "cubic spline through all via points, or quintic segments",
+        default="cubic",
+        choices=Interpolation,
+    )
+
+
+SERVED_MOTIONS: tuple[type[Motion], ...] = (ViaPointPath, ViaPointContinuation, *GOAL_MOTIONS)
 """Every kind of motion a plan request may ask for (importing this module declares them
 all in :data:`~schemas.motion.MOTIONS`)."""
 

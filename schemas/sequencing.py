@@ -13,6 +13,7 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.control import ControlMode
+from schemas.follow import FollowGoal
 from schemas.motion import MOTIONS, Motion
 from schemas.planning import Interpolation, Path
 
@@ -26,6 +27,7 @@ class StepKind(StrEnum):
     FOLD_OUT = "fold_out"
     WAIT = "wait"
     POSE = "pose"
+    FOLLOW = "follow"
     REACH = "reach"
     PICK = "pick"
     PLACE = "place"
@@ -39,6 +41,8 @@ class TaskAction(StrEnum):
     PAUSE = "pause"
     RESUME = "resume"
     STATUS = "status"
+    DONE = "done"
+    """end the running follow step: the arm stops following, the task goes on"""
 
 
 class TaskState(StrEnum):
@@ -89,7 +93,8 @@ class TaskStep(Message):
     opening: float = field("for gripper: target opening", unit="m", default=0.0)
     duration: float = field(
         "for wait: how long; for pose: the shortest time of the move (the planner may "
-        f"stretch it; 0: {DEFAULT_POSE_DURATION_S:g} s)",
+        f"stretch it; 0: {DEFAULT_POSE_DURATION_S:g} s); for follow: how long to hold at "
+        "the standoff point once there (0: until the supervisor's `done`)",
         unit="s",
         default=0.0,
     )
@@ -122,6 +127,11 @@ class TaskStep(Message):
     surface: str = field(
         "for place: the scene object it is put on (its top, above where the object is held)",
         default="",
+    )
+    follow: FollowGoal | None = field(
+        "for follow: the tracker, standoff, approach and tracked point (its goal_id is the "
+        "sequencer's)",
+        default=None,
     )
 
 

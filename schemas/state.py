@@ -12,6 +12,7 @@ from enum import StrEnum
 
 from schemas.base import Message, field
 from schemas.objects import ObjectContact, ObjectTruth
+from schemas.target import TargetTruth
 
 
 class ArmMode(StrEnum):
@@ -281,5 +282,21 @@ class SimTruth(Message):
         "smallest true distance between a held object and the person at any tick since "
         "power-up (None: nothing held yet)",
         unit="m",
+        default=None,
+    )
+    person_clearance: float | None = field(
+        "smallest true distance now between the arm and a person object (no clearance; "
+        "None: no person in the scene)",
+        unit="m",
+        default=None,
+    )
+    person_pair: str = field("body/object of `person_clearance`", default="")
+    min_person_clearance: float | None = field(
+        "smallest `person_clearance` at any tick since power-up (None: no person)",
+        unit="m",
+        default=None,
+    )
+    target: TargetTruth | None = field(
+        "the moving target and the body it moves with, truly (None: no moving target)",
         default=None,
     )

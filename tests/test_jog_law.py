@@ -19,6 +19,7 @@ from manus.config import FOLDED_Q_DEG, UNFOLDED_Q_DEG, is_folded
 from manus.errors import ConfigError, SchemaError
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
+from manus.scene import Scene
 from schemas.collision import ClearanceReport
 from schemas.commands import JointVelocityCommand
 from schemas.control import Refusal
@@ -227,6 +228,13 @@ class Host:
 
     def clearance(self, goal_id: str) -> ClearanceReport | None:
         return None
+
+    @property
+    def scene(self) -> Scene | None:
+        return None
+
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        raise AssertionError(f"the jog moves no object: {name}")
 
 
 def moving(jog: JogSource) -> bool:

@@ -134,8 +134,46 @@ def test_without_a_wait_a_starting_bridge_refuses_at_once_as_before() -> None:
         SequencerConfig(bridge_wait_s=-1.0)
 
 
-def test_missing_services_are_not_waited_for() -> None:
-    core = SequencerCore()
+def test_services_not_seen_yet_are_waited_for_and_the_task_starts_once_they_are_up() -> None:
+    # `manus up` starts them together; a loaded sequencer may hear their tokens late
+    core = SequencerCore(SequencerConfig(bridge_wait_s=30.0))
+    core.on_liveliness("can_bridge", True, 0)
+    core.on_bridge_state(bridge_state("running", 1, "initialised"), 0)
+    core.on_joint_state(joint_state(UNFOLDED, 2), 0)
+    assert core.submit(square_task(), 1 * NS, "a") == []  # held, not refused
+    assert core.status().message == "waiting for controller, planner to start, at most 30 s"
+    assert core.on_liveliness("planner", True, 2 * NS) == []
+    first = core.on_liveliness("controller", True, 3 * NS)
+    assert [type(a) for a in first] == [Query]  # every one up: validated now
+    (accepted,) = _replies(_validate(core, first, 3 * NS))
+    assert accepted.reply.accepted and accepted.submission == "a"
+
+
+def test_services_that_never_come_are_named_at_the_end_of_the_wait() -> None:
+    core = SequencerCore(SequencerConfig(bridge_wait_s=5.0))
+    core.on_bridge_state(bridge_state("running", 1, "initialised"), 0)
+    core.on_joint_state(joint_state(UNFOLDED, 2), 0)
+    assert core.submit(square_task(), 0, "a") == []
+    assert _replies(core.on_tick(4 * NS)) == []
+    (late,) = _replies(core.on_tick(6 * NS))
+    assert late.reply.errors == [
+        "required service(s) not running: can_bridge, controller, planner (not up within "
+        "5 s of the submission, bridge_wait_s; waited 6.0 s)"
+    ]
+
+
+def test_a_service_seen_up_and_gone_is_not_waited_for() -> None:
+    rig = Starting()
+    rig.bridge("running", 1 * NS, "initialised")
+    rig.joints(1 * NS)
+    rig.core.on_liveliness("planner", False, 1 * NS)
+    (refused,) = _replies(rig.core.submit(square_task(), 2 * NS, "a"))
+    assert refused.reply.errors == ["required service(s) not running: planner"]
+
+
+@pytest.mark.parametrize("wait_s", [0.0, 30.0])
+def test_missing_services_without_a_running_bridge_refuse_at_once(wait_s: float) -> None:
+    core = SequencerCore(SequencerConfig(bridge_wait_s=wait_s))
     (refused,) = _replies(core.submit(Task(steps=square_task().steps), 0, "a"))
     assert refused.reply.errors == [
         "required service(s) not running: can_bridge, controller, planner"

@@ -30,7 +30,13 @@ with :mod:`math`, for the controller's cycle) and :mod:`~manus.kinematics.invers
 
 from __future__ import annotations
 
-from manus.kinematics.closed_form import Vec3, gripper_position, jacobian_columns
+from manus.kinematics.closed_form import (
+    Rot,
+    Vec3,
+    gripper_pose,
+    gripper_position,
+    jacobian_columns,
+)
 from manus.kinematics.forward import (
     dh_matrix,
     dh_table,
@@ -59,6 +65,7 @@ __all__ = [
     "TWO_PI",
     "IkBatch",
     "IkSolutions",
+    "Rot",
     "Vec3",
     "branch_of",
     "dh_matrix",
@@ -66,6 +73,7 @@ __all__ = [
     "fk",
     "fk_batch",
     "fk_position",
+    "gripper_pose",
     "gripper_position",
     "ik_all",
     "ik_batch",

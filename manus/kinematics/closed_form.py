@@ -89,3 +89,44 @@ def jacobian_columns(
         columns.append((zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx, zx, zy, zz))
     columns.append((0.0, 0.0, 0.0, *z5))
     return columns
+
+
+Rot = tuple[float, float, float, float, float, float, float, float, float]
+"""A rotation matrix as plain floats, row by row (the scalar functions below)."""
+
+
+def gripper_pose(q: Sequence[float] | np.ndarray, cfg: ArmConfig) -> tuple[Vec3, Rot]:
+    """Gripper position [m] and rotation (row by row) for DH angles ``q`` [rad], in closed
+    form: what :func:`~manus.kinematics.forward.fk` gives (a test keeps them equal), with
+    :mod:`math` for the controller's cycle.
+
+    R_06 = R_03 R_36 with R_03 as in :func:`gripper_position` and, from the DH table's
+    twists (-90, +90, 0 deg at joints 4, 5, 6), R_36 = [[c4 c5 c6 - s4 s6,
+    -c4 c5 s6 - s4 c6, c4 s5], [s4 c5 c6 + c4 s6, -s4 c5 s6 + c4 c6, s4 s5],
+    [-s5 c6, s5 s6, c5]].
+    """
+    q1, q2, q3, q4, q5, q6 = q.tolist() if isinstance(q, np.ndarray) else q
+    c1, s1 = math.cos(q1), math.sin(q1)
+    c2, s2 = math.cos(q2), math.sin(q2)
+    c23, s23 = math.cos(q2 + q3), math.sin(q2 + q3)
+    c4, s4 = math.cos(q4), math.sin(q4)
+    c5, s5 = math.cos(q5), math.sin(q5)
+    c6, s6 = math.cos(q6), math.sin(q6)
+    cols = (
+        (c4 * c5 * c6 - s4 * s6, s4 * c5 * c6 + c4 * s6, -s5 * c6),
+        (-c4 * c5 * s6 - s4 * c6, -s4 * c5 * s6 + c4 * c6, s5 * s6),
+        (c4 * s5, s4 * s5, c5),
+    )
+    # R_03 v for each column v of R_36
+    (xa, ya, za), (xb, yb, zb), (xc, yc, zc) = (
+        (
+            c1 * c23 * a - s1 * b + c1 * s23 * c,
+            s1 * c23 * a + c1 * b + s1 * s23 * c,
+            -s23 * a + c23 * c,
+        )
+        for a, b, c in cols
+    )
+    u = cfg.l2 * c2 + cfg.l3 * s23
+    v = cfg.l2 * s2 - cfg.l3 * c23
+    p = (c1 * u - s1 * cfg.l1 + cfg.l4 * xc, s1 * u + c1 * cfg.l1 + cfg.l4 * yc, -v + cfg.l4 * zc)
+    return p, (xa, xb, xc, ya, yb, yc, za, zb, zc)

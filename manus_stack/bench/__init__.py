@@ -10,6 +10,7 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "plan": ("manus_stack.bench.plan", True),
     "bridge": ("manus_stack.bench.bridge", False),
     "track": ("manus_stack.bench.track", False),
+    "follow": ("manus_stack.bench.follow", False),
     "sequencer": ("manus_stack.bench.sequencer", False),
     "replay": ("manus_stack.bench.replay", False),
     "guardian": ("manus_stack.bench.guardian", False),

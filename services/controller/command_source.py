@@ -35,6 +35,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
+from manus.scene import Scene
 from schemas.base import Message
 from schemas.collision import ClearanceReport
 from schemas.commands import JointVelocityCommand
@@ -153,6 +154,21 @@ class Host(Protocol):
 
     def clearance(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance the guard computed for ``goal_id`` (forgotten once read)."""
+        ...
+
+    @property
+    def scene(self) -> Scene | None:
+        """The scene the collision guard keeps clear of (None: none); a new object when
+        the planner's scene replaces it."""
+        ...
+
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame) in the collision
+        guard, now and in every scene that replaces this one (a person a tracker follows).
+
+        Raises:
+            SceneError: no such object.
+        """
         ...
 
 

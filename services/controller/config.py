@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from manus.config import DEFAULT_ARM, ArmConfig
 from manus.errors import ConfigError
+from services.controller.follow_config import FollowConfig
 from services.controller.jog_config import JogConfig
 
 MS = 1_000_000
@@ -86,6 +87,8 @@ class ControllerConfig:
             :func:`manus.scene.scene_from_setting`: ``""`` = ``$MANUS_SCENE`` or the
             shipped wheelchair scene, ``default``, ``none`` or a scene file).
         jog: live control (:class:`~services.controller.jog_config.JogConfig`).
+        follow: following a target
+            (:class:`~services.controller.follow_config.FollowConfig`).
     """
 
     arm: ArmConfig = field(default_factory=lambda: DEFAULT_ARM)
@@ -114,6 +117,7 @@ class ControllerConfig:
     backlash_dead_zone_deg: float = 0.02
     scene: str = ""
     jog: JogConfig = field(default_factory=JogConfig)
+    follow: FollowConfig = field(default_factory=FollowConfig)
 
     def __post_init__(self) -> None:
         _check("cycle_ms", self.cycle_ms, 1.0, 1000.0)

@@ -32,7 +32,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from manus.joint_map import dh_increments_to_encoder_list, dh_to_encoder_list
-from manus.scene import start_scene_state
+from manus.scene import Scene, start_scene_state
 from manus.world_follower import WorldFollower
 from schemas import endpoints as ep
 from schemas.base import Message
@@ -110,6 +110,8 @@ class ControllerCore:
         self.world = WorldFollower()
         """The world model as the planner publishes it: the objects the arm holds, which
         the guard keeps clear like the arm's own bodies."""
+        self.moved: dict[str, np.ndarray] = {}
+        """Scene objects a tracker moved (name -> pose, chair frame), kept across scenes."""
         self.sources = tuple(kind(self) for kind in SOURCES)
         """One of each registered command source."""
         self._ranked = sorted(self.sources, key=lambda s: -s.PRIORITY)
@@ -143,6 +145,22 @@ class ControllerCore:
     def clearance(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance the guard computed for ``goal_id`` (forgotten once read)."""
         return self.guard.result(goal_id) if self.guard is not None else None
+
+    @property
+    def scene(self) -> Scene | None:
+        """The scene the collision guard keeps clear of (None: none)."""
+        return self.guard.guard.model.scene if self.guard is not None else None
+
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame) in the guard, now
+        and in every scene that replaces this one.
+
+        Raises:
+            SceneError: no such object.
+        """
+        if self.guard is not None:
+            self.guard.move_object(name, pose)
+        self.moved[name] = pose
 
     def source(self, kind: type[S]) -> S:
         """The source of class ``kind``.
@@ -229,7 +247,7 @@ class ControllerCore:
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        guard = scene_guard(scene, self._config.arm, self.world.held)
+        guard = scene_guard(scene, self._config.arm, self.world.held, self.moved)
         if guard is not None and self.guard is not None:
             self.guard = guard
         return []

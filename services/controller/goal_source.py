@@ -310,11 +310,14 @@ class GoalSource(CommandSource):
         tols = (tolerances(goal, "path_tolerance"), tolerances(goal, "goal_tolerance"))
         old = self.run
         new = End(ResultStatus.PREEMPTED, EndCause.NEW_GOAL, "")
+        shift = 0.0  # the new trajectory's time when the splice's first command acts [s]
         if goal.replace and old is not None and not old.cancelling:
             ref_old, tau = old.reference_at(snap)
+            if goal.splice_at >= 0.0:  # its time 0 is the old one's splice_at: same clock
+                shift = tau - goal.splice_at
             new_duration = Reference(goal.trajectory, arm=cfg.arm).duration
             blend = max(cfg.cycle_s, min(cfg.splice_blend_s, new_duration or cfg.splice_blend_s))
-            ref = ref_old.spliced(goal.trajectory, tau, blend)
+            ref = ref_old.spliced(goal.trajectory, tau, blend, shift)
             self._end_run(old, new._replace(reason=f"replaced by {goal.goal_id!r} (spliced)"))
             scale = old.scale
         else:
@@ -323,6 +326,7 @@ class GoalSource(CommandSource):
             ref = Reference(goal.trajectory, arm=cfg.arm)
             scale = goal.speed_scale
         self.run = TrajectoryRun.start(goal, ref, cfg, tols, snap, scale, LAWS[goal.mode])
+        self.run.tau += shift
 
     def _gripper_cycle(self, js: JointState, snap: int, cycle: Cycle) -> int:
         run = self.gripper

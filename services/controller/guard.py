@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -168,6 +168,11 @@ class Guard:
         near = self._now(now, m_end, q_s)
         return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
+    def object_moved(self, by: float) -> None:
+        """A scene object moved by at most ``by`` [m]: every margin of the anchor shrinks
+        by that much, so its proof stays conservative without a new distance."""
+        if by > 0.0:
+            self.advance.shrink(by)
     def _at_least_one(
         self, counts: np.ndarray, scaled: np.ndarray, q_next: np.ndarray
     ) -> np.ndarray:
@@ -268,6 +273,14 @@ class RunGuard:
             self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
 
+    def move_object(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame).
+
+        Raises:
+            SceneError: no such object.
+        """
+        self.guard.object_moved(self.guard.model.move_object(name, pose))
+
     def result(self, goal_id: str) -> ClearanceReport | None:
         """The smallest clearance of the goal (forgotten once read)."""
         return self.lowest.pop(goal_id, None)
@@ -281,14 +294,23 @@ class RunGuard:
 
 
 def scene_guard(
-    state: SceneState, arm: ArmConfig, held: Sequence[HeldBody] = ()
+    state: SceneState,
+    arm: ArmConfig,
+    held: Sequence[HeldBody] = (),
+    moved: Mapping[str, np.ndarray] | None = None,
 ) -> RunGuard | None:
-    """The guard for a scene published by the planner, the arm holding ``held`` (None: it
-    does not build)."""
+    """The guard for a scene published by the planner, the arm holding ``held``, its
+    objects of ``moved`` where a tracker last put them (name -> pose, 4x4, chair frame;
+    one the scene does not have is left out) (None: it does not build)."""
     try:
         scene = parse_scene(state.text, state.source)
         scene = dataclasses.replace(scene, version=state.version)
-        return RunGuard(Guard(CollisionModel(scene, arm, held=held)))
+    except SceneError:
+        return None
+    names = {o.name for o in scene.objects}
+    there = {name: pose for name, pose in (moved or {}).items() if name in names}
+    try:
+        return RunGuard(Guard(CollisionModel(scene, arm, held=held, moved=there)))
     except SceneError:
         return None
 

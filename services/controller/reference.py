@@ -38,11 +38,14 @@ class Reference:
         blend_s: float = 0.0,
         *,
         arm: ArmConfig,
+        blend_from: float = 0.0,
     ) -> None:
         self.arm = arm
         self.traj = JointTrajectory(msg)
         self.blend = blend
         self.blend_s = blend_s if blend is not None else 0.0
+        self.blend_from = blend_from if blend is not None else 0.0
+        """This trajectory's time at the splice, where the blend starts [s]."""
         self.via_xyz = (
             np.asarray(msg.via_xyz, dtype=float)
             if len(msg.via_xyz) == len(msg.times)
@@ -57,7 +60,7 @@ class Reference:
     @property
     def duration(self) -> float:
         """Time after which the reference rests on the last knot [s]."""
-        return max(self.traj.duration, self.blend_s)
+        return max(self.traj.duration, self.blend_from + self.blend_s)
 
     @property
     def end(self) -> np.ndarray:
@@ -67,42 +70,46 @@ class Reference:
     def sample(self, tau: float) -> Sample:
         """Reference at trajectory time ``tau`` [s] (blend included)."""
         s = self.traj.sample(tau)
-        if self.blend is None or tau >= self.blend_s:
+        u = tau - self.blend_from  # time since the splice
+        if self.blend is None or u >= self.blend_s:
             return s
         if tau < 0.0:
-            # Just before the splice (the cycle that decided it): the new trajectory's
-            # first-order extension, so that the blend sum continues the old reference.
+            # Before this trajectory's start (just before the splice, the cycle that decided
+            # it; or a continuation spliced before its time 0): its first-order extension,
+            # so that the blend sum continues the old reference.
             s0 = self.traj.sample(0.0)
             s = Sample(s0.q + s0.qd * tau, s0.qd, s0.qdd, -1)
         c = self.blend
-        q = c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
-        qd = c[1] + tau * (2 * c[2] + tau * (3 * c[3] + tau * (4 * c[4] + tau * 5 * c[5])))
-        qdd = 2 * c[2] + tau * (6 * c[3] + tau * (12 * c[4] + tau * 20 * c[5]))
+        q = c[0] + u * (c[1] + u * (c[2] + u * (c[3] + u * (c[4] + u * c[5]))))
+        qd = c[1] + u * (2 * c[2] + u * (3 * c[3] + u * (4 * c[4] + u * 5 * c[5])))
+        qdd = 2 * c[2] + u * (6 * c[3] + u * (12 * c[4] + u * 20 * c[5]))
         return Sample(s.q + q, s.qd + qd, s.qdd + qdd, s.segment)
 
     def position(self, tau: float) -> list[float]:
         """Positions at trajectory time ``tau`` [s] as plain floats (``sample(tau).q``;
         :meth:`manus.trajectory.JointTrajectory.position` outside a splice's blend)."""
-        if self.blend is None or tau >= self.blend_s:
+        if self.blend is None or tau - self.blend_from >= self.blend_s:
             return self.traj.position(tau)
         out: list[float] = self.sample(tau).q.tolist()
         return out
 
-    def spliced(self, msg: Trajectory, tau: float, blend_s: float) -> Reference:
-        """The reference that leaves this one at ``tau`` [s] for ``msg`` (its time 0 there).
+    def spliced(self, msg: Trajectory, tau: float, blend_s: float, at: float = 0.0) -> Reference:
+        """The reference that leaves this one at ``tau`` [s] for ``msg`` (its time ``at``
+        there: 0, or where a continuation planned for a given splice time has come to).
 
         Args:
             msg: the replacing trajectory.
             tau: this reference's time at the splice [s].
             blend_s: fade time of the difference [s], > 0.
+            at: the replacing trajectory's time at the splice [s].
         """
-        new = JointTrajectory(msg)
-        old, first = self.sample(tau), new.sample(0.0)
-        zero = np.zeros(new.n_joints)
+        new = Reference(msg, arm=self.arm)
+        old, first = self.sample(tau), new.sample(at)
+        zero = np.zeros(new.traj.n_joints)
         c = quintic_coefficients(
             old.q - first.q, old.qd - first.qd, old.qdd - first.qdd, zero, zero, zero, blend_s
         )
-        return Reference(msg, c, blend_s, arm=self.arm)
+        return Reference(msg, c, blend_s, arm=self.arm, blend_from=at)
 
 
 def rest_to_rest(q0: np.ndarray, q1: np.ndarray, duration_s: float, arm: ArmConfig) -> Trajectory:

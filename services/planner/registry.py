@@ -13,13 +13,14 @@ from typing import Any
 
 from schemas.goals import JointGoal, LineMotion, NamedGoal, ObjectGoal, PoseGoal
 from schemas.motion import Motion
-from schemas.planning import ViaPointPath
+from schemas.planning import ViaPointContinuation, ViaPointPath
 from services.planner.goal_planner import GoalPlanner, LinePlanner
 from services.planner.planner import Planner
-from services.planner.via_point_planner import ViaPointPlanner
+from services.planner.via_point_planner import ContinuationPlanner, ViaPointPlanner
 
 PLANNERS: dict[type[Motion], type[Planner[Any]]] = {
     ViaPointPath: ViaPointPlanner,
+    ViaPointContinuation: ContinuationPlanner,
     JointGoal: GoalPlanner,
     PoseGoal: GoalPlanner,
     NamedGoal: GoalPlanner,

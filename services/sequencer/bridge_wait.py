@@ -10,10 +10,14 @@ only this keeps from starting is **held** (:class:`BridgeWait`), at most
 and a valid joint state is in, it is validated and started as if it had just arrived;
 if the bridge enters a phase it does not leave by itself (stopped, estopped, arm_error,
 shutdown) it is refused at once with that phase and its detail, and so it is at the end
-of the wait, with the phase reached. Any other reason (a task running, required
-services missing) still refuses a submission at once, and so does a bridge already in
-one of those phases. One submission is held at a time; another one meanwhile is refused
-as busy. Time is the core's (``now_ns`` of its inputs), so this is deterministic.
+of the wait, with the phase reached. With the bridge running, required services this
+sequencer has not seen up yet since it started are waited for the same way (``manus up``
+starts them together, and under load the sequencer may hear their tokens after it heard
+the bridge run); one seen up and then gone, or one missing while the bridge is not running,
+refuses it at once. Any other reason (a task running) still refuses a submission at once,
+and so does a bridge already in one of those phases. One submission is held at a time;
+another one meanwhile is refused as busy. Time is the core's (``now_ns`` of its inputs),
+so this is deterministic.
 """
 
 from __future__ import annotations
@@ -79,21 +83,29 @@ class BridgeWait:
             "is accepted or refused"
         )
 
-    def late(self, held: Held, phase: str, detail: str, now_ns: int) -> SubmitReply:
-        """The refusal of ``held`` at the end of its wait (the bridge in ``phase``)."""
-        seen = f"{phase}: {detail}" if detail else phase or "no state/bridge received"
-        return SubmitReply(
-            accepted=False,
-            task_id="",
-            errors=[
+    def late(
+        self, held: Held, phase: str, detail: str, now_ns: int, missing: list[str]
+    ) -> SubmitReply:
+        """The refusal of ``held`` at the end of its wait (the bridge in ``phase``, the
+        required services ``missing`` never seen up)."""
+        waited = f"waited {(now_ns - held.since_ns) / NS:.1f} s"
+        if missing:
+            error = (
+                f"required service(s) not running: {', '.join(missing)} (not up within "
+                f"{self.wait_s:g} s of the submission, bridge_wait_s; {waited})"
+            )
+        else:
+            seen = f"{phase}: {detail}" if detail else phase or "no state/bridge received"
+            error = (
                 f"the bridge did not get ready within {self.wait_s:g} s (bridge_wait_s; "
-                f"waited {(now_ns - held.since_ns) / NS:.1f} s, phase {seen}); a task starts "
-                "only in phase running, with a valid joint state"
-            ],
-        )
+                f"{waited}, phase {seen}); a task starts only in phase running, with a "
+                "valid joint state"
+            )
+        return SubmitReply(accepted=False, task_id="", errors=[error])
 
-    def status(self, phase: str) -> TaskStatus:
-        """What ``sequencer/status`` says of the held submission."""
+    def status(self, phase: str, missing: list[str]) -> TaskStatus:
+        """What ``sequencer/status`` says of the held submission (the bridge in ``phase``,
+        the required services ``missing``)."""
         held = self.held
         assert held is not None
         return TaskStatus(
@@ -103,6 +115,10 @@ class BridgeWait:
             step=-1,
             total=len(held.task.steps),
             progress=0.0,
-            message=f"waiting for the bridge to run (phase {phase or 'unknown'}), "
-            f"at most {self.wait_s:g} s",
+            message=(
+                f"waiting for {', '.join(missing)} to start, at most {self.wait_s:g} s"
+                if missing
+                else f"waiting for the bridge to run (phase {phase or 'unknown'}), "
+                f"at most {self.wait_s:g} s"
+            ),
         )

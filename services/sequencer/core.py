@@ -29,6 +29,7 @@ from __future__ import annotations
 from schemas.base import Message
 from schemas.commands import EStop
 from schemas.control import ControllerFeedback, GoalResult, Heartbeat
+from schemas.follow import FollowState
 from schemas.guardian import GuardianReport
 from schemas.jog import USER_TOOK_OVER, JogState
 from schemas.planning import PlanReply
@@ -63,7 +64,7 @@ class SequencerCore(TaskSubmission):
     # -- control -------------------------------------------------------------------------------
 
     def control(self, req: TaskControl, now_ns: int) -> tuple[TaskStatus, list[Action]]:
-        """Cancel, pause, resume or status (``sequencer/control``)."""
+        """Cancel, pause, resume, done or status (``sequencer/control``)."""
         self.now = now_ns
         if req.action == TaskAction.STATUS:
             return self.status(), []
@@ -73,20 +74,34 @@ class SequencerCore(TaskSubmission):
         if req.action == TaskAction.CANCEL:
             out = self._cancel()
             return self.status(True, "cancelling" if self.busy else ""), out
+        if req.action == TaskAction.DONE:
+            return self._done()
         if req.action == TaskAction.PAUSE:
             out = self._pause()
             note = "pausing after the fold" if self.phase == Phase.FOLDING else ""
             return self.status(True, note), out
+        return self._resume()
+
+    def _resume(self) -> tuple[TaskStatus, list[Action]]:
         if self.state != TaskState.PAUSED:  # resume before the pause took effect
             self.pause_requested = False
             return self.status(True, "pause withdrawn"), []
         self.state = TaskState.RUNNING
-        out = [self._event(TaskEventKind.RESUMED, step=self.step, progress=self._task_progress())]
+        out: list[Action] = [
+            self._event(TaskEventKind.RESUMED, step=self.step, progress=self._task_progress())
+        ]
         if self._current is None:  # paused before the step began
             out += self._start_step()
         else:
             out += self._current.resume()
         return self.status(), out
+
+    def _done(self) -> tuple[TaskStatus, list[Action]]:
+        """The supervisor's ``done``: the running follow step ends (None: not one)."""
+        done = self._current.done() if self._current is not None else None
+        if done is None:
+            return self.status(False, "the running step is not a follow step"), []
+        return self.status(True, "done"), done
 
     def _why_not(self, req: TaskControl) -> str:
         """Why the cancel, pause or resume ``req`` cannot be done now ('' if it can)."""
@@ -106,6 +121,7 @@ class SequencerCore(TaskSubmission):
             (action == TaskAction.PAUSE and pausing, "already paused or pausing"),
             (action == TaskAction.PAUSE and cancelling, "the task is being cancelled"),
             (action == TaskAction.RESUME and not_paused, "the task is not paused"),
+            (action == TaskAction.DONE and pausing, "the task is paused or pausing"),
         )
         return next((why for failed, why in checks if failed), "")
 
@@ -168,6 +184,13 @@ class SequencerCore(TaskSubmission):
             return []
         return self._current.on_result(res)
 
+    def on_follow_state(self, state: FollowState, now_ns: int) -> list[Action]:
+        """The controller's follow state: a follow step holds, or not yet."""
+        self.now = now_ns
+        if not self.busy or self._current is None:
+            return []
+        return self._current.on_follow_state(state)
+
     def on_jog_state(self, msg: JogState, now_ns: int) -> list[Action]:
         """The controller's jog: the user took over. A running goal is ended by the
         controller itself (see the module docstring); a wait pauses now; a plan or a goal
@@ -198,7 +221,8 @@ class SequencerCore(TaskSubmission):
         self.now = now_ns
         if alive:
             self.alive.add(service)
-            return []
+            self.seen.add(service)
+            return self._recheck_held()  # a submission may wait for it
         self.alive.discard(service)
         if self.busy and service in self.config.required_services:
             return self.fail(f"{service} is gone (its liveliness token vanished)")

@@ -17,7 +17,9 @@ from :meth:`Step.pause`, :meth:`Step.on_bridge_state` and :meth:`Step.on_tick` m
 
 - :meth:`Step.begin` starts the step, :meth:`Step.resume` goes on after a pause;
 - :meth:`Step.on_reply` takes the answer to the query the step waits for;
-- :meth:`Step.on_feedback`, :meth:`Step.on_result`: the controller's feedback and results;
+- :meth:`Step.on_feedback`, :meth:`Step.on_result`, :meth:`Step.on_follow_state`: the
+  controller's feedback, results and follow states;
+- :meth:`Step.done`: the supervisor's ``done`` (a step that holds until told);
 - :meth:`Step.on_bridge_state`, :meth:`Step.on_tick`: bridge phases, time passing;
 - :meth:`Step.pause` (``None``: not now, at the end of what is in flight),
   :meth:`Step.cancel`;
@@ -34,6 +36,7 @@ from manus.config import ArmConfig
 from schemas.base import Message
 from schemas.commands import ArmAction, ArmCommand
 from schemas.control import ControllerFeedback, GoalResult
+from schemas.follow import FollowState
 from schemas.planning import PlanRequest
 from schemas.sequencing import Task, TaskStep
 from schemas.state import BridgeState, JointState
@@ -158,6 +161,14 @@ class Step:
     def on_result(self, res: GoalResult) -> list[Action]:
         """A goal's result (any goal's)."""
         return []
+
+    def on_follow_state(self, state: FollowState) -> list[Action]:
+        """The controller's follow state (any goal's)."""
+        return []
+
+    def done(self) -> list[Action] | None:
+        """The supervisor's ``done`` (None: this step cannot be told it is done)."""
+        return None
 
     def on_bridge_state(self, bs: BridgeState) -> list[Action] | None:
         """The bridge's state (None: the core checks for arm errors and e-stops)."""

@@ -8,6 +8,8 @@ Each kind is one class, holding that step's state, in a module of its own, deriv
 - ``gripper``: :class:`~services.sequencer.gripper_step.GripperStep`;
 - ``fold_in`` and ``fold_out``: :class:`~services.sequencer.fold_step.FoldStep`;
 - ``wait``: :class:`~services.sequencer.wait_step.WaitStep`;
+- ``follow``: :class:`~services.sequencer.follow_step.FollowStep` (a controller follow
+  goal, held for a time or until the supervisor's ``done``).
 - ``reach``: :class:`~services.sequencer.reach_step.ReachStep` (a goal the planner finds
   its way to);
 - ``pick``, ``place`` and ``give``: :class:`~services.sequencer.object_step.ObjectStep`
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 from schemas.sequencing import StepKind
 from services.sequencer.fold_step import FoldStep
+from services.sequencer.follow_step import FollowStep
 from services.sequencer.gripper_step import GripperStep
 from services.sequencer.move_step import MoveStep
 from services.sequencer.object_step import ObjectStep
@@ -35,6 +38,7 @@ STEP_TYPES: dict[str, type[Step]] = {
     StepKind.FOLD_IN: FoldStep,
     StepKind.FOLD_OUT: FoldStep,
     StepKind.WAIT: WaitStep,
+    StepKind.FOLLOW: FollowStep,
     StepKind.REACH: ReachStep,
     StepKind.PICK: ObjectStep,
     StepKind.PLACE: ObjectStep,

@@ -64,6 +64,9 @@ class TaskSubmission(TaskRun):
         super().__init__(config)
         self.bridge_phase = ""
         self.alive: set[str] = set()
+        self.seen: set[str] = set()
+        """Services whose tokens this sequencer has seen up (a required one missing and
+        never seen is still starting: a submission waits for it like for the bridge)."""
         self._submission: Submission | None = None
         self.bridge_wait = BridgeWait(self.config.bridge_wait_s)
         self._bridge_state: BridgeState | None = None  # the newest, in the bridge's order
@@ -92,7 +95,7 @@ class TaskSubmission(TaskRun):
         """Where the current (or last) task stands; a task being validated first."""
         sub = self._submission
         if self.bridge_wait.held is not None:
-            return self.bridge_wait.status(self.bridge_phase)
+            return self.bridge_wait.status(self.bridge_phase, self.missing_services())
         if sub is not None:
             return TaskStatus(ok=ok, task_id=sub.task_id, state=TaskState.VALIDATING, step=-1,
                               total=len(sub.task.steps), progress=0.0,
@@ -153,32 +156,41 @@ class TaskSubmission(TaskRun):
         """
         self.now = now_ns
         refused = self.refuse(task)
-        held = refused is not None and self._bridge_starting()
+        held = refused is not None and self._getting_ready()
         if held and self.bridge_wait.hold(task_id, task, now_ns):
             return []  # answered when the bridge runs, or at the end of the wait
         if refused is not None:
             return [answer(task_id, refused)]
         return self._begin(task_id, task)
 
-    def _bridge_starting(self) -> bool:
-        """Only the bridge, on its way to running, keeps a task from starting now."""
-        if self.busy or self._submission is not None or self.missing_services():
+    def _getting_ready(self) -> bool:
+        """Only what gets ready by itself keeps a task from starting now: the bridge on its
+        way to running (every required service up), or, with the bridge running, required
+        services not seen up yet since this sequencer started (``manus up`` starts them
+        together; one seen up and then gone is not on its way)."""
+        if self.busy or self._submission is not None:
             return False
-        return bridge_on_its_way(self.bridge_phase, self.start_configuration() is not None)
+        valid = self.start_configuration() is not None
+        missing = set(self.missing_services())
+        if not missing:
+            return bridge_on_its_way(self.bridge_phase, valid)
+        running = self.bridge_phase == BridgePhase.RUNNING and valid
+        return running and not missing & self.seen
 
     def _recheck_held(self) -> list[Action]:
         """The held submission: begun once the bridge is ready, refused when it stopped
         starting or the wait is over, else held on."""
         held = self.bridge_wait.held
-        if held is None or (self._bridge_starting() and self.now < held.until_ns):
+        if held is None or (self._getting_ready() and self.now < held.until_ns):
             return []
         self.bridge_wait.held = None
         refused = self.refuse(held.task)
         if refused is None:
             return self._begin(held.task_id, held.task)
-        if self._bridge_starting():  # the wait is over
+        if self._getting_ready():  # the wait is over
             detail = self._bridge_state.detail if self._bridge_state is not None else ""
-            refused = self.bridge_wait.late(held, self.bridge_phase, detail, self.now)
+            missing = self.missing_services()
+            refused = self.bridge_wait.late(held, self.bridge_phase, detail, self.now, missing)
         return [answer(held.task_id, refused)]
 
     def _begin(self, task_id: str, task: Task) -> list[Action]:

@@ -30,6 +30,9 @@ one ``[[step]]`` table per step, holding exactly one of these keys::
     pose = "home"                    # home, unfolded or folded (planned like a path)
     duration = 4.0                   # optional: shortest time of that move [s]
     [[step]]
+    follow = "mouth"                 # follow a tracker's target to a standoff and hold it
+    offset_mm = [0, 0, 60]           # optional keys: services/sequencer/follow_spec.py
+    hold_s = 10                      # (without it: until `manus task done`)
     reach = {pose = [560, 100, -150, 0, 90, 0]}   # a goal the planner finds its way to
                                      # (named, pose, joints, object, approach, line_to,
                                      # line_tool: manus/goal_spec.py, docs/reach.md)
@@ -60,6 +63,8 @@ from manus.goal_spec import GoalSpecError, goal_from_spec
 from manus.viapoints import COLUMNS, ViaPointError, load_path, path_from_rows
 from schemas.planning import INTERPOLATIONS
 from schemas.sequencing import DEFAULT_POSE_DURATION_S, StepKind, Task, TaskStep
+from services.sequencer.follow_spec import OPTIONS as FOLLOW_OPTIONS
+from services.sequencer.follow_spec import follow_step
 from services.sequencer.poses import POSES
 from services.sequencer.taskfile_objects import OBJECT_OPTIONS, object_step
 
@@ -77,6 +82,7 @@ OPTIONS: dict[str, tuple[str, ...]] = {
     StepKind.FOLD_IN: (),
     StepKind.FOLD_OUT: (),
     StepKind.WAIT: (),
+    StepKind.FOLLOW: FOLLOW_OPTIONS,
     StepKind.REACH: (),
     **OBJECT_OPTIONS,
 }
@@ -244,6 +250,8 @@ class _StepContext:
             step = self._wait(value, where, errors)
         elif kind == StepKind.POSE:
             step = self._pose(value, where, errors, options)
+        elif kind == StepKind.FOLLOW:
+            step = follow_step(raw, where, lambda key, msg: self.error(errors, key, kind, msg))
         elif kind == StepKind.REACH:
             step = self._reach(value, where, errors)
         elif kind in OBJECT_OPTIONS:

@@ -38,6 +38,7 @@ WIRING: Wiring[SequencerCore, list[Action]] = Wiring(
         Input(ep.BRIDGE_STATE, lambda core, bs, t: core.on_bridge_state(bs, t)),
         Input(ep.FEEDBACK, lambda core, fb, t: core.on_feedback(fb, t)),
         Input(ep.RESULT, lambda core, res, t: core.on_result(res, t)),
+        Input(ep.FOLLOW_STATE, lambda core, msg, t: core.on_follow_state(msg, t)),
         Input(ep.ESTOP, lambda core, msg, t: core.on_estop(msg, t)),
         Input(ep.SCENE_STATE, lambda core, scene, t: core.on_scene(scene)),
         Input(ep.OBJECTS, lambda core, update, t: core.on_objects(update, t)),

@@ -29,6 +29,7 @@ from manus.config import (
 from manus.errors import ConfigError
 from services.simulator.camera_config import CameraConfig
 from services.simulator.faults import FaultConfig
+from services.simulator.target_config import NO_TARGET, TargetConfig
 
 TICK_MS = 20.0
 """Motion integration step and frame spacing [ms] (:data:`manus.protocol.TICK_S`)."""
@@ -92,6 +93,8 @@ class SimConfig:
         grasp_tolerance_mm: a grasp holds when the object's centre is within this of the
             grasp point across the jaw axis, else it slips [mm].
         camera: the simulated camera (:class:`~services.simulator.camera_config.CameraConfig`).
+        target: a moving target and its tracker (the user's mouth; off by default:
+            :class:`~services.simulator.target_config.TargetConfig`).
     """
 
     seed: int = 0
@@ -116,6 +119,7 @@ class SimConfig:
     objects: str = ""
     grasp_tolerance_mm: float = 15.0
     camera: CameraConfig = field(default_factory=CameraConfig)
+    target: TargetConfig = NO_TARGET
 
     def __post_init__(self) -> None:
         if not isinstance(self.seed, int) or self.seed < 0:
@@ -196,18 +200,11 @@ class SimConfig:
         for key, value in data.items():
             if key not in known:
                 raise ConfigError(f"{source}: unknown simulator setting `{key}` ({sorted(known)})")
-            if key == "arm":
+            nested = _NESTED.get(key)
+            if nested is not None:
                 if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `arm` must be an object")
-                kwargs[key] = ArmConfig.from_mapping(value, source=f"{source}: arm")
-            elif key == "camera":
-                if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `camera` must be an object")
-                kwargs[key] = CameraConfig.from_mapping(value, source=f"{source}: camera")
-            elif key == "faults":
-                if not isinstance(value, dict):
-                    raise ConfigError(f"{source}: `faults` must be an object")
-                kwargs[key] = FaultConfig.from_mapping(value, source=source)
+                    raise ConfigError(f"{source}: `{key}` must be an object")
+                kwargs[key] = nested(value, source)
             elif isinstance(value, list):
                 kwargs[key] = tuple(value)
             else:
@@ -245,3 +242,12 @@ def load_sim_config(
     if seed is not None:
         config = config.with_overrides(seed=seed)
     return config
+
+
+_NESTED: dict[str, Any] = {
+    "arm": lambda value, source: ArmConfig.from_mapping(value, source=f"{source}: arm"),
+    "camera": lambda value, source: CameraConfig.from_mapping(value, source=f"{source}: camera"),
+    "target": lambda value, source: TargetConfig.from_mapping(value, source=source),
+    "faults": lambda value, source: FaultConfig.from_mapping(value, source=source),
+}
+"""The settings that are objects of their own, and how each is read (value, source)."""

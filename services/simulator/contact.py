@@ -27,10 +27,14 @@ class Distance(NamedTuple):
     Attributes:
         distance: between the nearest arm body and object [m] (< 0: penetrating).
         pair: ``body/object`` (e.g. ``gripper/head``).
+        person: between the arm and the nearest person object [m] (None: no person).
+        person_pair: ``body/object`` of ``person``.
     """
 
     distance: float
     pair: str
+    person: float | None = None
+    person_pair: str = ""
 
 
 class ContactModel:
@@ -50,7 +54,22 @@ class ContactModel:
                 scene, zones=(), clearance=dict.fromkeys((*CLASSES, "self"), 0.0)
             )
             self.model = CollisionModel(physical, arm, opening=opening)
+        self._persons: list[int] = []
+        if self.model is not None:
+            self._persons = [k for k, c in enumerate(self.model.checks) if c.cls == "person"]
         self._cache: tuple[bytes, Distance] | None = None
+
+    def move(self, name: str, pose: np.ndarray) -> None:
+        """Place the scene object ``name`` at ``pose`` (4x4, chair frame): a person that
+        moves (the moving target's body, :mod:`services.simulator.target`).
+
+        Raises:
+            SceneError: no such object.
+        """
+        if self.model is None:
+            return
+        if self.model.move_object(name, pose) > 0.0:
+            self._cache = None
 
     def distance(self, q_deg: np.ndarray, opening_mm: float) -> Distance | None:
         """The smallest distance at DH angles ``q_deg`` [deg] (None: no scene)."""
@@ -65,6 +84,12 @@ class ContactModel:
             model.set_opening(opening_mm * 1e-3)
         k, margin = model.tightest(q)
         check = model.checks[k]
-        found = Distance(float(margin), f"{check.body}/{check.other}")
+        results = model.geom_data.distanceResults
+        person, person_pair = None, ""
+        if self._persons:
+            j = min(self._persons, key=lambda i: results[i].min_distance)
+            person = float(results[j].min_distance)
+            person_pair = f"{model.checks[j].body}/{model.checks[j].other}"
+        found = Distance(float(margin), f"{check.body}/{check.other}", person, person_pair)
         self._cache = (key, found)
         return found

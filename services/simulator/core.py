@@ -12,8 +12,8 @@ Every 20 ms tick integrates the active command over the tick that ends there
 (:mod:`services.simulator.arm`), then moves the objects (:mod:`.object_world`: held,
 falling, resting, their contacts). Events at the same instant run in this order: the
 tick's integration, the arm's own event of that instant (activation and snapshot, 0x360,
-or sync), frames leaving, frames from the PC, then the camera's capture and publications
-(:mod:`.camera`; :meth:`SimCore.take_messages` hands them out).
+or sync), frames leaving, frames from the PC, then the sensors (:mod:`.sensors`: the
+camera, the target's tracker); :meth:`SimCore.take_messages` hands out what they publish.
 
 The core never reads a clock and draws every random number from generators seeded by
 ``config.seed``: same configuration and inputs, same frames, bit for bit.
@@ -39,9 +39,9 @@ from manus.protocol import (
     sync_frame,
 )
 from manus.scene import scene_from_setting
-from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.state import SimTruth
+from services.simulator import sensors
 from services.simulator.arm import ArmModel, ArmState, Intent
 from services.simulator.arm_faults import ArmFaults
 from services.simulator.camera import Camera
@@ -57,6 +57,7 @@ from services.simulator.faults import (
 )
 from services.simulator.messages import MessageBoard
 from services.simulator.object_world import ObjectWorld
+from services.simulator.objects import SimObject
 from services.simulator.rays import Primitive
 from services.simulator.replies import WARN_CLAMPED, Reply, classify
 from services.simulator.report import (
@@ -65,6 +66,7 @@ from services.simulator.report import (
     gripper_field,
     joint_fields,
 )
+from services.simulator.target import MovingTarget
 from services.simulator.truth import ContactRecord, make_truth
 
 TICK_NS = 20 * MS
@@ -89,8 +91,8 @@ class SimCore:
     def __init__(self, config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         cfg = self.config
-        rngs = np.random.default_rng(cfg.seed).spawn(4)
-        model_rng, fault_rng, self._garbage_rng, camera_rng = rngs
+        rngs = np.random.default_rng(cfg.seed).spawn(5)
+        model_rng, fault_rng, self._garbage_rng, camera_rng, target_rng = rngs
         gains = 1.0 + model_rng.uniform(-cfg.speed_gain_error, cfg.speed_gain_error, 6)
         self.model = ArmModel(cfg, gains)
         self.counters = SimCounters()
@@ -123,6 +125,10 @@ class SimCore:
         self.model.held = self.objects.held_distance
         self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
         """The simulated camera (None: switched off)."""
+        self.target: MovingTarget | None = None
+        """The moving target and its tracker (None: switched off)."""
+        if cfg.target.enabled:
+            self.target = MovingTarget(cfg.target, target_rng, scene)
         self._messages: list[tuple[int, str, Message]] = []
 
     # -- the harness interface -----------------------------------------------------------
@@ -133,13 +139,9 @@ class SimCore:
         return self._now
 
     def next_event_ns(self) -> int:
-        """Time of the next thing the core does: a tick, a frame leaving, a capture or a
-        publication of the camera [ns]."""
-        t = (
-            self._next_tick
-            if self.camera is None
-            else min(self._next_tick, self.camera.next_event_ns())
-        )
+        """Time of the next thing the core does: a tick, a frame leaving, a sensor's [ns]."""
+        due = sensors.next_event_ns(self.camera, self.target)
+        t = self._next_tick if due is None else min(self._next_tick, due)
         if self._outbox:
             return min(t, self._outbox[0][0])
         return t
@@ -159,8 +161,8 @@ class SimCore:
         while True:
             t_out = self._outbox[0][0] if self._outbox else None
             t_in = self._inbox[0][0] if self._inbox else None
-            t_cam = None if self.camera is None else self.camera.next_event_ns()
-            t = min(x for x in (self._next_tick, t_out, t_in, t_cam) if x is not None)
+            t_sensor = sensors.next_event_ns(self.camera, self.target)
+            t = min(x for x in (self._next_tick, t_out, t_in, t_sensor) if x is not None)
             if t > t_ns:
                 break
             self._now = t
@@ -172,7 +174,7 @@ class SimCore:
             elif t == t_in:
                 self._handle(heapq.heappop(self._inbox)[2])
             else:
-                self._camera_event(t)
+                self._messages += sensors.event(self.camera, self.target, t, self._seen)
         self._now = t_ns
         self.counters.frames_sent += len(sent)
         return sent
@@ -201,11 +203,15 @@ class SimCore:
         """
         t = self._now if t_ns is None else t_ns
         state = self.state_at(t)
-        return make_truth(self.model, state, t, t // TICK_NS, self.contact_record, self.objects)
+        sensors.place_body(self.target, self.model.contacts, t)
+        target = None if self.target is None else self.target.truth(t)
+        return make_truth(
+            self.model, state, t, t // TICK_NS, self.contact_record, self.objects, target
+        )
 
     def take_messages(self) -> list[tuple[int, str, Message]]:
-        """The bus messages published since the last call (the camera's frames on
-        ``perception/objects``): (publication time [ns], key suffix, message), in order."""
+        """The bus messages the sensors published since the last call (:mod:`.sensors`):
+        (publication time [ns], key suffix, message), in order."""
         out, self._messages = self._messages, []
         return out
 
@@ -216,6 +222,7 @@ class SimCore:
             raise SimError(f"state at {t_ns} ns: only [{last}, {self._next_tick}] ns is known now")
         if t_ns == last:
             return self._state
+        sensors.place_body(self.target, self.model.contacts, t_ns)
         return self.model.step(self._state, self._intent(last), (t_ns - last) / 1e9).state
 
     # -- run-time controls and readings -----------------------------------------------------
@@ -267,6 +274,7 @@ class SimCore:
     # -- the timeline --------------------------------------------------------------------
 
     def _tick(self, t: int) -> None:
+        sensors.place_body(self.target, self.model.contacts, t)
         result = self.model.step(self._state, self._intent(t - TICK_NS), TICK_S)
         self._state = result.state
         if self.objects.objects:
@@ -304,16 +312,12 @@ class SimCore:
         if floor > state.gripper_mm:  # the jaws closed on an object this tick: they stop there
             self._state = dataclasses.replace(state, gripper_mm=floor, gripper_speed_mm_s=0.0)
 
-    def _camera_event(self, t: int) -> None:
-        camera = self.camera
-        assert camera is not None
-        if t >= camera.next_capture_ns:
-            state = self.state_at(t)
-            q = self.model.q_true_deg(state)
-            bodies, poses = self.objects.placed(t, q, state.gripper_mm)
-            arm = [Primitive(b.shape, b.size, b.pose) for b in bodies]
-            camera.capture(t, list(zip(self.objects.objects, poses, strict=True)), arm)
-        self._messages += [(at, ep.PERCEPTION, msg) for at, msg in camera.due(t)]
+    def _seen(self, t: int) -> tuple[list[tuple[SimObject, np.ndarray]], list[Primitive]]:
+        """What the camera sees at ``t``: the objects at their poses, the arm's bodies."""
+        state = self.state_at(t)
+        bodies, poses = self.objects.placed(t, self.model.q_true_deg(state), state.gripper_mm)
+        arm = [Primitive(b.shape, b.size, b.pose) for b in bodies]
+        return list(zip(self.objects.objects, poses, strict=True)), arm
 
     def _timed_faults(self, t: int) -> None:
         for code in self._arm_faults.errors_due(t):

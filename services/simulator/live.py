@@ -62,7 +62,7 @@ class LiveSim:
         bus: any python-can bus (``virtual``, :class:`~services.simulator.slcan.SlcanPtyBus`...).
         on_snapshot: called in the loop with the truth at each cycle's snapshot instant.
         on_message: called in the loop with each bus message the core publishes (key
-            suffix, message; the camera's frames), in order.
+            suffix, message; the camera's frames, the moving target's tracker), in order.
         clock: monotonic clock [ns].
         wall_clock: the clock of the stack's stamps [ns] (:attr:`wall_t0_ns`).
     """

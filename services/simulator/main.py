@@ -10,8 +10,10 @@
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
 (live timing and counters). With Zenoh (default; skipped with a warning when no router
 answers) it publishes the truth on ``<prefix>/sim/truth`` once per cycle, its camera's
-frames on ``<prefix>/perception/objects`` (docs/objects.md) and answers
-``<prefix>/sim/fault`` (switch a fault on at run time, ``services/simulator/fault_desk.py``).
+frames on ``<prefix>/perception/objects`` (docs/objects.md), its moving target's tracker on
+``<prefix>/target/pose`` (when the config's ``target`` is enabled; docs/follow.md) and
+answers ``<prefix>/sim/fault`` (switch a fault on at run time,
+``services/simulator/fault_desk.py``).
 """
 
 from __future__ import annotations

@@ -1,10 +1,12 @@
-"""The simulator's Zenoh shell: publish the truth once per cycle, and the camera (optional).
+"""The simulator's Zenoh shell: publish the truth once per cycle, the camera and the moving
+target's tracker (optional).
 
 The arm itself has no Zenoh; this exposes what a real arm never reports, the true state
 (``<prefix>/sim/truth``, :class:`schemas.state.SimTruth`), so recordings and tests can
-judge accuracy, and what the simulated camera sees (``<prefix>/perception/objects``,
-stamped on the stack's clock), as a perception node would publish it. The simulator runs
-the same without it.
+judge accuracy, what the simulated camera sees (``<prefix>/perception/objects``) and what
+the simulated tracker sees (``<prefix>/target/pose``), stamped on the stack's clock, as a
+perception node and a face tracker would publish them. The simulator runs the same
+without it.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.objects import Perception
 from schemas.state import SimTruth
+from schemas.target import TargetPose
 
 log = logging.getLogger("manus.sim")
 
@@ -46,7 +49,8 @@ class TruthPublisher:
 
 
 class MessagePublisher:
-    """Publishes the core's bus messages (the camera's frames), their simulated stamps
+    """Publishes the core's bus messages (the camera's and the tracker's frames), their
+    simulated stamps
     moved onto the stack's clock (``wall_t0_ns``: the stack's clock at simulated time 0,
     :attr:`~services.simulator.live.LiveSim.wall_t0_ns`, read as each one goes out).
 
@@ -57,11 +61,11 @@ class MessagePublisher:
 
     def __init__(self, node: Node, wall_t0_ns: Callable[[], int]) -> None:
         self.wall_t0_ns = wall_t0_ns
-        self._pubs = {e.suffix: node.publisher(node.keys(e)) for e in (ep.PERCEPTION,)}
+        self._pubs = {e.suffix: node.publisher(node.keys(e)) for e in (ep.PERCEPTION, ep.TARGET)}
 
     def __call__(self, suffix: str, msg: Message) -> None:
         """Publish ``msg`` on ``suffix``."""
-        if isinstance(msg, Perception):
+        if isinstance(msg, Perception | TargetPose):
             msg = dataclasses.replace(msg, stamp_ns=self.wall_t0_ns() + msg.stamp_ns)
         self._pubs[suffix].put(msg)
 

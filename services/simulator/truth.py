@@ -11,6 +11,7 @@ from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr
 from manus.protocol import JOINT_UNIT_DEG
 from schemas.state import SimTruth
+from schemas.target import TargetTruth
 from services.simulator.arm import ArmModel, ArmState, StepResult, motor_to_dh_deg
 
 if TYPE_CHECKING:
@@ -24,9 +25,11 @@ def make_truth(
     seq: int,
     record: ContactRecord | None = None,
     world: ObjectWorld | None = None,
+    target: TargetTruth | None = None,
 ) -> SimTruth:
     """The truth of ``state`` at ``t_ns`` (``record``: the contacts so far; ``world``: the
-    objects, their contacts and the held object's clearances).
+    objects, their contacts and the held object's clearances; ``target``: the moving
+    target's truth at ``t_ns``).
 
     ``q_true`` are the belt-side joint angles (backlash, joint 1 scale error); ``q_reported``
     the DH angles of the encoder readings (motor angles quantised to 0.1 deg) at the same
@@ -43,6 +46,9 @@ def make_truth(
     lowest = record.min_clearance
     if now is not None:
         lowest = now.distance if lowest is None else min(lowest, now.distance)
+    person = record.min_person
+    if now is not None and now.person is not None:
+        person = now.person if person is None else min(person, now.person)
     objects, held = [], None
     if world is not None and world.objects:
         objects = world.truth(t_ns, np.degrees(q_true), state.gripper_mm)
@@ -66,6 +72,10 @@ def make_truth(
         held_clearance=None if held is None else held[0],
         held_clearance_pair="" if held is None else held[1],
         held_min_person=world.contacts.held_min_person if world is not None else None,
+        person_clearance=None if now is None else now.person,
+        person_pair="" if now is None else now.person_pair,
+        min_person_clearance=person,
+        target=target,
     )
 
 
@@ -77,9 +87,11 @@ class ContactRecord:
         min_clearance: smallest true distance at any tick [m] (None: no scene).
         contacts: ticks on which a body met an object and the arm was stopped.
         last: ``body/object`` of the last contact.
+        min_person: smallest true distance to a person at any tick [m] (None: no person).
     """
 
     min_clearance: float | None = None
+    min_person: float | None = None
     contacts: int = 0
     last: str = ""
 
@@ -88,6 +100,9 @@ class ContactRecord:
         if result.distance is not None:
             d = result.distance.distance
             self.min_clearance = d if self.min_clearance is None else min(self.min_clearance, d)
+            p = result.distance.person
+            if p is not None:
+                self.min_person = p if self.min_person is None else min(self.min_person, p)
         if result.contact:
             self.contacts += 1
             self.last = result.contact

@@ -6,32 +6,7 @@ bytes, log time), so the live WebSocket server, ``manus replay --view`` and
 ``manus export --json`` write the very same channels. Time comes only from its inputs; no
 clock, no threads.
 
-Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
-
-- ``P/viz/robot_description`` [``std_msgs/String``, JSON, ``data`` = the URDF]:
-  :meth:`ViewerCore.robot_description`;
-- ``P/viz/tf`` [``foxglove.FrameTransforms``]: every link from each valid
-  ``state/joints`` (forward kinematics; the fingers from the gripper opening);
-- ``P/viz/planned`` [``foxglove.SceneUpdate``]: the trajectory preview and via points of
-  each controller goal (entity ``goal``) and planner reply (entity ``plan``);
-- ``P/viz/via_poses`` [``foxglove.PosesInFrame``]: the gripper pose at each knot of a goal;
-- ``P/viz/executed`` [``foxglove.SceneUpdate``]: the measured gripper path since the last
-  goal (forward kinematics of the joint states);
-- ``P/viz/true`` [``foxglove.SceneUpdate``]: the simulator's true path (``sim/truth``);
-- ``P/viz/scene`` [``foxglove.SceneUpdate``]: the scene and protection zones
-  (:mod:`services.viewer.surroundings`: one entity per object and zone, in ``base_link``,
-  the scene's version in each entity's metadata): :meth:`ViewerCore.describe` gives the
-  one in use (the ``scene`` setting at start), and each ``planner/scene_state`` (a scene
-  replaced at run time) replaces every entity;
-- ``P/viz/objects`` [``foxglove.SceneUpdate``]: the world model's objects
-  (``planner/objects``, :mod:`services.viewer.objects`): free ones where perception saw
-  them, held ones in ``gripper_frame`` (they move with the gripper); each update replaces
-  every entity;
-- ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
-  errors, bridge phases, goals and results, task events, e-stops, services appearing and
-  vanishing;
-- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/2`` ...]: each message of
-  :data:`JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
+The channels it writes, and what each shows: :mod:`services.viewer.topics`.
 
 A payload that does not decode is counted (:attr:`ViewerStats.bad_payloads`), never
 raised; keys the viewer does not draw are counted as ignored.
@@ -57,6 +32,7 @@ from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.collision import SceneState
 from schemas.control import TrajectoryGoal
+from schemas.follow import FollowState
 from schemas.keys import Keys, channel_type
 from schemas.objects import WorldUpdate
 from schemas.planning import PlanReply, Trajectory
@@ -64,6 +40,7 @@ from schemas.state import JointState, SimTruth
 from services.viewer import scene
 from services.viewer.config import ViewerConfig, ViewerStats
 from services.viewer.events import EventLog, LogLine
+from services.viewer.follow import follow_update
 from services.viewer.model import ROOT_FRAME, build_visual_urdf, link_transforms
 from services.viewer.objects import drawn_objects
 from services.viewer.path import GripperPath
@@ -84,6 +61,7 @@ JSON_SUFFIXES: tuple[str, ...] = (
     ep.SIM_TRUTH,
     ep.LIVELINESS,
     ep.OBJECTS,
+    ep.FOLLOW_STATE,
 )
 """Keys forwarded as JSON channels (topic = the key, schema = the message's own)."""
 
@@ -175,6 +153,7 @@ class ViewerCore:
             ep.LIVELINESS: self._logging(self.events.liveliness),
             ep.SCENE_STATE: self._scene_state,
             ep.OBJECTS: self._objects,
+            ep.FOLLOW_STATE: self._follow,
             GOAL_REQUEST: self._goal,
             PLAN_REPLY: self._plan_reply,
         }
@@ -200,6 +179,7 @@ class ViewerCore:
             (self.topics.true, SceneUpdate),
             (self.topics.scene, SceneUpdate),
             (self.topics.objects, SceneUpdate),
+            (self.topics.follow, SceneUpdate),
             (self.topics.log, Log),
         ]
         out = [(self.topics.robot_description, ROBOT_DESCRIPTION_SCHEMA, "json")]
@@ -380,6 +360,10 @@ class ViewerCore:
         if self.world.version == before and msg.base_version != -1:
             return []  # a diff it cannot apply: drawn again at the next whole set
         return [self.objects_update(t_ns)]
+
+    def _follow(self, msg: Message, t_ns: int) -> list[FoxMessage]:
+        assert isinstance(msg, FollowState)
+        return [self._proto(self.topics.follow, follow_update(msg, t_ns), t_ns)]
 
     def _scene_state(self, msg: Message, t_ns: int) -> list[FoxMessage]:
         assert isinstance(msg, SceneState)

@@ -8,7 +8,8 @@ the connection ``ws://127.0.0.1:8765`` or a file written by ``manus export --jso
 Left: the 3D panel in ``base_link`` with the URDF read from the robot description topic
 (the arm moves with ``viz/tf``), the planned and executed paths, the via poses, the
 scene and protection zones (``viz/scene``), the objects (``viz/objects``: held ones move
-with the gripper) and the true path (hidden; tick it). Right:
+with the gripper), a follow goal's target, standoff and predicted target (``viz/follow``)
+and the true path (hidden; tick it). Right:
 joint tracking errors, commanded increments (the 20-speed counts), the gripper path
 error, bridge health, and the log (arm warnings, phases, goals, task events).
 """
@@ -53,6 +54,7 @@ def build_layout(prefix: str = "manus") -> fl.Layout:
                 f"{viz}/via_poses": fl.BaseRendererPosesTopicSettings(visible=True),
                 f"{viz}/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
                 f"{viz}/objects": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                f"{viz}/follow": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
             },
         ),
     )

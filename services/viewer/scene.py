@@ -216,6 +216,15 @@ def scene_update(entities: Sequence[SceneEntity], t_ns: int, *, clear: bool = Fa
     return SceneUpdate(deletions=deletions, entities=list(entities))
 
 
+def delete_entities(ids: Sequence[str], t_ns: int) -> SceneUpdate:
+    """``foxglove.SceneUpdate`` deleting the entities ``ids``."""
+    deletions = [
+        SceneEntityDeletion(timestamp=stamp(t_ns), type=SceneEntityDeletionType.MatchingId, id=i)
+        for i in ids
+    ]
+    return SceneUpdate(deletions=deletions, entities=[])
+
+
 def poses_in_frame(
     frame: str, t_ns: int, poses: Sequence[tuple[Sequence[float], Sequence[float]]]
 ) -> PosesInFrame:

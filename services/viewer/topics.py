@@ -1,4 +1,35 @@
-"""The viewer's Foxglove topics of one prefix, and the JSON schemas of the forwarded types."""
+"""The viewer's Foxglove topics of one prefix, and the JSON schemas of the forwarded types.
+
+Channels (``P`` = the prefix, ``manus`` by default; schema in brackets):
+
+- ``P/viz/robot_description`` [``std_msgs/String``, JSON, ``data`` = the URDF]:
+  :meth:`~services.viewer.core.ViewerCore.robot_description`;
+- ``P/viz/tf`` [``foxglove.FrameTransforms``]: every link from each valid
+  ``state/joints`` (forward kinematics; the fingers from the gripper opening);
+- ``P/viz/planned`` [``foxglove.SceneUpdate``]: the trajectory preview and via points of
+  each controller goal (entity ``goal``) and planner reply (entity ``plan``);
+- ``P/viz/via_poses`` [``foxglove.PosesInFrame``]: the gripper pose at each knot of a goal;
+- ``P/viz/executed`` [``foxglove.SceneUpdate``]: the measured gripper path since the last
+  goal (forward kinematics of the joint states);
+- ``P/viz/true`` [``foxglove.SceneUpdate``]: the simulator's true path (``sim/truth``);
+- ``P/viz/scene`` [``foxglove.SceneUpdate``]: the scene and protection zones
+  (:mod:`services.viewer.surroundings`: one entity per object and zone, in ``base_link``,
+  the scene's version in each entity's metadata):
+  :meth:`~services.viewer.core.ViewerCore.describe` gives the one in use (the ``scene``
+  setting at start), and each ``planner/scene_state`` (a scene replaced at run time)
+  replaces every entity;
+- ``P/viz/objects`` [``foxglove.SceneUpdate``]: the world model's objects
+  (``planner/objects``, :mod:`services.viewer.objects`): free ones where perception saw
+  them, held ones in ``gripper_frame`` (they move with the gripper); each update replaces
+  every entity;
+- ``P/viz/follow`` [``foxglove.SceneUpdate``] (:mod:`services.viewer.follow`): a follow
+  goal's target, predicted target, standoff point, tracked point and the person's body;
+- ``P/viz/log`` [``foxglove.Log``] (:mod:`services.viewer.events`): arm warnings and
+  errors, bridge phases, goals and results, task events, e-stops, services appearing and
+  vanishing;
+- ``P/<suffix>`` [the message's JSON Schema, ``manus/JointState/2`` ...]: each message of
+  :data:`~services.viewer.core.JSON_SUFFIXES` as JSON, as ``manus export --json`` writes it.
+"""
 
 from __future__ import annotations
 
@@ -21,6 +52,7 @@ class Topics:
         self.true = f"{viz}/true"
         self.scene = f"{viz}/scene"
         self.objects = f"{viz}/objects"
+        self.follow = f"{viz}/follow"
         self.log = f"{viz}/log"
         self._json: dict[type[Message], SchemaInfo] = {}
 
