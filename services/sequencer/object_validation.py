@@ -20,7 +20,7 @@ from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import TaskStep
 from services.sequencer.carry_stages import held_as_world, plan_problem
 from services.sequencer.object_attempts import Attempts, attempts
-from services.sequencer.object_stages import ObjectView, Stage, predicted_hold
+from services.sequencer.object_stages import ObjectView, Stage, origin, predicted_hold
 
 
 class ObjectValidation:
@@ -105,6 +105,7 @@ class ObjectValidation:
         if obj is None or tries is None:
             return
         if stage.attach and not obj.link and tries.pick is not None:
+            self.view.origins[obj.id] = origin(obj)
             T = predicted_hold(tries.pick.grasps[tries.index], obj)
             self.objects[obj.id] = dataclasses.replace(
                 obj,
