@@ -17,6 +17,7 @@ lock-step by ``manus bench drink`` (docs/drink.md).
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,7 +47,7 @@ SWAY_MM = (0.0, 15.0, 5.0)
 """The mouth's sway, per chair axis [mm] (side to side, up and down)."""
 SWAY_HZ = 0.25
 TRACKER_NOISE_MM = 0.5
-TRACKER_JITTER_MS = 0.0
+TRACKER_JITTER_MS = 5.0
 MAX_TILT_DEG = 10.0
 """The cup's largest tilt the demo allows [deg] (issue 29)."""
 PLACE_TOLERANCE_M = 0.010
@@ -99,6 +100,16 @@ class DrinkSetting:
             "xyz_mm": [x, y, z],
         }
         return {"version": 1, "objects": [cup]}
+
+    def write(self, directory: Path) -> tuple[Path, Path]:
+        """The simulator's objects file and config file, written into ``directory``:
+        ``manus sim --objects OBJECTS --config CONFIG``."""
+        directory.mkdir(parents=True, exist_ok=True)
+        objects = directory / "drink_objects.yaml"  # JSON is YAML
+        objects.write_text(json.dumps(self.objects_file(), indent=1), encoding="utf-8")
+        config = directory / "drink_sim.json"
+        config.write_text(json.dumps(self.sim_config(), indent=1), encoding="utf-8")
+        return objects, config
 
     def sim_config(self) -> dict[str, Any]:
         """The simulator's config file (its seed and the moving mouth)."""

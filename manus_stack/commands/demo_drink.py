@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import dataclasses
 import json
-import os
 import sys
 import threading
 import time
@@ -44,13 +43,9 @@ def _setting(args: argparse.Namespace) -> tuple[DrinkSetting, StackOptions]:
     """The seeded setting, written into the run directory as the simulator's files."""
     setting = DrinkSetting.drawn(args.seed)
     options = stack_options(args)
-    options.run_dir.mkdir(parents=True, exist_ok=True)
-    objects = options.run_dir / "drink_objects.yaml"
-    objects.write_text(json.dumps(setting.objects_file(), indent=1), encoding="utf-8")
-    sim_config = options.run_dir / "drink_sim.json"
-    sim_config.write_text(json.dumps(setting.sim_config(), indent=1), encoding="utf-8")
-    os.environ["MANUS_SIM_CONFIG"] = str(sim_config)  # the simulator's process reads it
-    return setting, dataclasses.replace(options, objects=str(objects))
+    objects, sim_config = setting.write(options.run_dir)
+    sim_args = [*options.sim_args, "--config", str(sim_config)]
+    return setting, dataclasses.replace(options, objects=str(objects), sim_args=sim_args)
 
 
 def run(args: argparse.Namespace) -> int:
