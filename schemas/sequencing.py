@@ -115,6 +115,11 @@ class TaskStep(Message):
         "for move: stretch time to respect joint limits instead of refusing (pose: always)",
         default=False,
     )
+    follow: FollowGoal | None = field(
+        "for follow: the tracker, standoff, approach and tracked point (its goal_id is the "
+        "sequencer's)",
+        default=None,
+    )
     object: str = field(
         "for pick, place and give: the world model's object (its id, docs/pick.md)", default=""
     )
@@ -133,11 +138,6 @@ class TaskStep(Message):
         "for place: back where this task's pick took it from (its centre and yaw as the pick "
         "saw it)",
         default=False,
-    )
-    follow: FollowGoal | None = field(
-        "for follow: the tracker, standoff, approach and tracked point (its goal_id is the "
-        "sequencer's)",
-        default=None,
     )
 
 

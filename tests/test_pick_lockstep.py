@@ -226,3 +226,19 @@ def test_a_grasp_that_does_not_hold_stops_saying_so() -> None:
     assert "pick 'cup' (close): the grasp did not hold: the jaws closed to" in ts.seq.reason
     assert "past the object's 80.0 mm" in ts.seq.reason
     assert not any(o.link for o in ts.seq.world.objects.values())  # never attached
+
+
+def test_place_as_a_task_of_its_own_with_the_cup_held_already() -> None:
+    ts = rig()
+    assert ts.submit(steps(PICK), "t1").accepted
+    run_watching(ts)
+    assert ts.seq.state == TaskState.SUCCEEDED, ts.seq.reason
+    ts.ls.run_for(0.5)
+    assert ts.seq.world.objects["cup"].link  # the planner holds it attached now
+    reply = ts.submit(steps(PLACE), "t2")
+    assert reply.accepted, reply.errors
+    run_watching(ts)
+    assert ts.seq.state == TaskState.SUCCEEDED, ts.seq.reason
+    ts.ls.run_for(1.0)
+    cup = next(o for o in ts.ls.sim.truth().objects if o.id == "cup")
+    assert cup.resting_on == "table" and math.dist(cup.xyz[:2], TARGET[:2]) <= 0.010

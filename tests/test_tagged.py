@@ -131,7 +131,7 @@ def test_json_schema_is_one_of_the_members_by_their_tag() -> None:
 
 
 def test_the_plan_request_declares_only_the_kinds_served() -> None:
-    served = ["joints", "line", "named", "object", "pose", "via_points"]
+    served = ["continuation", "joints", "line", "named", "object", "pose", "via_points"]
     assert sorted(MOTIONS.kinds()) == served
     schema = PlanRequest.json_schema()
     assert schema["$id"] == "manus/PlanRequest/2"
@@ -142,6 +142,7 @@ def test_the_plan_request_declares_only_the_kinds_served() -> None:
         "NamedGoal",
         "ObjectGoal",
         "PoseGoal",
+        "ViaPointContinuation",
         "ViaPointPath",
     ]
     request = PlanRequest(ViaPointPath(path=Path(via_points=[])), start=[0.0] * 6)

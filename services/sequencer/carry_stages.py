@@ -134,6 +134,8 @@ def place_stages(
             carrying=True,
             retry=True,
             reach_tolerance=LOWER_TOLERANCE_M,
+            onto=on,
+            raised=line_to(view, _raised(view, T_g), speed=NEAR_SPEED),
         ),
         Stage("open", opening=min(MAX_OPENING_M, width + view.how(held).open_margin)),
         Stage("release", attach=""),
@@ -197,7 +199,17 @@ def plan_problem(
     tilt."""
     report = trajectory.clearance
     margin = view.config.margin_m if margin is None else margin
-    if report is not None and report.time > 0.0 and report.distance - report.required < margin:
+    onto = (
+        held is not None
+        and report is not None
+        and (report.body, report.other)
+        == (
+            held.id,
+            stage.onto,
+        )
+    )
+    tight = report is not None and report.distance - report.required < margin
+    if report is not None and report.time > 0.0 and tight and not onto:
         return (
             f"{stage.label}: too tight: {report.body} {report.distance * 1e3:.1f} mm from "
             f"{report.other} at {report.time:.2f} s ({report.cls}: needs "
@@ -216,6 +228,15 @@ def held_as_world(held: WorldObject, pose: np.ndarray) -> WorldObject:
 
     ypr = [float(v) for v in matrix_to_ypr(pose[:3, :3])]
     return replace(held, xyz=[float(v) for v in pose[:3, 3]], ypr=ypr, link="")
+
+
+def _raised(view: ObjectView, T: np.ndarray) -> np.ndarray:
+    """``T`` raised so that the held object ends 1 mm outside the environment's clearance
+    above the surface it is let go over (``pick.drop_m`` above it at ``T``)."""
+    clearance = view.scene.clearance.get("environment", 0.015) if view.scene else 0.0
+    up = T.copy()
+    up[2, 3] += max(0.0, clearance + 0.001 - view.config.drop_m)
+    return up
 
 
 def _turned(T: np.ndarray, turn: float, centre: np.ndarray) -> np.ndarray:

@@ -33,6 +33,12 @@ OUT_OF_REACH = ("unreachable", "joint_limit", "singular", "zone")
 outside the keep-in zone of its work space)."""
 
 
+def origin(obj: WorldObject) -> list[float]:
+    """Where a pick takes ``obj`` from, to put it back (``ObjectView.origins``): its centre
+    and its yaw, upright (x, y, z [m], yaw, 0, 0 [rad])."""
+    return [*(float(v) for v in obj.xyz), float(obj.ypr[0]), 0.0, 0.0]
+
+
 class Attempts:
     """The candidates of one object step (see the module docstring).
 

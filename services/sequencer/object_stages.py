@@ -134,12 +134,6 @@ MotionOf = Callable[[np.ndarray], Motion]
 """A stage's motion from the arm's configuration at its start [rad]."""
 
 
-def origin(obj: WorldObject) -> list[float]:
-    """Where a pick takes ``obj`` from, to put it back (``ObjectView.origins``): its centre
-    and its yaw, upright (x, y, z [m], yaw, 0, 0 [rad])."""
-    return [*(float(v) for v in obj.xyz), float(obj.ypr[0]), 0.0, 0.0]
-
-
 @dataclass(frozen=True)
 class Stage:
     """One thing the arm does in an object task.
@@ -167,6 +161,11 @@ class Stage:
             left the gripper to the grasp there).
         reach_tolerance: a motion that ends (aborted by the controller) at most this far
             from its end counts as done [m] (0: the trajectory goal's own 2 mm).
+        onto: the surface the held object is lowered onto: its clearance to it is not
+            judged for spare (it is meant to come close).
+        raised: the motion the validation plans instead when the object is held already
+            (the planner knows the surface as a touch object only once the stage before
+            attached it): the same, stopping just outside the surface's clearance.
     """
 
     label: str
@@ -183,6 +182,8 @@ class Stage:
     search: bool = False
     aim: bool = False
     reach_tolerance: float = 0.0
+    onto: str = ""
+    raised: MotionOf | None = None
 
 
 def pose_goal(view: ObjectView, T: np.ndarray) -> MotionOf:

@@ -29,7 +29,7 @@ from schemas.sequencing import StepKind, TaskStep
 from schemas.state import BridgeState
 from services.sequencer.actions import Action
 from services.sequencer.carry_stages import plan_problem
-from services.sequencer.object_attempts import Attempts, attempts
+from services.sequencer.object_attempts import Attempts, attempts, origin
 from services.sequencer.object_stages import (
     NEAR_SPEED,
     ObjectProblem,
@@ -37,7 +37,6 @@ from services.sequencer.object_stages import (
     Stage,
     held_upright,
     line_to,
-    origin,
 )
 from services.sequencer.stage_steps import AttachStage, StageContext, StageGrip, StageReach
 from services.sequencer.step import BY_REQUEST, Phase, Step, StepContext

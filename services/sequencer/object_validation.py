@@ -19,8 +19,8 @@ from schemas.objects import WorldObject
 from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import TaskStep
 from services.sequencer.carry_stages import held_as_world, plan_problem
-from services.sequencer.object_attempts import Attempts, attempts
-from services.sequencer.object_stages import ObjectView, Stage, origin, predicted_hold
+from services.sequencer.object_attempts import Attempts, attempts, origin
+from services.sequencer.object_stages import ObjectView, Stage, predicted_hold
 
 
 class ObjectValidation:
@@ -30,14 +30,24 @@ class ObjectValidation:
         spec: the step.
         view: what the sequencer knows, the objects as the steps before leave them.
         q: where the steps before leave the arm [rad].
+        held_now: the objects the planner's world model holds attached now (a lowering
+            onto a surface is planned to just outside its clearance: the planner learns
+            the surface as a touch object only when the stage before attaches it).
 
     Use: ``while (req := v.next_request()) is not None: v.on_reply(ask(req))``; then
     :attr:`problems`, :attr:`q` (where it leaves the arm) and :attr:`objects` (the world
     model as it leaves it).
     """
 
-    def __init__(self, spec: TaskStep, view: ObjectView, q: np.ndarray) -> None:
+    def __init__(
+        self,
+        spec: TaskStep,
+        view: ObjectView,
+        q: np.ndarray,
+        held_now: frozenset[str] = frozenset(),
+    ) -> None:
         self.spec = spec
+        self.held_now = held_now
         self.view = view
         self.q0 = self.q = q
         self.objects = dict(view.objects)
@@ -60,7 +70,10 @@ class ObjectValidation:
             stage = stages[self.index]
             if stage.motion is not None:
                 self._asked = stage
-                return PlanRequest(stage.motion(self.q), start=list(self.q), preview_dt=0.0)
+                motion = stage.motion
+                if stage.raised is not None and self.spec.object in self.held_now:
+                    motion = stage.raised
+                return PlanRequest(motion(self.q), start=list(self.q), preview_dt=0.0)
             if stage.attach is not None:
                 self._attach(stage)
             self.index += 1

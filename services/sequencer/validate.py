@@ -153,11 +153,12 @@ class Validator:
             self._q, self._unknown = None, f"step {i + 1} could not be planned"
             return None
         view = self._view()
+        held_now = frozenset(o.id for o in view.objects.values() if o.link)
         if self._objects is None:
             self._objects = dict(view.objects)
         assert self._q is not None
         view = dataclasses.replace(view, objects=self._objects, origins=self._origins)
-        self._object = ObjectValidation(step, view, np.array(self._q))
+        self._object = ObjectValidation(step, view, np.array(self._q), held_now)
         self._object_step = i
         return self._object_request()
 
