@@ -140,6 +140,8 @@ class DrinkFigures:
     person_clearance_mm: float
     contacts: int
     person_contacts: int
+    contact: str
+    """The last contact's pair, body/object ('': none)."""
     tilt_max_deg: float
     placement_error_mm: float | None
 
@@ -223,6 +225,7 @@ class DrinkJudge:
             person_clearance_mm=round(clearance * 1e3, 1),
             contacts=truth.contacts if truth is not None else 0,
             person_contacts=person,
+            contact=truth.contact if truth is not None and truth.contacts else "",
             tilt_max_deg=round(math.degrees(self._tilt_max), 2),
             placement_error_mm=_mm(error),
         )
@@ -244,9 +247,7 @@ class DrinkJudge:
         c = fig.person_clearance_mm
         for what, d in (("the arm", fig.arm_min_person_mm), ("the cup", fig.cup_min_person_mm)):
             if d is not None and d < fig.person_clearance_mm:
-                why.append(
-                    f"{what} came {d:.1f} mm from the person (clearance {c:g} mm)"
-                )
+                why.append(f"{what} came {d:.1f} mm from the person (clearance {c:g} mm)")
         if fig.tilt_max_deg > MAX_TILT_DEG:
             why.append(f"the cup tilted {fig.tilt_max_deg:.1f} deg (at most {MAX_TILT_DEG:g})")
         if not on_table:
@@ -282,7 +283,10 @@ def render(fig: DrinkFigures) -> str:
     out.append(
         f"  cup to the person  {_or(fig.cup_min_person_mm)} mm at its nearest (clearance {c:g} mm)"
     )
-    out.append(f"  contacts           {fig.contacts} (with the person: {fig.person_contacts})")
+    last = f"; the last: {fig.contact}" if fig.contact else ""
+    out.append(
+        f"  contacts           {fig.contacts} (with the person: {fig.person_contacts}{last})"
+    )
     out.append(
         f"  cup's tilt         {fig.tilt_max_deg:.2f} deg at most (allowed {MAX_TILT_DEG:g})"
     )

@@ -83,7 +83,7 @@ def _holding(event: TaskEvent, follow: int) -> bool:
 
 def _refused(setting: DrinkSetting, why: str) -> DrinkFigures:
     return DrinkFigures(
-        setting.seed, False, f"refused: {why}", {}, 0.0, None, None, 50.0, 0, 0, 0.0, None
+        setting.seed, False, f"refused: {why}", {}, 0.0, None, None, 50.0, 0, 0, "", 0.0, None
     )
 
 
