@@ -46,7 +46,13 @@ from pathlib import Path
 
 from manus.wiring import BAD_PAYLOAD
 from manus_stack.comparison import CPU_ROUNDING, CheckResult, Comparer, plain
-from manus_stack.service_window import EARLY_OUTPUT_NS, EVERYTHING, Window, service_window
+from manus_stack.service_window import (
+    EARLY_OUTPUT_NS,
+    EVERYTHING,
+    Window,
+    from_first_answer,
+    service_window,
+)
 from schemas import endpoints as ep
 from schemas.base import Message
 from schemas.commands import JointVelocityCommand
@@ -54,6 +60,7 @@ from schemas.control import QueryTaken
 from schemas.endpoints import TRACE_PARTS
 from schemas.jog import JogTaken
 from schemas.liveliness import TokenGone
+from schemas.objects import Perception, WorldUpdate
 from schemas.planning import PlanReply
 from schemas.state import JointState
 from schemas.target import TargetTaken
@@ -113,6 +120,16 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
         # perception frame (the world model), either maybe before its token.
         (ep.JOINTS, ep.PERCEPTION),
         PLANNER.output_suffixes,
+    )
+    # a loaded planner may take a camera frame before the recorder hears its token: its
+    # first world model update names the frame (its stamp)
+    window = from_first_answer(
+        recording,
+        window,
+        ep.OBJECTS,
+        lambda m: m.stamp_ns if isinstance(m, WorldUpdate) else None,
+        ep.PERCEPTION,
+        lambda m: m.stamp_ns if isinstance(m, Perception) else None,
     )
     outputs = PLANNER.output_suffixes
     recorded, last_ns = _recorded_outputs(recording, outputs, window)
@@ -181,26 +198,15 @@ def check_controller(path: str | Path, config: ControllerConfig | None = None) -
 
 def _from_first_answered(recording: Recording, window: Window) -> Window:
     """``window`` from the joint state the controller's first command answers (its
-    ``ref_seq``) when that state was recorded before the window's start: a loaded
-    controller may take it before the recorder hears its token (at most
-    :data:`~manus_stack.service_window.EARLY_OUTPUT_NS` before)."""
-    if window[0] == EVERYTHING[0]:
-        return window  # the whole recording: nothing before it
-    first = next(
-        (r for r in recording.messages([ep.JOINT_VELOCITY]) if r.log_ns >= window[0]), None
+    ``ref_seq``): a loaded controller may take it before the recorder hears its token."""
+    return from_first_answer(
+        recording,
+        window,
+        ep.JOINT_VELOCITY,
+        lambda m: m.ref_seq if isinstance(m, JointVelocityCommand) else None,
+        ep.JOINTS,
+        lambda m: m.seq if isinstance(m, JointState) else None,
     )
-    command = None if first is None else decode(first)
-    if first is None or not isinstance(command, JointVelocityCommand):
-        return window
-    start = window[0]
-    for rec in recording.messages([ep.JOINTS]):
-        if rec.log_ns >= start:
-            break
-        if rec.log_ns >= window[0] - EARLY_OUTPUT_NS:
-            state = decode(rec)
-            if isinstance(state, JointState) and state.seq == command.ref_seq:
-                start = rec.log_ns
-    return start, window[1]
 
 
 def _from_first_taken(recording: Recording, window: Window) -> Window:

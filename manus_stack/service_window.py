@@ -10,6 +10,9 @@ it once they listen) to its disappearance (a restarted service is a new core).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
+from schemas.base import Message
 from schemas.endpoints import LIVELINESS
 from schemas.liveliness import LivelinessChange, TokenKind
 from services.recorder.reading import Recording, decode
@@ -69,3 +72,42 @@ def _token_window(recording: Recording, service: str) -> Window:
             end = rec.log_ns
             break
     return start, end
+
+
+ANSWER_LOOKBACK_NS = 1_000_000_000
+"""How long before its token a service may have taken the input its first output answers
+[ns] (a loaded service subscribes, then builds what it needs, then announces its token)."""
+
+
+def from_first_answer(
+    recording: Recording,
+    window: Window,
+    output: str,
+    answered: Callable[[Message], int | None],
+    inputs: str,
+    key: Callable[[Message], int | None],
+) -> Window:
+    """``window`` from the input its first ``output`` answers, when that input was recorded
+    before the window's start (at most :data:`ANSWER_LOOKBACK_NS` before).
+
+    Args:
+        recording: the recording.
+        window: the service's window (:func:`service_window`).
+        output: the output channel whose first message names what it answers.
+        answered: that message -> the id of the input it answers (None: it names none).
+        inputs: the input channel.
+        key: an input message -> its id (the same kind of id).
+    """
+    if window[0] == EVERYTHING[0]:
+        return window  # the whole recording: nothing before it
+    first = next((r for r in recording.messages([output]) if r.log_ns >= window[0]), None)
+    wanted = None if first is None else answered(decode(first))
+    if wanted is None:
+        return window
+    start = window[0]
+    for rec in recording.messages([inputs]):
+        if rec.log_ns >= window[0]:
+            break
+        if rec.log_ns >= window[0] - ANSWER_LOOKBACK_NS and key(decode(rec)) == wanted:
+            start = rec.log_ns
+    return start, window[1]

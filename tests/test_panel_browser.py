@@ -271,27 +271,57 @@ def test_scanning_reaches_every_button(rig: PanelRig, browser: BrowserContext) -
     # level changes; on the other, it changes back
     first, then = ("faster", "slower") if "faster" in buttons else ("slower", "faster")
     level = page.text_content("#level")
-    page.wait_for_selector(f"#{first}.scan-focus", timeout=30_000)
-    page.keyboard.press("Space")
+    _switch_when_highlighted(page, first, ("keydown", "keyup"))
     page.wait_for_function(f"document.getElementById('level').textContent !== '{level}'")
-    page.wait_for_selector(f"#{then}.scan-focus", timeout=30_000)
-    page.keyboard.press("Space")
+    _switch_when_highlighted(page, then, ("keydown", "keyup"))
     page.wait_for_function(f"document.getElementById('level').textContent === '{level}'")
     # held on a pad button, the switch moves the arm; let go, it stops
     for attempt in range(3):  # a jog stopped by an earlier test wants a release first
-        page.wait_for_selector("#pad-forward.scan-focus", timeout=30_000)
-        page.keyboard.down("Space")
+        _switch_when_highlighted(page, "pad-forward", ("keydown",))
         try:
             rig.wait_moving(timeout=2.0)
             break
         except TimeoutError:
-            page.keyboard.up("Space")
+            _switch(page, "keyup")
             assert attempt < 2, "the switch held on Forward never moved the arm"
     released = time.time_ns()
-    page.keyboard.up("Space")
+    _switch(page, "keyup")
     at_rest, speed = rig.still_since(released)
     report("switch released", (at_rest - released) / 1e6, speed)
     page.close()
+
+
+_SWITCH_ON_HIGHLIGHT = """([id, types]) => new Promise((resolve) => {
+    const el = document.getElementById(id);
+    const press = () => {
+        for (const type of types) {
+            window.dispatchEvent(new KeyboardEvent(type, {code: "Space", key: " "}));
+        }
+        resolve();
+    };
+    if (el.classList.contains("scan-focus")) return press();
+    const seen = new MutationObserver(() => {
+        if (el.classList.contains("scan-focus")) { seen.disconnect(); press(); }
+    });
+    seen.observe(el, {attributes: true, attributeFilter: ["class"]});
+})"""
+"""The switch pressed in the page the moment the scan highlights a control: the observer
+runs right after the step that highlighted it, before the next step can move on (a key
+sent from the test, across the browser's protocol, can land a step later on a loaded
+machine: on another control, STOP included)."""
+
+
+def _switch_when_highlighted(page: Page, element_id: str, types: tuple[str, ...]) -> None:
+    page.wait_for_selector(f"#{element_id}", timeout=30_000)
+    page.evaluate(_SWITCH_ON_HIGHLIGHT, [element_id, list(types)])
+
+
+def _switch(page: Page, event_type: str) -> None:
+    """The switch's key event now (a release: the scan waits while it is held)."""
+    page.evaluate(
+        "(type) => window.dispatchEvent(new KeyboardEvent(type, {code: 'Space', key: ' '}))",
+        event_type,
+    )
 
 
 def _contrast(a: list[float], b: list[float]) -> float:
