@@ -125,13 +125,19 @@ class TaskStep(Message):
     )
     at: list[float] | None = field(
         "for place: where the object's centre goes, chair frame: x, y, z [m] and yaw, pitch, "
-        "roll [rad] (None: on `surface`)",
+        "roll [rad] (None: on `surface` or `back`); for give: where it is handed over, its "
+        "centre and the gripper's yaw (pitch and roll 0; None: the sequencer's hand-over pose)",
         default=None,
         length=6,
     )
     surface: str = field(
         "for place: the scene object it is put on (its top, above where the object is held)",
         default="",
+    )
+    back: bool = field(
+        "for place: back where this task's pick took it from (its centre and yaw as the pick "
+        "saw it)",
+        default=False,
     )
 
 

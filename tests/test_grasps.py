@@ -17,6 +17,7 @@ from manus.scene import default_scene
 from schemas.goals import LineFrame, LineMotion
 from schemas.objects import WorldObject
 from schemas.planning import Trajectory
+from schemas.sequencing import TaskStep
 from services.sequencer.carry_stages import max_tilt, place_stages, tilt_problem
 from services.sequencer.object_stages import (
     ObjectProblem,
@@ -25,6 +26,7 @@ from services.sequencer.object_stages import (
     pick_stages,
     surface_under,
 )
+from services.sequencer.object_step import object_problems
 from services.sequencer.pick_config import PickConfig
 from services.sequencer.taskfile import TaskFileError, parse_task_text
 
@@ -230,6 +232,31 @@ def test_task_file_object_steps() -> None:
         "t.toml:3: step 1 (place): at takes 6 numbers (X Y Z [mm], YAW PITCH ROLL [deg]), "
         "got [1, 2]",
         't.toml:5: step 2 (pick): pick takes an object\'s id (a name, e.g. "cup"), got 3',
-        "t.toml:7: step 3 (place): a place step needs at = [X, Y, Z, YAW, PITCH, ROLL] or "
-        "on = SURFACE",
+        "t.toml:7: step 3 (place): a place step needs one of at = [X, Y, Z, YAW, PITCH, ROLL], "
+        "on = SURFACE or back = true",
+    ]
+
+
+def test_task_file_place_back_and_give_at() -> None:
+    task = parse_task_text(
+        '[[step]]\npick = "cup"\n[[step]]\ngive = "cup"\nat = [310, -50, 1090, 150, 0, 0]\n'
+        '[[step]]\nplace = "cup"\nback = true\n'
+    )
+    give, place = task.steps[1], task.steps[2]
+    assert give.at == pytest.approx([0.31, -0.05, 1.09, math.radians(150), 0.0, 0.0])
+    assert place.back and place.at is None and not place.surface
+    assert object_problems(place) == [] and object_problems(give) == []
+    with pytest.raises(TaskFileError) as err:
+        parse_task_text(
+            '[[step]]\nplace = "cup"\nback = 1\n[[step]]\nplace = "cup"\nback = true\n'
+            'on = "table"\n',
+            source="t.toml",
+        )
+    assert err.value.errors == [
+        "t.toml:3: step 1 (place): back takes true (put it back where the pick took it), got 1",
+        "t.toml:5: step 2 (place): a place step needs one of at = [X, Y, Z, YAW, PITCH, ROLL], "
+        "on = SURFACE or back = true",
+    ]
+    assert object_problems(TaskStep(kind="give", object="cup", back=True)) == [
+        "back is for a place step, not give"
     ]

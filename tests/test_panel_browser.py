@@ -17,10 +17,12 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from manus.config import FOLDED_Q_DEG
+from manus_stack.drink import DrinkSetting
 from manus_stack.panel.browser import chromium, missing
 from manus_stack.panel.freezing_proxy import FreezingProxy
 from manus_stack.panel.rig import STILL_RAD_S, PanelRig, floor_ms, recover, stop_bound_ms
 from manus_stack.panel.touch import Fingers
+from schemas.objects import ObjectTruth
 
 if TYPE_CHECKING:
     from playwright.sync_api import BrowserContext, Page
@@ -32,16 +34,22 @@ pytestmark = [
 
 TASK_BUTTONS = [
     ("unfold", "folded"),
-    # ("drink", "folded"),  # once manus_stack/panel/tasks/drink.toml exists
 ]
-"""Task buttons pressed in the browser, each with the arm's pose before it runs."""
+"""Task buttons pressed in the browser, each with the arm's pose before it runs (Drink:
+the module's last test)."""
 
 TASK_TIMEOUT_S = 60.0
+DRINK_TIMEOUT_S = 240.0
+"""The drink: about 95 s of motion and the task's 20 s at the mouth, on a loaded machine."""
 
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[PanelRig]:
-    with PanelRig(tmp_path_factory.mktemp("panel")) as started:
+    """The stack with the drink demo's seed-0 setting: a cup on the table (the camera sees
+    it), the user's mouth swaying and tracked (the drink follows it)."""
+    run_dir = tmp_path_factory.mktemp("panel")
+    objects, config = DrinkSetting.drawn(0).write(run_dir)
+    with PanelRig(run_dir, objects=str(objects), sim_args=("--config", str(config))) as started:
         started.start()
         yield started
 
@@ -79,7 +87,7 @@ def folded(rig: PanelRig) -> bool:
     )
 
 
-def wait_done(page: Page, label: str) -> None:
+def wait_done(page: Page, label: str, timeout_s: float = TASK_TIMEOUT_S) -> None:
     """Wait until the page says the task ``label`` is done; fail with what it says instead
     when the task failed (under heavy load the stack's own deadmen can stop a task:
     docs/deployment.md, Faults)."""
@@ -88,7 +96,7 @@ def wait_done(page: Page, label: str) -> None:
         "(() => { const n = document.getElementById('notice');"
         f" const text = document.getElementById('notice-text').textContent;"
         f" return text === {done!r} || (!n.hidden && !n.classList.contains('good')); }})()",
-        timeout=TASK_TIMEOUT_S * 1000,
+        timeout=timeout_s * 1000,
     )
     said = page.text_content("#notice-text")
     assert said == done, f"{said!r}: {page.text_content('#notice-details')}"
@@ -353,12 +361,12 @@ def test_every_colour_meets_wcag_aa(rig: PanelRig, page: Page) -> None:
     """In every state the page shows: idle, a trouble, STOP on, a held pad button, the
     scanning highlight (a running task: in the task button's test)."""
     failures = colour_failures(page, "idle")
-    page.click("#task-drink")  # not set up: a trouble
-    page.wait_for_selector("#notice", state="visible")
-    failures += colour_failures(page, "trouble")
     page.click("#stop")
     page.wait_for_selector("#release-stop", state="visible")
     failures += colour_failures(page, "STOP on")
+    page.click("#task-home")  # STOP is on: a trouble
+    page.wait_for_selector("#notice", state="visible")
+    failures += colour_failures(page, "trouble")
     page.click("#release-stop")
     page.wait_for_selector("#release-stop", state="hidden")
     fingers = Fingers(page)
@@ -370,3 +378,31 @@ def test_every_colour_meets_wcag_aa(rig: PanelRig, page: Page) -> None:
     page.wait_for_selector(".scan-focus")
     failures += colour_failures(page, "scanning")
     assert not failures, "\n".join(failures)
+
+
+def test_pressing_drink_runs_the_task_on_the_simulator(rig: PanelRig, page: Page) -> None:
+    """The whole drink (docs/drink.md) from the folded arm: the cup from the table to the
+    swaying mouth, held for the task's 20 s, back on the table, folded; judged on the
+    truth. Last in the module: a drink stopped half-way leaves the arm where the panel's
+    Fold cannot plan from."""
+    arm_to(rig, page, "folded")
+    cup_before = _cup(rig)
+    page.click("#task-drink")
+    rig.wait_moving(timeout=30.0)
+    assert page.text_content("#arm") == "Busy: Drink"
+    wait_done(page, "Drink", DRINK_TIMEOUT_S)
+    assert page.text_content("#arm") == "Ready"
+    truth = rig.latest()
+    assert truth is not None and folded(rig)
+    assert truth.contacts == 0
+    assert truth.held_min_person is not None and truth.held_min_person > 0.050
+    assert truth.min_person_clearance is not None and truth.min_person_clearance > 0.050
+    cup = _cup(rig)
+    assert not cup.held and cup.resting_on == "table"
+    assert math.dist(cup.xyz[:2], cup_before.xyz[:2]) < 0.010
+
+
+def _cup(rig: PanelRig) -> ObjectTruth:
+    truth = rig.latest()
+    assert truth is not None
+    return next(o for o in truth.objects if o.id == "cup")

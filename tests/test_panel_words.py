@@ -108,16 +108,25 @@ def test_the_jog_says_why_it_stopped() -> None:
 # -- the task buttons ----------------------------------------------------------------------------
 
 
-def test_the_shipped_buttons_load_and_the_missing_tasks_say_so() -> None:
+def test_the_shipped_buttons_load_every_task_set_up(tmp_path: Path) -> None:
     buttons = {b.id: b for b in load_buttons()}
     assert list(buttons) == ["drink", "fetch", "home", "unfold", "fold"]
-    assert not buttons["drink"].ready and not buttons["fetch"].ready
-    assert all(buttons[b].ready for b in ("home", "unfold", "fold"))
+    assert all(b.ready for b in buttons.values())
     assert buttons["fetch"].objects == ("cup", "bottle", "phone")
     assert buttons["fetch"].about_words("bottle") == "the bottle"
     assert buttons["fold"].sentence(Trouble.FOLDED) == "The arm is already folded."
+    drink = buttons["drink"].task()
+    assert [s.kind for s in drink.steps] == [
+        "fold_out", "pick", "give", "follow", "place", "reach", "fold_in"
+    ]  # fmt: skip
+    assert drink.steps[4].back and drink.steps[4].object == "cup"
+    fetch = buttons["fetch"].task("bottle")
+    assert [(s.kind, s.object) for s in fetch.steps] == [("pick", "bottle"), ("give", "bottle")]
+    d = _write(tmp_path, '[[button]]\nid = "x"\nlabel = "X"\ntask = "x.toml"\n')
+    (missing,) = load_buttons(d)
+    assert not missing.ready
     with pytest.raises(ConfigError, match="does not exist"):
-        buttons["drink"].task()
+        missing.task()
 
 
 def _write(tmp_path: Path, config: str, **files: str) -> Path:

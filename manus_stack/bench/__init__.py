@@ -25,5 +25,6 @@ BENCHES: dict[str, tuple[str, bool]] = {
     "reach": ("manus_stack.bench.reach", False),
     "panel": ("manus_stack.bench.panel", False),
     "pick": ("manus_stack.bench.pick", False),
+    "drink": ("manus_stack.bench.drink", False),
 }
 """Bench name -> (module, runs in a plain ``manus bench``). Long ones must be named."""

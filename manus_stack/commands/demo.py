@@ -1,4 +1,5 @@
-"""``manus demo [square|circle]``: the whole stack, the thesis path, a report.
+"""``manus demo [square|circle|drink]``: the whole stack, the thesis path, a report
+(``drink``: the drink task judged on the simulator's truth, :mod:`.demo_drink`).
 
 Brings the stack up (``manus up``'s processes: router, simulator, bridge, planner,
 controller, sequencer, recorder), then runs one task through the sequencer: fold out,
@@ -46,8 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "shape",
         nargs="?",
         default="square",
-        choices=("square", "circle"),
-        help="the thesis path to run (default: square)",
+        choices=("square", "circle", "drink"),
+        help="the thesis path to run (default: square), or drink: the cup from the table to "
+        "the user's mouth and back (docs/drink.md)",
     )
     add_stack_arguments(parser)
     parser.add_argument(
@@ -58,10 +60,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="give up on the task after this long [s]",
     )
     parser.add_argument("--plain", action="store_true", help="one line per task event")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="drink: the setting's seed (the cup's place, noise)"
+    )
+    parser.add_argument(
+        "--drink-s",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="drink: say done after holding at the mouth this long [s] (0: wait for "
+        "`manus task done` or the task's own timeout)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; see the module docstring."""
+    if args.shape == "drink":
+        from manus_stack.commands import demo_drink
+
+        return demo_drink.run(args)
     stop = wait_for_signal()
     options = stack_options(args)
     task = demo_task(args.shape)

@@ -78,9 +78,18 @@ class PanelRig:
         run_dir: logs of every process (``logs/<name>.log``).
         prefix: the stack's key prefix.
         panel_args: more options of ``manus panel``.
+        objects: the simulator's objects (``manus sim --objects``).
+        sim_args: more options of ``manus sim`` (``--config FILE``: a moving mouth).
     """
 
-    def __init__(self, run_dir: Path, prefix: str = "panel", panel_args: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        run_dir: Path,
+        prefix: str = "panel",
+        panel_args: tuple[str, ...] = (),
+        objects: str = "default",
+        sim_args: tuple[str, ...] = (),
+    ) -> None:
         self.run_dir = run_dir
         self.stack = LocalStack(
             StackOptions(
@@ -90,6 +99,8 @@ class PanelRig:
                 record=False,
                 guardian=False,
                 flight_ring_s=0.0,
+                objects=objects,
+                sim_args=list(sim_args),
             )
         )
         self.port = free_port()

@@ -315,7 +315,13 @@ class FollowSource(CommandSource):
 
     def observe(self, js: JointState, last: JointState | None) -> None:
         """Place the bodies the newest frames reported, once per joint state, before any
-        command is guarded."""
+        command is guarded; while no goal runs, note each tracker's newest frame's age (a
+        goal's :meth:`command` does it while it runs), so that a goal's start is judged
+        with the tracker's latency known (without it a frame one latency and a period old
+        counted as lost, and the goal was refused)."""
+        if self.goal is None:
+            for track in self.tracks.values():
+                track.observe(js.stamp_ns)
         self.bodies.place(self.host, self.space, self.report.bodies)
 
     def _stop_request(self, goal_id: str) -> GoalAck:

@@ -148,19 +148,40 @@ GIVE_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0)
 
 
 def give_stages(
-    view: ObjectView, held: WorldObject, q: np.ndarray, turn_deg: float = 0.0
+    view: ObjectView,
+    held: WorldObject,
+    q: np.ndarray,
+    turn_deg: float = 0.0,
+    at: list[float] | None = None,
 ) -> list[Stage]:
     """Carry the held object to the hand-over pose near the user (the gripper's yaw
     ``pick.handover_yaw_deg`` plus ``turn_deg``, turned about the vertical from where it
-    is, so a level object stays level) and hold it there."""
+    is, so a level object stays level) and hold it there.
+
+    Args:
+        at: the task's own hand-over pose instead of the sequencer's: the object's centre,
+            chair frame (x, y, z [m]), and the gripper's yaw (its pitch and roll: 0) [rad].
+
+    Raises:
+        ObjectProblem: ``at`` asks for a pitch or a roll.
+    """
+    centre, yaw_deg = view.config.handover_xyz, view.config.handover_yaw_deg
+    if at is not None:
+        if abs(at[4]) > 1e-9 or abs(at[5]) > 1e-9:
+            raise ObjectProblem(
+                f"object {held.id!r}: a hand-over turns the gripper about the vertical only "
+                f"(its yaw), got pitch {math.degrees(at[4]):.1f} deg and roll "
+                f"{math.degrees(at[5]):.1f} deg (write 0 0)"
+            )
+        centre, yaw_deg = (at[0], at[1], at[2]), math.degrees(at[3])
     T_now = view.gripper(q)
     z = T_now[:3, 2] if abs(T_now[2, 2]) < 0.9 else T_now[:3, 0]
-    yaw = math.radians(view.config.handover_yaw_deg + turn_deg)
+    yaw = math.radians(yaw_deg + turn_deg)
     turn = yaw - math.atan2(z[1], z[0])
     R = rot_z(turn) @ T_now[:3, :3]
     T_g = np.eye(4)
     T_g[:3, :3] = R
-    T_g[:3, 3] = np.array(view.config.handover_xyz) - R @ np.array(held.xyz)
+    T_g[:3, 3] = np.array(centre) - R @ np.array(held.xyz)
     return [Stage("hand over", motion=line_to(view, T_g), carrying=True, retry=True)]
 
 

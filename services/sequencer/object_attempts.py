@@ -33,6 +33,12 @@ OUT_OF_REACH = ("unreachable", "joint_limit", "singular", "zone")
 outside the keep-in zone of its work space)."""
 
 
+def origin(obj: WorldObject) -> list[float]:
+    """Where a pick takes ``obj`` from, to put it back (``ObjectView.origins``): its centre
+    and its yaw, upright (x, y, z [m], yaw, 0, 0 [rad])."""
+    return [*(float(v) for v in obj.xyz), float(obj.ypr[0]), 0.0, 0.0]
+
+
 class Attempts:
     """The candidates of one object step (see the module docstring).
 
@@ -63,7 +69,8 @@ class Attempts:
         else:
             self.held = held_object(view, spec.object)
             if spec.kind == StepKind.GIVE:
-                self.turns = GIVE_TURNS_DEG
+                # A hand-over pose of the task's own is where it is asked for: no other yaw.
+                self.turns = GIVE_TURNS_DEG if spec.at is None else (0.0,)
             elif self.held.shape in SYMMETRIC:
                 self.turns = PLACE_TURNS_DEG
             else:
@@ -86,8 +93,19 @@ class Attempts:
         assert self.held is not None
         turn = self.turns[self.index]
         if spec.kind == StepKind.PLACE:
-            return place_stages(view, self.held, self.q, spec.at, spec.surface, turn)
-        return give_stages(view, self.held, self.q, turn)
+            at = self._origin() if spec.back else spec.at
+            return place_stages(view, self.held, self.q, at, spec.surface, turn)
+        return give_stages(view, self.held, self.q, turn, spec.at)
+
+    def _origin(self) -> list[float]:
+        """Where this task's pick took the object from (a place ``back``)."""
+        found = self.view.origins.get(self.spec.object)
+        if found is None:
+            raise ObjectProblem(
+                f"object {self.spec.object!r} cannot be put back: no pick of this task took "
+                "it (a place back needs a pick step before it)"
+            )
+        return found
 
     def refused(self, stage: Stage, reason: str, why: str) -> str:
         """A plan of ``stage`` of the candidate being tried was refused (``reason``, the

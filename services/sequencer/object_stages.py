@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -52,6 +52,8 @@ class ObjectView:
         now_ns: the sequencer's time [ns].
         stale_after_s: the world model's staleness limit [s].
         world_ns: the world model's newest update's stamp (its newest camera frame) [ns].
+        origins: where this task's picks took each object from, by id: its centre and yaw
+            as the pick saw it, (x, y, z [m], yaw, 0, 0 [rad]); a pick records it here.
     """
 
     objects: dict[str, WorldObject]
@@ -62,6 +64,7 @@ class ObjectView:
     now_ns: int
     stale_after_s: float
     world_ns: int
+    origins: dict[str, list[float]] = field(default_factory=dict)
 
     @property
     def mount(self) -> np.ndarray:

@@ -29,7 +29,7 @@ from schemas.sequencing import StepKind, TaskStep
 from schemas.state import BridgeState
 from services.sequencer.actions import Action
 from services.sequencer.carry_stages import plan_problem
-from services.sequencer.object_attempts import Attempts, attempts
+from services.sequencer.object_attempts import Attempts, attempts, origin
 from services.sequencer.object_stages import (
     NEAR_SPEED,
     ObjectProblem,
@@ -48,10 +48,14 @@ def object_problems(spec: TaskStep) -> list[str]:
     if not spec.object:
         problems.append(f"a {spec.kind} step needs an object")
     if spec.kind == StepKind.PLACE:
-        if (spec.at is None) == (not spec.surface):
-            problems.append("a place step needs a pose (at) or a surface (on), not both")
-        if spec.at is not None and not all(math.isfinite(v) for v in spec.at):
-            problems.append(f"place pose must be finite, got {spec.at}")
+        if (spec.at is not None) + bool(spec.surface) + spec.back != 1:
+            problems.append("a place step needs a pose (at), a surface (on) or back, one of them")
+    elif spec.back:
+        problems.append(f"back is for a place step, not {spec.kind}")
+    if spec.kind == StepKind.PICK and spec.at is not None:
+        problems.append("a pick step takes no pose (at): it picks the object where it is")
+    if spec.at is not None and not all(math.isfinite(v) for v in spec.at):
+        problems.append(f"{spec.kind} pose must be finite, got {spec.at}")
     return problems
 
 
@@ -168,10 +172,12 @@ class ObjectStep(Step):
         stamp = latest.stamp_ns if latest is not None else self.ctx.now
         xyz = ypr = None
         obj = self.view().objects.get(self.spec.object)
-        if stage.upright and obj is not None and not obj.link:
+        if stage.attach and obj is not None and not obj.link:
             found = self.estimate()
             if found is not None:
                 obj = replace(obj, xyz=[float(v) for v in found])
+            self.view().origins[obj.id] = origin(obj)
+        if stage.upright and obj is not None and not obj.link:
             T = held_upright(self.view(), obj, q)
             xyz = [float(v) for v in T[:3, 3]]
             ypr = [float(v) for v in matrix_to_ypr(T[:3, :3])]

@@ -19,7 +19,7 @@ from schemas.objects import WorldObject
 from schemas.planning import PlanReply, PlanRequest
 from schemas.sequencing import TaskStep
 from services.sequencer.carry_stages import held_as_world, plan_problem
-from services.sequencer.object_attempts import Attempts, attempts
+from services.sequencer.object_attempts import Attempts, attempts, origin
 from services.sequencer.object_stages import ObjectView, Stage, predicted_hold
 
 
@@ -118,6 +118,7 @@ class ObjectValidation:
         if obj is None or tries is None:
             return
         if stage.attach and not obj.link and tries.pick is not None:
+            self.view.origins[obj.id] = origin(obj)
             T = predicted_hold(tries.pick.grasps[tries.index], obj)
             self.objects[obj.id] = dataclasses.replace(
                 obj,

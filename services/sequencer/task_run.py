@@ -94,6 +94,8 @@ class TaskRun:
         """The world model as the planner publishes it (the objects, what the arm holds)."""
         self.stale_after_s = 0.0  # the world model's, from its newest update [s]
         self.world_ns = 0  # the world model's newest update's stamp [ns]
+        self.origins: dict[str, list[float]] = {}
+        """Where the running task's picks took each object from (``ObjectView.origins``)."""
         self.grasps = load_grasps(self.config.pick.grasps)
         self.scene: Scene | None = scene_from_setting(self.config.scene)
         """The scene in use (the planner's, once it announced it)."""
@@ -145,6 +147,7 @@ class TaskRun:
             self.now,
             self.stale_after_s,
             self.world_ns,
+            self.origins,
         )
 
     def history(self, limit: int) -> TaskHistory:
@@ -184,6 +187,7 @@ class TaskRun:
         self.task, self.task_id, self.state, self.reason = task, task_id, TaskState.RUNNING, ""
         self.step = 0
         self._goals = 0
+        self.origins = {}
         self._reset_step()
         out = [self._event(TaskEventKind.ACCEPTED, step=-1, progress=0.0)]
         return out + self._start_step()

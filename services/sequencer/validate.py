@@ -77,6 +77,7 @@ class Validator:
         self.task = task
         self._view = view
         self._objects: dict[str, WorldObject] | None = None  # as the steps so far leave them
+        self._origins: dict[str, list[float]] = {}  # where the picks so far took them from
         self._object: ObjectValidation | None = None  # the object step being planned
         self.arm = arm
         self._fold_check = fold_check
@@ -156,7 +157,7 @@ class Validator:
         if self._objects is None:
             self._objects = dict(view.objects)
         assert self._q is not None
-        view = dataclasses.replace(view, objects=self._objects)
+        view = dataclasses.replace(view, objects=self._objects, origins=self._origins)
         self._object = ObjectValidation(step, view, np.array(self._q), held_now)
         self._object_step = i
         return self._object_request()
