@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.mark.slow
+@pytest.mark.live_drink
 @pytest.mark.timeout(420)
 def test_demo_drink_through_the_real_processes(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
