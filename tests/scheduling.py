@@ -1,19 +1,14 @@
-"""How the suite runs in parallel (pytest-xdist): the live tests in a few lanes at once,
-the pure tests on the other workers.
+"""How the suite runs in parallel (pytest-xdist): the live tests one at a time on one
+worker, the pure tests on every worker.
 
-The live tests (marked ``slow``) run real processes against 60 ms real-time cycles, but
-they mostly wait: a whole stack uses a quarter of a core. Its processes on the arm's loop
-raise their own priority to a real-time one (:mod:`manus.realtime`, the product's
-default), so a CPU-bound process beside them (a pure test, another stack's start-up, a
-CPU hog) no longer delays them, and :func:`live_lanes` live tests run at once, one per
-lane worker (the first ones, ``gw0``...). A lane takes the live tests one unit at a
-time: the tests of a module whose fixtures outlive a test (a module-scoped stack) form
-one unit, so that the module's fixture is built once, on one lane; every other live test
-is a unit of its own. The units marked ``slow(long=True)`` (the chaos soak) go first, then
-the larger units, so that the lanes end together. The other workers take the pure tests
-at a lower priority where the live ones cannot run real-time (:data:`PURE_NICE`), so the
-test processes of the live lanes get the CPU first; once no live unit is left, the lanes
-take pure tests too.
+The live tests (marked ``slow``) run real processes against 60 ms real-time cycles: two
+live stacks at once on a 2-core machine compete for the same cores, so they never run
+at the same time. The first worker runs them one after the other, from the start of the
+session (their chain is the longest part of the run); the other workers take the pure
+tests meanwhile, so at most one pure test runs beside a live one, and once the pure
+tests are done the rest of the live chain runs alone. The workers of pure tests run at
+a lower priority (:data:`PURE_NICE`), so the live processes take a core at once when
+they wake. When the live chain is done, its worker takes pure tests too.
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway. The whole suite, ``python -m pytest`` from the
@@ -30,47 +25,27 @@ from typing import Any
 
 import pytest
 
-from tests import live_priority
-
 LIVE_IDS = "MANUS_TEST_LIVE_IDS"
-"""Environment variable: the file where the workers write the live tests for the
-scheduler (xdist sends the controlling process ids only, not markers)."""
-LANES = "MANUS_TEST_LIVE_LANES"
-"""Environment variable: how many live tests may run at once (default :data:`LIVE_LANES`;
-1: one after the other)."""
-LIVE_LANES = 3
-"""Live tests at once by default: measured on the 2-core machine (docs/testing.md)."""
-MAX_PURE = 8
-"""Workers of pure tests at most (one per CPU)."""
+"""Environment variable: the file where the workers write the ids of the live tests for
+the scheduler (xdist sends the controlling process ids only, not markers)."""
+
+MAX_WORKERS = 8
+LIVE_WORKER = "gw0"
+"""The worker of the live chain (another one only if it died)."""
 PURE_NICE = 5
-"""Niceness of the workers of pure tests where a live test cannot run real-time
-(:mod:`tests.live_priority`): the lanes' test processes (niceness 0) get three times their
-share of a contended core, yet a pure test keeps a quarter of a core when a CPU hog
-(niceness 0) loads every core, so its own bounded waits still hold. Where they can, the
-pure tests run at niceness 0: the live ones take a core first anyway, and a CPU-bound
-property test (25 s alone) took more than pytest-timeout's 120 s at a quarter of a core
-beside two hogs."""
+"""Niceness of the other workers: a live test's processes (niceness 0) get three times
+their share of a contended core and take it at once when they wake, yet a pure test
+keeps a quarter of a core when a CPU hog (niceness 0) loads every core, so its own
+bounded waits still hold."""
 _OWN_FILE = pytest.StashKey[str]()
 
 
-def live_lanes(workers: int) -> int:
-    """Lanes among ``workers`` workers: :data:`LANES` or :data:`LIVE_LANES`, leaving one
-    worker for the pure tests (one worker: it runs everything)."""
-    wanted = int(os.environ.get(LANES) or LIVE_LANES)
-    return max(1, min(wanted, workers - 1))
-
-
-def is_lane(worker_id: str, workers: int) -> bool:
-    """``gw<N>`` is a live lane (the first :func:`live_lanes` workers)."""
-    return worker_id.startswith("gw") and int(worker_id[2:]) < live_lanes(workers)
-
-
 def pytest_configure(config: pytest.Config) -> None:
-    """In the controlling process: a file for the live tests, which the workers it starts
-    find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
+    """In the controlling process: a file for the live tests' ids, which the workers it
+    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
     worker = getattr(config, "workerinput", None)
-    if worker is not None and not is_lane(worker["workerid"], worker["workercount"]):
-        os.nice(0 if live_priority.permitted() else PURE_NICE)
+    if worker is not None and worker.get("workerid") != LIVE_WORKER:
+        os.nice(PURE_NICE)
     if worker is None and LIVE_IDS not in os.environ:
         handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
         os.close(handle)
@@ -86,67 +61,44 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         os.environ.pop(LIVE_IDS, None)
 
 
-def units(live: list[pytest.Item]) -> list[list[str]]:
-    """The live tests in units (see the module docstring), in the order the lanes take
-    them: ``slow(long=True)`` first, then by size, else in collection order."""
-    groups: dict[str, list[pytest.Item]] = {}
-    for item in live:
-        info = getattr(item, "_fixtureinfo", None)  # a pytest.Function's fixtures
-        shared = info is not None and any(
-            fixture.scope != "function"
-            for defs in info.name2fixturedefs.values()
-            for fixture in defs
-            if fixture.baseid  # the suite's own fixtures, not a plugin's session ones
-        )
-        module = getattr(item, "module", None)
-        key = module.__name__ if shared and module is not None else item.nodeid
-        groups.setdefault(key, []).append(item)
-    ordered = sorted(groups.values(), key=lambda unit: (not any(map(_long, unit)), -len(unit)))
-    return [[item.nodeid for item in unit] for unit in ordered]
-
-
-def _long(item: pytest.Item) -> bool:
-    mark = item.get_closest_marker("slow")
-    return mark is not None and bool(mark.kwargs.get("long"))
-
-
 def tell_live(config: pytest.Config, live: list[pytest.Item]) -> None:
-    """In a worker, after collection: write the live tests' units, one test a line
-    (``<unit>\\t<nodeid>``; every worker collects the same tests and writes the same file,
-    before it reports its collection)."""
+    """In a worker, after collection: write the ids of the live tests in the order they
+    are to run: those marked ``slow(last=True)`` last, after the pure tests are done where
+    the live chain is long enough (every worker collects the same tests and writes the
+    same file, before it reports its collection)."""
     path = os.environ.get(LIVE_IDS)
     if hasattr(config, "workerinput") and path:
+        ordered = sorted(live, key=_last)
         part = Path(f"{path}.{os.getpid()}")
-        lines = [f"{n}\t{nodeid}\n" for n, unit in enumerate(units(live)) for nodeid in unit]
-        part.write_text("".join(lines))
+        part.write_text("".join(f"{item.nodeid}\n" for item in ordered))
         part.replace(path)
 
 
+def _last(item: pytest.Item) -> bool:
+    mark = item.get_closest_marker("slow")
+    return mark is not None and bool(mark.kwargs.get("last"))
+
+
 def workers(config: pytest.Config) -> int:
-    """Workers for ``-n auto``: the live lanes plus one per CPU (at most :data:`MAX_PURE`)
-    for the whole suite, none (one process) when the command line names what to run.
-    ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
+    """Workers for ``-n auto``: one per CPU (at least 2: the live chain and the pure
+    tests; at most :data:`MAX_WORKERS`) for the whole suite, none (one process) when the
+    command line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
     forced = os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS")
     if forced:
         return int(forced)
     if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return 0
-    pure = min(MAX_PURE, max(1, os.cpu_count() or 1))
-    return pure + live_lanes(pure + int(os.environ.get(LANES) or LIVE_LANES))
+    return min(MAX_WORKERS, max(2, os.cpu_count() or 1))
 
 
-def live_units() -> list[list[str]]:
-    """The units the workers wrote, in the order to run (:func:`tell_live`)."""
+def live_ids() -> list[str]:
+    """The ids the workers wrote, in the order to run (:func:`tell_live`)."""
     path = os.environ.get(LIVE_IDS)
-    found: dict[str, list[str]] = {}
-    for line in Path(path).read_text().splitlines() if path else []:
-        unit, _, nodeid = line.partition("\t")
-        found.setdefault(unit, []).append(nodeid)
-    return list(found.values())
+    return Path(path).read_text().splitlines() if path else []
 
 
 class LiveApartScheduling:
-    """xdist scheduling with the live tests in lanes (see the module docstring).
+    """xdist scheduling with the live tests apart (see the module docstring).
 
     Implements ``xdist.scheduler.protocol.Scheduling``. A worker runs a test once it
     holds the next one (or is told to shut down), so each worker keeps one test queued.
@@ -160,17 +112,16 @@ class LiveApartScheduling:
         from xdist.workermanage import parse_tx_spec_config
 
         self.numnodes = len(parse_tx_spec_config(config))
-        self.lanes = live_lanes(self.numnodes)
         self.log = log.livesched
         self.node2collection: dict[Any, list[str]] = {}
         self.node2pending: dict[Any, list[int]] = {}
         self.collection: list[str] | None = None
-        self.units: list[list[int]] = []
-        """Live units not started (collection indices, in order)."""
-        self.unit_of: dict[Any, list[int]] = {}
-        """Lane -> what is left of the unit it runs."""
+        self.live: list[int] = []
+        """Live tests not sent yet (collection indices, in order)."""
         self.pure: list[int] = []
         """Pure tests not sent yet."""
+        self.live_node: Any = None
+        """The worker of the live chain (None: not chosen, or it died)."""
         self.live_ids: set[str] = set()
         """Ids of the live tests."""
 
@@ -189,14 +140,14 @@ class LiveApartScheduling:
     @property
     def tests_finished(self) -> bool:
         """Every test sent and run (a worker's last one runs at its shutdown)."""
-        if not self.collection_is_completed or self._live_left() or self.pure:
+        if not self.collection_is_completed or self.live or self.pure:
             return False
         return all(len(p) < 2 for p in self.node2pending.values())
 
     @property
     def has_pending(self) -> bool:
         """Tests not sent, or sent and not run."""
-        return bool(self._live_left() or self.pure or any(self.node2pending.values()))
+        return bool(self.live or self.pure or any(self.node2pending.values()))
 
     def add_node(self, node: Any) -> None:
         """A worker is up."""
@@ -217,12 +168,10 @@ class LiveApartScheduling:
                 self.log("the workers collected different tests: nothing runs")
                 return
             self.collection = collections[0]
+            order = live_ids()
+            self.live_ids = set(order)
             where = {nodeid: index for index, nodeid in enumerate(self.collection)}
-            for unit in live_units():
-                indices = [where[nodeid] for nodeid in unit if nodeid in where]
-                self.live_ids |= {self.collection[i] for i in indices}
-                if indices:
-                    self.units.append(indices)
+            self.live = [where[nodeid] for nodeid in order if nodeid in where]
             self.pure = [
                 i for i, nodeid in enumerate(self.collection) if nodeid not in self.live_ids
             ]
@@ -238,10 +187,7 @@ class LiveApartScheduling:
         """Run ``item`` again (pytest-rerunfailures, after its worker crashed)."""
         assert self.collection is not None
         index = self.collection.index(item)
-        if item in self.live_ids:
-            self.units.insert(0, [index])
-        else:
-            self.pure.insert(0, index)
+        (self.live if item in self.live_ids else self.pure).insert(0, index)
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -250,54 +196,47 @@ class LiveApartScheduling:
         raise NotImplementedError
 
     def remove_node(self, node: Any) -> str | None:
-        """A worker left: at its shutdown, or crashed (its queue goes back, the rest of its
-        live unit as a unit; the test it was running is returned)."""
+        """A worker left: at its shutdown, or crashed (its queue goes back; the test it
+        was running is returned)."""
         pending = self.node2pending.pop(node)
-        rest = self.unit_of.pop(node, [])
+        if node is self.live_node:
+            self.live_node = None
         if not pending:
             return None
         assert self.collection is not None
         crashed = self.collection[pending.pop(0)]
-        live = [i for i in pending if self.collection[i] in self.live_ids]
-        if live or rest:
-            self.units.insert(0, live + rest)
-        self.pure[:0] = [i for i in pending if self.collection[i] not in self.live_ids]
+        for index in reversed(pending):
+            queue = self.live if self.collection[index] in self.live_ids else self.pure
+            queue.insert(0, index)
         for other in self.nodes:
             self.check_schedule(other)
         return crashed
 
     # -- the policy --------------------------------------------------------------------------
 
-    def _live_left(self) -> bool:
-        return bool(self.units or any(self.unit_of.values()))
-
-    def _is_lane(self, node: Any) -> bool:
-        lanes = [n for n in self.nodes if is_lane(n.gateway.id, self.numnodes)]
-        if not lanes and self._live_left():  # every lane died: another worker takes over
-            lanes = [n for n in self.nodes if not n.shutting_down][:1]
-        return node in lanes
-
     def check_schedule(self, node: Any) -> None:
-        """Give ``node`` work: the next test of its live unit (or a new unit) if it is a
-        lane, else pure tests a few at a time; shut it down when nothing is left for it."""
+        """Give ``node`` work: the live chain if it is (or becomes) its worker, else pure
+        tests, a few at a time; shut it down when nothing is left for it."""
         if node.shutting_down or self.collection is None:
             return
+        if self.live and self.live_node is None:
+            ids = {n.gateway.id: n for n in self.nodes if not n.shutting_down}
+            self.live_node = ids.get(LIVE_WORKER, node)
+            if self.live_node is not node:
+                self.check_schedule(self.live_node)
         pending = self.node2pending[node]
-        if self._is_lane(node):
-            while len(pending) < 2:  # the one it runs and the next
-                if not self.unit_of.get(node):
-                    if not self.units:
-                        break
-                    self.unit_of[node] = self.units.pop(0)
-                self._send(node, self.unit_of[node], 1)
-            if len(pending) >= 2 or self.unit_of.get(node):
-                return
+        if node is self.live_node and self.live:
+            self._send(node, self.live, len(self.live))  # one worker, in order
+            return
+        if node is self.live_node and len(pending) >= 2:
+            return  # still in the live chain
         if self.pure:
             if len(pending) < 2:
                 share = max(2, len(self.pure) // (4 * len(self.node2pending)))
                 self._send(node, self.pure, share - len(pending))
             return
-        node.shutdown()  # runs what it holds, then leaves (the live tests left: on lanes)
+        if not self.live:
+            node.shutdown()  # runs what it holds, then leaves
 
     def _send(self, node: Any, queue: list[int], count: int) -> None:
         chunk = queue[: max(count, 0)]
