@@ -49,10 +49,14 @@ class FreezingProxy:
                     continue
                 ready, _, _ = select.select([a, b], [], [], 0.05)
                 for src in ready:
-                    data = src.recv(65536)
+                    try:
+                        data = src.recv(65536)
+                        if data:
+                            (b if src is a else a).sendall(data)
+                    except ConnectionError:  # a peer reset or closed: as a FIN, it ends here
+                        data = b""
                     if not data:
                         return
-                    (b if src is a else a).sendall(data)
 
     def freeze(self) -> None:
         """Go silent now (:attr:`frozen`; clear it to carry the held bytes on)."""
