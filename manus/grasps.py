@@ -97,14 +97,7 @@ def parse_grasps(text: str, source: str = "<grasps>") -> dict[str, GraspClass]:
         GraspError: the first problem, naming ``source``, the line and the field.
     """
     reader = FieldReader(source, GraspError)
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        line = mark.line + 1 if mark is not None else 0
-        raise GraspError(f"{source}:{line}: not valid YAML: {exc.problem}") from exc
-    if root is None:
-        raise GraspError(f"{source}: the grasps file is empty")
+    root = reader.root(text, "grasps")
     top = reader.mapping(root, "", ("version", "classes"), ())
     if reader.number(top["version"], "version") != GRASPS_VERSION:
         raise reader.fail(top["version"], "version", f"this stack reads version {GRASPS_VERSION}")

@@ -93,14 +93,7 @@ def parse_poses(text: str, source: str = "<poses>") -> dict[str, NamedPose]:
         NamedPoseError: the first problem, naming ``source``, the line and the field.
     """
     reader = FieldReader(source, NamedPoseError)
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        line = mark.line + 1 if mark is not None else 0
-        raise NamedPoseError(f"{source}:{line}: not valid YAML: {exc.problem}") from exc
-    if root is None:
-        raise NamedPoseError(f"{source}: the poses file is empty")
+    root = reader.root(text, "poses")
     top = reader.mapping(root, "", ("version", "poses"), ())
     if reader.number(top["version"], "version") != POSES_VERSION:
         raise reader.fail(

@@ -26,6 +26,22 @@ class FieldReader:
         self.source = source
         self.error = error
 
+    def root(self, text: str, what: str) -> yaml.Node:
+        """The node tree of YAML ``text``, the file of ``what`` ("scene", "poses", ...).
+
+        Raises:
+            ManusError: of the reader's type: not valid YAML (with its line), or empty.
+        """
+        try:
+            root = yaml.compose(text, Loader=yaml.SafeLoader)
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark
+            line = mark.line + 1 if mark is not None else 0
+            raise self.error(f"{self.source}:{line}: not valid YAML: {exc.problem}") from exc
+        if root is None:
+            raise self.error(f"{self.source}: the {what} file is empty")
+        return root
+
     def fail(self, node: yaml.Node | None, path: str, problem: str) -> ManusError:
         line = node.start_mark.line + 1 if node is not None else 0
         where = f"{self.source}:{line}" if line else self.source

@@ -87,14 +87,7 @@ def parse_scene(text: str, source: str = "<scene>") -> Scene:
         SceneError: the first problem, naming ``source``, the line and the field.
     """
     reader = _Reader(source, SceneError)
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        line = mark.line + 1 if mark is not None else 0
-        raise SceneError(f"{source}:{line}: not valid YAML: {exc.problem}") from exc
-    if root is None:
-        raise SceneError(f"{source}: the scene file is empty")
+    root = reader.root(text, "scene")
     top = reader.mapping(root, "", ("version", "mount", "objects"), ("clearance_mm", "zones"))
     file_format = reader.number(top["version"], "version")
     if file_format != FILE_FORMAT:

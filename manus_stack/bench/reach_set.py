@@ -102,9 +102,7 @@ def load_goal_set(path: Path | None = None) -> list[BenchGoal]:
     file = path or goal_set_path()
     source = "manus_stack/bench/reach_goals.yaml" if path is None else str(file)
     reader = FieldReader(source, GoalSetError)
-    root = yaml.compose(file.read_text(), Loader=yaml.SafeLoader)
-    if root is None:
-        raise GoalSetError(f"{source}: empty")
+    root = reader.root(file.read_text(), "goal set")
     top = reader.mapping(root, "", ("version", "goals"), ())
     if reader.number(top["version"], "version") != 1:
         raise reader.fail(top["version"], "version", "this stack reads version 1")

@@ -199,15 +199,7 @@ def parse_objects(text: str, source: str) -> list[SimObject]:
         SceneError: the first problem, naming ``source``, the line and the field.
     """
     reader = FieldReader(source, SceneError)
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        raise SceneError(
-            f"{source}:{mark.line + 1 if mark else 0}: not valid YAML: {exc.problem}"
-        ) from exc
-    if root is None:
-        raise SceneError(f"{source}: the objects file is empty")
+    root = reader.root(text, "objects")
     top = reader.mapping(root, "", ("version", "objects"), ())
     if reader.number(top["version"], "version") != OBJECTS_FILE_VERSION:
         raise reader.fail(
