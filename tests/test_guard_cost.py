@@ -45,6 +45,7 @@ def replay(path: Path, core: ControllerCore) -> list[bytes]:
 def test_a_core_after_another_publishes_the_bytes_of_a_core_with_a_new_model(
     recording: Path,
 ) -> None:
+    gc.collect()  # the cores of the recording gone, their models in the spares
     guard_module._SPARE.clear()
     first = ControllerCore()
     fresh = replay(recording, first)
@@ -53,8 +54,7 @@ def test_a_core_after_another_publishes_the_bytes_of_a_core_with_a_new_model(
     assert used.opening != DEFAULT_ARM.gripper_max  # the replay changed what it was built with
     # Left 3 mm wider than the arm's gripper: within what the guard lets pass unchanged.
     used.set_opening(used.opening + 0.003)
-    del first
-    gc.collect()
+    del first  # gone at once (no cycle): its model is the spare
     second = ControllerCore()
     assert second.guard is not None and second.guard.guard.model is used  # used again
     assert used.opening == DEFAULT_ARM.gripper_max  # as a new one is built
@@ -62,6 +62,7 @@ def test_a_core_after_another_publishes_the_bytes_of_a_core_with_a_new_model(
 
 
 def test_a_model_with_a_moved_object_is_not_used_again() -> None:
+    gc.collect()
     guard_module._SPARE.clear()
     core = ControllerCore()
     assert core.guard is not None
@@ -71,7 +72,6 @@ def test_a_model_with_a_moved_object_is_not_used_again() -> None:
     pose[0, 3] += 0.01
     core.move_object("head", pose)
     del core
-    gc.collect()
     other = ControllerCore()
     assert other.guard is not None and other.guard.guard.model is not model
 
