@@ -15,6 +15,7 @@ import pytest
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM
 from manus.scene import default_scene
+from manus.validity import checker_for
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_runs
 from services.controller import guard as guard_module
@@ -100,3 +101,19 @@ def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int) -> None:
             else:
                 assert got is None or got.margin >= below - 1e-6
     assert compared > 50
+
+
+def test_the_fast_check_for_an_opening_seen_before_answers_as_one_built_for_it() -> None:
+    rng = np.random.default_rng(4)
+    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+    Q = rng.uniform(lo, -lo, size=(40, 6))
+    used = CollisionModel(default_scene(), DEFAULT_ARM)
+    checker = checker_for(used)
+    for opening in (0.03, DEFAULT_ARM.gripper_max, 0.03):  # the last two: kept arrays
+        used.set_opening(opening)
+        fresh = checker_for(CollisionModel(default_scene(), DEFAULT_ARM, opening=opening))
+        for q in Q:
+            got, want = checker.margins(q), fresh.margins(q)
+            assert got.tight == want.tight and got.check == want.check
+            assert np.array_equal(got.free, want.free)
+        assert np.array_equal(checker.is_valid_batch(Q), fresh.is_valid_batch(Q))
