@@ -3,13 +3,14 @@ tests on the other workers.
 
 The live tests (marked ``slow``) run real processes against 60 ms real-time cycles. The
 first lane (:data:`LIVE_WORKERS` [0]) runs them one file after another from the start
-of the session, beside the workers of pure tests, which run at a lower priority
-(:data:`PURE_NICE`) so that a live test's processes take a core at once when they wake.
-Once every pure test is given out, the second lane (:data:`LIVE_WORKERS` [1], idle
+of the session, beside the workers of pure tests. A live test's process and the services
+it starts run at a real-time priority where permitted (:mod:`tests.live_priority`,
+:mod:`manus.realtime`), else the pure tests run at a lower one (:data:`PURE_NICE`):
+either way a live test's processes take a core at once when they wake. Once every pure
+test is given out, the second lane (:data:`LIVE_WORKERS` [1], idle
 until then) takes live files from the other end of the chain: two live stacks at once,
 and nothing else, on two cores. A file is one unit (its module fixtures, such as the
-panel's stack and browser, start once). The lanes run at the same priority as any
-process of the machine, so a CPU hog beside the suite slows them both alike.
+panel's stack and browser, start once).
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway (with two workers, the second lane takes the
@@ -27,6 +28,8 @@ from typing import Any
 
 import pytest
 
+from tests import live_priority
+
 LIVE_IDS = "MANUS_TEST_LIVE_IDS"
 """Environment variable: the file where the workers write the ids of the live tests for
 the scheduler (xdist sends the controlling process ids only, not markers)."""
@@ -36,19 +39,21 @@ LIVE_WORKERS = ("gw0", "gw1")
 """The workers of the two live lanes: the first from the start, the second once the pure
 tests are given out (another worker takes a lane only if its own died)."""
 PURE_NICE = 5
-"""Niceness of the other workers: a live test's processes (niceness 0) get three times
-their share of a contended core and take it at once when they wake, yet a pure test
-keeps a quarter of a core when a CPU hog (niceness 0) loads every core, so its own
-bounded waits still hold."""
+"""Niceness of the workers of pure tests where a live test cannot run real-time
+(:mod:`tests.live_priority`): a live test's processes (niceness 0) get three times their
+share of a contended core, yet a pure test keeps a quarter of a core when a CPU hog
+(niceness 0) loads every core, so its own bounded waits still hold. Where they can, the
+pure tests run at niceness 0: the live ones take a core first anyway."""
 _OWN_FILE = pytest.StashKey[str]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """In the controlling process: a file for the live tests' ids, which the workers it
-    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
+    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE` where
+    a live test cannot run real-time."""
     worker = getattr(config, "workerinput", None)
     if worker is not None and worker.get("workerid") not in LIVE_WORKERS:
-        os.nice(PURE_NICE)
+        os.nice(0 if live_priority.permitted() else PURE_NICE)
     if worker is None and LIVE_IDS not in os.environ:
         handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
         os.close(handle)
