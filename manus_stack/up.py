@@ -38,6 +38,7 @@ from typing import IO
 from manus.errors import ManusError
 from manus.node import Node
 from manus.presence import disabled_services
+from manus.process import lower_priority
 from manus.session import client_settings
 from manus.validity import warm_up
 from manus_stack.bridge_ready import not_running, wait_running
@@ -192,7 +193,8 @@ class LocalStack:
             stderr=subprocess.STDOUT,
             env=self._env(),
             start_new_session=True,
-            preexec_fn=(lambda: os.nice(nice)) if nice else None,  # noqa: PLW1509 (no threads yet)
+            # its own session: its own scheduling group, lowered with it (lower_priority)
+            preexec_fn=(lambda: lower_priority(nice)) if nice else None,  # noqa: PLW1509 (no threads yet)
         )
         child = Child(name, argv, log, proc, stream)
         self.children.append(child)
