@@ -51,9 +51,6 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[PanelRig]:
     objects, config = DrinkSetting.drawn(0).write(run_dir)
     with PanelRig(run_dir, objects=str(objects), sim_args=("--config", str(config))) as started:
         started.start()
-        # the bridge's start-up moves turn the wrist: a test that finds the arm not yet
-        # folded would press Fold mid-way (the planner refuses that pose)
-        started.stack.wait_running(60.0)
         yield started
 
 
