@@ -6,8 +6,8 @@ A :class:`Node` owns one session (from :mod:`manus.session`), declares a livelin
 (``manus status``); it turns payloads into typed messages. A
 payload that fails to decode is counted per key and logged (at most once a second per
 key), never raised into the core: one bad publisher must not take a service down. A
-service's node also answers ``<prefix>/health/<name>`` with those counts
-(``schemas.health.NodeHealth``, shown by ``manus status``).
+service's node also answers ``<prefix>/health/<name>`` with those counts and its
+process's scheduling (``schemas.health.NodeHealth``, shown by ``manus status``).
 
 Callbacks run on Zenoh's threads. Services serialise them into their core with
 :attr:`Node.lock` (one lock per node), so the core itself needs no locking. zenoh-python
@@ -38,6 +38,7 @@ import zenoh
 
 from manus import presence
 from manus.errors import ManusError, SchemaError
+from manus.realtime import describe
 from manus.session import ZenohSettings, open_session
 from schemas.base import Message
 from schemas.endpoints import ALIVE
@@ -138,7 +139,8 @@ class Node:
         self._entities.append(token)
 
     def health(self) -> NodeHealth:
-        """The bad input counted so far (``schemas.health``)."""
+        """The bad input counted so far and the scheduling of :attr:`pid`'s process
+        (``schemas.health``)."""
         bad = dict(self.bad_payloads)
         return NodeHealth(
             service=self.name,
@@ -148,6 +150,7 @@ class Node:
             bad_keys=list(bad),
             bad_counts=list(bad.values()),
             handler_errors=self.handler_errors,
+            scheduling=describe(self.pid),
         )
 
     def _on_health(self, query: zenoh.Query) -> None:

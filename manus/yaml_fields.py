@@ -2,7 +2,9 @@
 the field (``scene.yaml:8: objects[0].radius_mm: must be > 0, got -5``).
 
 PyYAML's :func:`yaml.compose` gives the node tree with a mark (line, column) on every
-node, which ``tomllib`` and ``json`` do not; :class:`FieldReader` walks it.
+node, which ``tomllib`` and ``json`` do not; :class:`FieldReader` walks it. LibYAML's
+parser (:data:`LOADER`, in PyYAML's wheels) composes the same tree about ten times faster
+than PyYAML's Python one, which is kept where LibYAML is missing.
 """
 
 from __future__ import annotations
@@ -12,6 +14,9 @@ import math
 import yaml
 
 from manus.errors import ManusError
+
+LOADER: type[yaml.SafeLoader] = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+"""The safe loader: LibYAML's where PyYAML has it."""
 
 
 class FieldReader:
@@ -33,7 +38,7 @@ class FieldReader:
             ManusError: of the reader's type: not valid YAML (with its line), or empty.
         """
         try:
-            root = yaml.compose(text, Loader=yaml.SafeLoader)
+            root = yaml.compose(text, Loader=LOADER)
         except yaml.MarkedYAMLError as exc:
             mark = exc.problem_mark
             line = mark.line + 1 if mark is not None else 0

@@ -4,9 +4,10 @@
 services are up), ``where/<service>/<host>/<pid>`` (on which computer and process each
 runs), ``disabled/<service>/<why>`` (which are off on purpose, and why: shown ``OFF``),
 ``health/<service>`` (each service's bad input: payloads that did not decode, per
-key, and handler errors), and listens up to ``wait_s`` for the newest ``state/bridge``
-(BridgeState) and ``state/status`` (ArmStatus). :func:`format_status` makes one screen
-of text of it; the same dictionary is the ``--json`` output.
+key, and handler errors; and the scheduling its process runs at), and listens up to
+``wait_s`` for the newest ``state/bridge`` (BridgeState) and ``state/status``
+(ArmStatus). :func:`format_status` makes one screen of text of it; the same dictionary
+is the ``--json`` output.
 """
 
 from __future__ import annotations
@@ -105,7 +106,8 @@ def collect(node: Node, wait_s: float = 1.0) -> dict[str, Any]:
 
 def node_health(node: Node, timeout: float = 1.0) -> dict[str, dict[str, Any]]:
     """Service -> its bad input (``schemas.health.NodeHealth``): ``bad_payloads`` (total),
-    ``by_key`` (key suffix -> count), ``handler_errors``; summed over a service's processes."""
+    ``by_key`` (key suffix -> count), ``handler_errors``, summed over a service's
+    processes; ``scheduling``: pid -> what that process runs at (``rr 10``)."""
     out: dict[str, dict[str, Any]] = {}
     replies = node.session.get(
         node.keys.health_all,
@@ -120,7 +122,11 @@ def node_health(node: Node, timeout: float = 1.0) -> dict[str, dict[str, Any]]:
             h = NodeHealth.decode(reply.ok.payload.to_bytes())
         except SchemaError:
             continue
-        entry = out.setdefault(h.service, {"bad_payloads": 0, "by_key": {}, "handler_errors": 0})
+        entry = out.setdefault(
+            h.service, {"bad_payloads": 0, "by_key": {}, "handler_errors": 0, "scheduling": {}}
+        )
+        if h.scheduling:
+            entry["scheduling"][str(h.pid)] = h.scheduling
         entry["bad_payloads"] += h.bad_payloads
         entry["handler_errors"] += h.handler_errors
         for key, count in zip(h.bad_keys, h.bad_counts, strict=False):
@@ -144,7 +150,9 @@ def format_status(status: dict[str, Any]) -> str:
             lines.append(f"  {name:<11} {'OFF':<6} {why}: {text}")
             continue
         state = "alive" if info["alive"] else "DOWN"
-        lines.append(f"  {name:<11} {state:<6} {where}")
+        runs = status.get("bad_input", {}).get(name, {}).get("scheduling", {})
+        how = ", ".join(sorted(set(runs.values())))
+        lines.append(f"  {name:<11} {state:<6} {where}" + (f"  ({how})" if how else ""))
     lines += ["", "bridge:"]
     bridge = status["bridge"]
     if bridge is None:

@@ -39,6 +39,7 @@ from manus.errors import ManusError
 from manus.node import Node
 from manus.presence import disabled_services
 from manus.process import lower_priority
+from manus.realtime import ENV, describe
 from manus.session import client_settings
 from manus.validity import warm_up
 from manus_stack.bridge_ready import not_running, wait_running
@@ -57,10 +58,9 @@ LIVELINESS = {
 """``manus`` subcommand -> the liveliness name its node declares."""
 
 NICE = {"planner": 5, "record": 5, "flight": 5, "view": 10}
-"""Niceness of the services off the 60 ms loop: the simulator, bridge, guardian,
-controller, router and the sequencer keep the CPU first when the machine is busy (a late
-joint state, or a late echo of it, stops a path: the sequencer's heartbeat is on the
-deadman's path; docs/deployment.md, Deadman heartbeat)."""
+"""Niceness of the services off the 60 ms loop. Those on it (router, simulator, bridge,
+guardian, controller, sequencer: its heartbeat echo is on the deadman's path) raise their
+own priority once started (:mod:`manus.realtime`, docs/deployment.md)."""
 
 
 class StackError(ManusError):
@@ -101,6 +101,8 @@ class StackOptions:
         view_port: its port.
         objects: the simulator's objects (``manus sim --objects``: ``default``, ``none``
             or a file), which its camera reports on ``perception/objects``.
+        realtime: ``MANUS_REALTIME`` of the children (empty: as in this environment):
+            the scheduling the ones on the 60 ms path take (:mod:`manus.realtime`).
     """
 
     run_dir: Path
@@ -117,6 +119,7 @@ class StackOptions:
     view: bool = False
     view_port: int = 8765
     objects: str = "default"
+    realtime: str = ""
 
     @property
     def flight_dir(self) -> Path:
@@ -168,8 +171,7 @@ class LocalStack:
         self.device = ""
         self.disabled: dict[str, str] = {}
         """Liveliness name -> why that service is off on purpose (its ``disabled`` token)."""
-        self.notes: list[str] = []
-        """What :meth:`describe` says besides the processes (the guardian's channel)."""
+        self.notes: list[str] = []  # what describe() says besides the processes
 
     def _env(self) -> dict[str, str]:
         env = dict(os.environ)
@@ -178,6 +180,7 @@ class LocalStack:
         env["MANUS_ZENOH_CONNECT"] = self.options.endpoint
         env["MANUS_PREFIX"] = self.options.prefix
         env["PYTHONUNBUFFERED"] = "1"
+        env |= {ENV: self.options.realtime} if self.options.realtime else {}
         return env
 
     def _spawn(self, name: str, args: list[str], command: str = "") -> Child:
@@ -201,9 +204,8 @@ class LocalStack:
         return child
 
     def respawn(self, child: Child, args: list[str] | None = None) -> Child:
-        """Start ``child`` again (it has exited or been killed: waited for 5 s at most),
-        with its arguments or ``args``, at its place in the start order (so the stop
-        order stays the start order); its log starts afresh."""
+        """Start ``child`` again (exited or killed: waited for 5 s at most), with its
+        arguments or ``args``, at its place in the start (and stop) order; a fresh log."""
         with contextlib.suppress(subprocess.TimeoutExpired):
             child.proc.wait(timeout=5.0)
         child.stream.close()
@@ -358,7 +360,7 @@ class LocalStack:
             lines.append(f"arm: {opts.can_interface} {opts.can_channel}")
         lines += self.notes
         for c in self.children:
-            lines.append(f"{c.name:<10} pid {c.proc.pid:<7} log {c.log}")
+            lines.append(f"{c.name:<10} pid {c.proc.pid:<7} {describe(c.proc.pid):<14} log {c.log}")
         if any(c.name == "record" for c in self.children):
             lines.append(f"recording: {opts.recording}")
         if any(c.name == "flight" for c in self.children):

@@ -3,7 +3,9 @@
 Every service's :class:`manus.node.Node` answers the queryable ``<prefix>/health/<name>``
 (any payload, which it ignores) with a :class:`NodeHealth`: the payloads that failed to
 decode, per key, and the handler errors (a message that decoded but made the service's
-code raise, logged and dropped). ``manus status`` asks ``health/**`` and shows them.
+code raise, logged and dropped), and the scheduling its process runs at (a real-time
+policy or a niceness: :mod:`manus.realtime`). ``manus status`` asks ``health/**`` and
+shows them.
 """
 
 from __future__ import annotations
@@ -36,4 +38,10 @@ class NodeHealth(Message):
         "messages that decoded but made the service's handler raise (logged, dropped)",
         default=0,
         minimum=0,
+    )
+    scheduling: str = field(
+        "its process's scheduling as the kernel reports it: 'rr 10', 'fifo 10' (real-time "
+        "policy and priority), 'normal nice 0'; '' from a node that does not say "
+        "(manus.realtime, docs/deployment.md)",
+        default="",
     )

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, settings
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
 from manus.validity import warm_up
 from manus_stack.up import free_port
-from tests import scheduling
+from tests import live_priority, scheduling
 from tests.run_report import (
     pytest_runtest_makereport,
     pytest_sessionfinish,
@@ -54,8 +54,29 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> LiveApartSch
     return LiveApartScheduling(config, log)
 
 
+_NICE = os.getpriority(os.PRIO_PROCESS, 0)  # a worker's PURE_NICE comes later: pure only
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+    """A live test's process at a real-time priority while it runs (tests/live_priority.py)."""
+    if item.get_closest_marker("slow") is not None:
+        live_priority.enter(item)
+    yield
+    if item.get_closest_marker("slow") is not None:
+        live_priority.started(item)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item: pytest.Item) -> Iterator[None]:
+    """... and ordinary again after it."""
+    yield
+    if item.get_closest_marker("slow") is not None:
+        live_priority.leave(_NICE)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Tests marked ``slow`` run real processes in real time: one at a time
+    """Tests marked ``slow`` run real processes in real time: in a few lanes at once
     (:mod:`tests.scheduling`), and with one rerun, so that a failure tells whether it
     repeats; a run with a rerun still fails (:mod:`tests.run_report`)."""
     if not os.environ.get(LIVE_DRINK):

@@ -1,18 +1,21 @@
-"""How the suite runs in parallel (pytest-xdist): the live tests one at a time on one
-worker, the pure tests on every worker.
+"""How the suite runs in parallel (pytest-xdist): the live tests in two lanes, the pure
+tests on the other workers.
 
-The live tests (marked ``slow``) run real processes against 60 ms real-time cycles: two
-live stacks at once on a 2-core machine compete for the same cores, so they never run
-at the same time. The first worker runs them one after the other, from the start of the
-session (their chain is the longest part of the run); the other workers take the pure
-tests meanwhile, so at most one pure test runs beside a live one, and once the pure
-tests are done the rest of the live chain runs alone. The workers of pure tests run at
-a lower priority (:data:`PURE_NICE`), so the live processes take a core at once when
-they wake. When the live chain is done, its worker takes pure tests too.
+The live tests (marked ``slow``) run real processes against 60 ms real-time cycles. The
+first lane (:data:`LIVE_WORKERS` [0]) runs them one file after another from the start
+of the session, beside the workers of pure tests. A live test's process and the services
+it starts run at a real-time priority where permitted (:mod:`tests.live_priority`,
+:mod:`manus.realtime`), else the pure tests run at a lower one (:data:`PURE_NICE`):
+either way a live test's processes take a core at once when they wake. Once every pure
+test is given out, the second lane (:data:`LIVE_WORKERS` [1], idle
+until then) takes live files from the other end of the chain: two live stacks at once,
+and nothing else, on two cores. A file is one unit (its module fixtures, such as the
+panel's stack and browser, start once).
 
 A run that names test files or ids runs in one process (parallel only costs start-up
-there); ``-n N`` asks for workers anyway. The whole suite, ``python -m pytest`` from the
-repository, gets :func:`workers` of them.
+there); ``-n N`` asks for workers anyway (with two workers, the second lane takes the
+pure tests first). The whole suite, ``python -m pytest`` from the repository, gets
+:func:`workers` of them.
 """
 
 from __future__ import annotations
@@ -25,27 +28,32 @@ from typing import Any
 
 import pytest
 
+from tests import live_priority
+
 LIVE_IDS = "MANUS_TEST_LIVE_IDS"
 """Environment variable: the file where the workers write the ids of the live tests for
 the scheduler (xdist sends the controlling process ids only, not markers)."""
 
 MAX_WORKERS = 8
-LIVE_WORKER = "gw0"
-"""The worker of the live chain (another one only if it died)."""
+LIVE_WORKERS = ("gw0", "gw1")
+"""The workers of the two live lanes: the first from the start, the second once the pure
+tests are given out (another worker takes a lane only if its own died)."""
 PURE_NICE = 5
-"""Niceness of the other workers: a live test's processes (niceness 0) get three times
-their share of a contended core and take it at once when they wake, yet a pure test
-keeps a quarter of a core when a CPU hog (niceness 0) loads every core, so its own
-bounded waits still hold."""
+"""Niceness of the workers of pure tests where a live test cannot run real-time
+(:mod:`tests.live_priority`): a live test's processes (niceness 0) get three times their
+share of a contended core, yet a pure test keeps a quarter of a core when a CPU hog
+(niceness 0) loads every core, so its own bounded waits still hold. Where they can, the
+pure tests run at niceness 0: the live ones take a core first anyway."""
 _OWN_FILE = pytest.StashKey[str]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """In the controlling process: a file for the live tests' ids, which the workers it
-    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE`."""
+    starts find in their environment. In a worker of pure tests: :data:`PURE_NICE` where
+    a live test cannot run real-time."""
     worker = getattr(config, "workerinput", None)
-    if worker is not None and worker.get("workerid") != LIVE_WORKER:
-        os.nice(PURE_NICE)
+    if worker is not None and worker.get("workerid") not in LIVE_WORKERS:
+        os.nice(0 if live_priority.permitted() else PURE_NICE)
     if worker is None and LIVE_IDS not in os.environ:
         handle, path = tempfile.mkstemp(prefix="manus-live-tests-", suffix=".txt")
         os.close(handle)
@@ -62,33 +70,27 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 
 def tell_live(config: pytest.Config, live: list[pytest.Item]) -> None:
-    """In a worker, after collection: write the ids of the live tests in the order they
-    are to run: those marked ``slow(last=True)`` last, after the pure tests are done where
-    the live chain is long enough (every worker collects the same tests and writes the
-    same file, before it reports its collection)."""
+    """In a worker, after collection: write the ids of the live tests for the scheduler
+    (every worker collects the same tests and writes the same file, before it reports its
+    collection)."""
     path = os.environ.get(LIVE_IDS)
     if hasattr(config, "workerinput") and path:
-        ordered = sorted(live, key=_last)
         part = Path(f"{path}.{os.getpid()}")
-        part.write_text("".join(f"{item.nodeid}\n" for item in ordered))
+        part.write_text("".join(f"{item.nodeid}\n" for item in live))
         part.replace(path)
 
 
-def _last(item: pytest.Item) -> bool:
-    mark = item.get_closest_marker("slow")
-    return mark is not None and bool(mark.kwargs.get("last"))
-
-
 def workers(config: pytest.Config) -> int:
-    """Workers for ``-n auto``: one per CPU (at least 2: the live chain and the pure
-    tests; at most :data:`MAX_WORKERS`) for the whole suite, none (one process) when the
-    command line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
+    """Workers for ``-n auto``: the two live lanes and one worker of pure tests per CPU
+    (at least one; at most :data:`MAX_WORKERS` in all) for the whole suite, none (one
+    process) when the command line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS``
+    overrides both."""
     forced = os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS")
     if forced:
         return int(forced)
     if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return 0
-    return min(MAX_WORKERS, max(2, os.cpu_count() or 1))
+    return min(MAX_WORKERS, len(LIVE_WORKERS) + max(1, (os.cpu_count() or 1) - 1))
 
 
 def live_ids() -> list[str]:
@@ -116,12 +118,12 @@ class LiveApartScheduling:
         self.node2collection: dict[Any, list[str]] = {}
         self.node2pending: dict[Any, list[int]] = {}
         self.collection: list[str] | None = None
-        self.live: list[int] = []
-        """Live tests not sent yet (collection indices, in order)."""
+        self.live: list[list[int]] = []
+        """Live files not sent yet: each the collection indices of its tests, in order."""
         self.pure: list[int] = []
         """Pure tests not sent yet."""
-        self.live_node: Any = None
-        """The worker of the live chain (None: not chosen, or it died)."""
+        self.lanes: list[Any] = [None] * len(LIVE_WORKERS)
+        """The worker of each live lane (None: not chosen, or it died)."""
         self.live_ids: set[str] = set()
         """Ids of the live tests."""
 
@@ -168,13 +170,14 @@ class LiveApartScheduling:
                 self.log("the workers collected different tests: nothing runs")
                 return
             self.collection = collections[0]
-            order = live_ids()
-            self.live_ids = set(order)
-            where = {nodeid: index for index, nodeid in enumerate(self.collection)}
-            self.live = [where[nodeid] for nodeid in order if nodeid in where]
-            self.pure = [
-                i for i, nodeid in enumerate(self.collection) if nodeid not in self.live_ids
-            ]
+            self.live_ids = set(live_ids())
+            files: dict[str, list[int]] = {}
+            for index, nodeid in enumerate(self.collection):
+                if nodeid in self.live_ids:
+                    files.setdefault(nodeid.split("::")[0], []).append(index)
+                else:
+                    self.pure.append(index)
+            self.live = list(files.values())
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -186,8 +189,7 @@ class LiveApartScheduling:
     def mark_test_pending(self, item: str) -> None:
         """Run ``item`` again (pytest-rerunfailures, after its worker crashed)."""
         assert self.collection is not None
-        index = self.collection.index(item)
-        (self.live if item in self.live_ids else self.pure).insert(0, index)
+        self._put_back([self.collection.index(item)])
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -199,15 +201,12 @@ class LiveApartScheduling:
         """A worker left: at its shutdown, or crashed (its queue goes back; the test it
         was running is returned)."""
         pending = self.node2pending.pop(node)
-        if node is self.live_node:
-            self.live_node = None
+        self.lanes = [None if lane is node else lane for lane in self.lanes]
         if not pending:
             return None
         assert self.collection is not None
         crashed = self.collection[pending.pop(0)]
-        for index in reversed(pending):
-            queue = self.live if self.collection[index] in self.live_ids else self.pure
-            queue.insert(0, index)
+        self._put_back(pending)
         for other in self.nodes:
             self.check_schedule(other)
         return crashed
@@ -215,32 +214,54 @@ class LiveApartScheduling:
     # -- the policy --------------------------------------------------------------------------
 
     def check_schedule(self, node: Any) -> None:
-        """Give ``node`` work: the live chain if it is (or becomes) its worker, else pure
-        tests, a few at a time; shut it down when nothing is left for it."""
+        """Give ``node`` work: the next live file if it holds a lane that may run now,
+        else pure tests, a few at a time; when nothing is left to give, every worker runs
+        what it holds and leaves."""
         if node.shutting_down or self.collection is None:
             return
-        if self.live and self.live_node is None:
-            ids = {n.gateway.id: n for n in self.nodes if not n.shutting_down}
-            self.live_node = ids.get(LIVE_WORKER, node)
-            if self.live_node is not node:
-                self.check_schedule(self.live_node)
+        self._choose_lanes()
         pending = self.node2pending[node]
-        if node is self.live_node and self.live:
-            self._send(node, self.live, len(self.live))  # one worker, in order
+        lane = self.lanes.index(node) if node in self.lanes else None
+        if lane is not None and (lane == 0 or not self.pure):
+            while self.live and len(pending) < 2:  # a worker runs a test when it holds the next
+                self._send(node, self.live.pop(0) if lane == 0 else self.live.pop())
+        if len(pending) >= 2:
             return
-        if node is self.live_node and len(pending) >= 2:
-            return  # still in the live chain
-        if self.pure:
-            if len(pending) < 2:
-                share = max(2, len(self.pure) // (4 * len(self.node2pending)))
-                self._send(node, self.pure, share - len(pending))
-            return
-        if not self.live:
-            node.shutdown()  # runs what it holds, then leaves
+        pure_workers = [n for n in self.nodes if n not in self.lanes and not n.shutting_down]
+        if self.pure and (lane is None or not pure_workers or not self.live):
+            count = max(2, len(self.pure) // (4 * len(self.node2pending))) - len(pending)
+            chunk, self.pure = self.pure[:count], self.pure[count:]
+            self._send(node, chunk)
+            if not self.pure and self.lanes[-1] not in (None, node):
+                self.check_schedule(self.lanes[-1])  # the second lane's turn
+        if not self.live and not self.pure:
+            for each in self.nodes:  # each runs what it holds, then leaves
+                if not each.shutting_down:
+                    each.shutdown()
 
-    def _send(self, node: Any, queue: list[int], count: int) -> None:
-        chunk = queue[: max(count, 0)]
+    def _choose_lanes(self) -> None:
+        """The worker of each lane: its own one (:data:`LIVE_WORKERS`), else any other
+        that holds no lane (its own died)."""
+        if not self.live:
+            return
+        for i, name in enumerate(LIVE_WORKERS):
+            if self.lanes[i] is not None:
+                continue
+            free = [n for n in self.nodes if n not in self.lanes and not n.shutting_down]
+            named = [n for n in free if n.gateway.id == name]
+            if named or (free and len(free) > 1):
+                self.lanes[i] = (named or free)[0]
+
+    def _put_back(self, indices: list[int]) -> None:
+        """Tests sent and not run go back to the front of their queues (live ones as a
+        file of their own)."""
+        assert self.collection is not None
+        live = [i for i in indices if self.collection[i] in self.live_ids]
+        if live:
+            self.live.insert(0, live)
+        self.pure[:0] = [i for i in indices if self.collection[i] not in self.live_ids]
+
+    def _send(self, node: Any, chunk: list[int]) -> None:
         if chunk:
-            del queue[: len(chunk)]
             self.node2pending[node].extend(chunk)
             node.send_runtest_some(chunk)

@@ -9,6 +9,7 @@ computer's router), and only the routers cross the network, over TLS.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,8 @@ import yaml
 import zenoh
 
 from manus.certs import ARM_USERS, BASE_USERS
-from manus_stack.cli import COMMANDS
+from manus.realtime import CAN_EDGE, DEFAULT
+from manus_stack.cli import COMMANDS, build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
 ZENOH_DIR = ROOT / "deploy" / "zenoh"
@@ -147,3 +149,26 @@ def test_no_credentials_in_the_repository() -> None:
             assert "PRIVATE KEY" not in path.read_text(errors="replace"), path
     ignored = (ROOT / ".gitignore").read_text().split()
     assert "/lab/" in ignored, "./lab (manus certs --out ./lab) must stay out of git"
+
+
+def _takes_realtime(command: str) -> bool:
+    parser = build_parser(command)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return any("--realtime" in a.option_strings for a in sub.choices[command]._actions)
+
+
+def test_the_services_on_the_60_ms_path_may_raise_their_priority() -> None:
+    """The commands that take --realtime (manus.realtime) are the ones on the arm's loop;
+    their containers permit a real-time priority as high as the defaults (ulimits rtprio:
+    Docker does not make cap_add effective for the image's user; SYS_NICE for root)."""
+    services = _compose()["services"]
+    commands = {s["command"][0] for s in services.values()}
+    realtime = {c for c in commands if _takes_realtime(c)}
+    assert realtime == {"router", "bridge", "guardian", "controller", "sim", "sequencer"}
+    for name, service in services.items():
+        if service["command"][0] not in realtime:
+            assert "cap_add" not in service and "ulimits" not in service, name
+            continue
+        assert "SYS_NICE" in service["cap_add"], name
+        assert service["ulimits"]["rtprio"] >= max(DEFAULT.level, CAN_EDGE.level), name
+        assert service["environment"]["MANUS_REALTIME"] == "${MANUS_REALTIME:-}", name

@@ -1,5 +1,6 @@
-"""The suite's own xdist scheduling (tests/scheduling.py): the live tests in one chain on
-one worker, in their order, the pure tests on every worker, every test run once."""
+"""The suite's own xdist scheduling (tests/scheduling.py): the live tests a file at a time
+in two lanes (the second once the pure tests are given out), the pure tests on the other
+workers, every test run once."""
 
 from __future__ import annotations
 
@@ -66,16 +67,37 @@ def _run(
     return ran, order
 
 
-def test_the_live_chain_runs_on_gw0_in_its_order_and_every_test_once(
+LIVE = ["a.py::x", "a.py::y", *(f"f{i:02}.py::x" for i in range(12)), "z.py::x", "z.py::y"]
+
+
+def test_two_lanes_take_live_files_from_both_ends_and_every_test_runs_once(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    collection = [f"t{i}" for i in range(40)]
-    live = ["t3", "t17", "t30", "t5"]  # as tell_live wrote them: t5 marked last
-    ran, _ = _run(collection, live, 2, tmp_path, monkeypatch)
+    collection = [f"p{i}" for i in range(4)] + LIVE + [f"q{i}" for i in range(4)]
+    ran, order = _run(collection, LIVE, 3, tmp_path, monkeypatch)
     assert sorted(t for tests in ran.values() for t in tests) == sorted(collection)  # once each
-    assert [t for t in ran["gw0"] if t in live] == live  # one chain, in the order given
-    assert not set(ran["gw1"]) & set(live)
-    assert ran["gw0"][: len(live)] == live  # from the start
+    assert ran["gw0"][:2] == ["a.py::x", "a.py::y"]  # the first lane from the start
+    assert not set(ran["gw2"]) & set(LIVE)  # the worker of pure tests
+    assert set(ran["gw1"]) <= set(LIVE) and ran["gw1"][:2] == ["z.py::x", "z.py::y"]
+    first_live_of_gw1 = order.index(("gw1", ran["gw1"][0]))
+    pure_left = [t for w, t in order[first_live_of_gw1:] if t[0] in "pq"]
+    assert len(pure_left) <= 2  # only once the pure tests were given out
+    for lane in ("gw0", "gw1"):  # a file stays in one lane, in its order
+        files = [t.split("::")[0] for t in ran[lane] if t in LIVE]
+        assert files == sorted(files) if lane == "gw0" else sorted(files, reverse=True)
+    assert {t.split("::")[0] for t in ran["gw0"] if t in LIVE}.isdisjoint(
+        {t.split("::")[0] for t in ran["gw1"]}
+    )
+
+
+def test_two_workers_the_second_lane_takes_the_pure_tests_first(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    collection = [f"p{i}" for i in range(30)] + LIVE
+    ran, _ = _run(collection, LIVE, 2, tmp_path, monkeypatch)
+    assert sorted(t for tests in ran.values() for t in tests) == sorted(collection)
+    assert ran["gw0"][:2] == ["a.py::x", "a.py::y"]
+    assert ran["gw1"][0].startswith("p")
 
 
 def test_one_worker_runs_everything(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -88,7 +110,8 @@ def test_workers_for_the_whole_suite_only(monkeypatch: pytest.MonkeyPatch) -> No
     monkeypatch.delenv("PYTEST_XDIST_AUTO_NUM_WORKERS", raising=False)
     whole = SimpleNamespace(args_source=pytest.Config.ArgsSource.TESTPATHS)
     named = SimpleNamespace(args_source=pytest.Config.ArgsSource.ARGS)
-    assert 2 <= scheduling.workers(whole) <= scheduling.MAX_WORKERS  # type: ignore[arg-type]
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    assert scheduling.workers(whole) == 3  # type: ignore[arg-type]  # two lanes, one pure
     assert scheduling.workers(named) == 0  # type: ignore[arg-type]
-    monkeypatch.setenv("PYTEST_XDIST_AUTO_NUM_WORKERS", "3")
-    assert scheduling.workers(named) == 3  # type: ignore[arg-type]
+    monkeypatch.setenv("PYTEST_XDIST_AUTO_NUM_WORKERS", "4")
+    assert scheduling.workers(named) == 4  # type: ignore[arg-type]

@@ -11,6 +11,7 @@ import threading
 from pathlib import Path
 
 from manus.node import Node
+from manus.realtime import describe
 from manus.session import ZenohSettings
 from manus_stack.status import collect, format_status
 from schemas import endpoints as ep
@@ -115,5 +116,8 @@ def test_status_shows_each_services_bad_input(zenoh_settings: ZenohSettings) -> 
         "bad_payloads": 3,
         "by_key": {"state/joints": 3},
         "handler_errors": 0,
+        "scheduling": {str(os.getpid()): describe()},  # what the kernel says of this process
     }
-    assert "controller  3 (state/joints 3); 0 handler errors" in format_status(status)
+    text = format_status(status)
+    assert "controller  3 (state/joints 3); 0 handler errors" in text
+    assert f"controller  alive  {socket.gethostname()} pid {os.getpid()}  ({describe()})" in text

@@ -13,6 +13,7 @@ import argparse
 import sys
 
 from manus.process import wait_for_signal
+from manus.realtime import add_realtime_argument, raise_priority, setting
 from manus.session import (
     DEFAULT_ROUTER_ENDPOINT,
     build_config,
@@ -35,10 +36,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="a Zenoh router config file (deploy/zenoh/router-*.json5); replaces --listen",
     )
+    add_realtime_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Route until interrupted."""
+    priority = setting(args)
     stop = wait_for_signal()
     if args.config:
         settings = settings_from_env(config_file=args.config, mode="router")
@@ -47,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         settings = router_settings(args.listen)
         listen = args.listen
     session = open_session(settings)
+    raise_priority(priority, "manus router")  # every message of the arm's loop passes here
     try:
         print(f"router: listening on {listen}", file=sys.stderr, flush=True)
         stop.wait()

@@ -36,6 +36,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from manus.process import wait_for_signal
+from manus.realtime import Priority
 from manus_stack.up import LocalStack, StackOptions
 
 
@@ -93,6 +94,15 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--view-port", type=int, default=8765, help="manus view's port")
     parser.add_argument(
+        "--realtime",
+        default="",
+        metavar="POLICY",
+        help="scheduling of the services on the 60 ms path (router, simulator, bridge, "
+        "guardian, controller, sequencer): off, rr[:PRIO], fifo[:PRIO], nice[:N] "
+        "(default: $MANUS_REALTIME, else rr:20 on the CAN bus, rr:10 the rest; "
+        "docs/deployment.md)",
+    )
+    parser.add_argument(
         "--start-timeout",
         type=float,
         default=60.0,
@@ -119,6 +129,7 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         view=args.view,
         view_port=args.view_port,
         objects=args.objects,
+        realtime=str(Priority.parse(args.realtime)) if args.realtime else "",
     )
 
 

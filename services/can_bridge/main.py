@@ -35,6 +35,7 @@ from manus.canbus import open_bus
 from manus.errors import ConfigError
 from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
+from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
 from services.can_bridge.config import load_bridge_config
@@ -72,6 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", help="bridge config JSON (BridgeConfig field names)")
     add_bus_arguments(parser)
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
+    add_realtime_argument(parser, CAN_EDGE)
 
 
 def resolve_channel(interface: str, channel: str, device_file: str, wait_s: float) -> str:
@@ -114,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
     """Bridge the arm until interrupted."""
     config = load_bridge_config(args.config)
     settings = bus_settings(args)
+    priority = setting(args, default=CAN_EDGE)
     stop = wait_for_signal()
     sys.setswitchinterval(GIL_SWITCH_S)
     channel = resolve_channel(
@@ -126,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
             with BridgeShell(bus, settings, config) as shell:
                 freeze_startup_heap()  # before the cycle runs: no long collections in it
                 shell.start()
+                raise_priority(priority, "manus bridge")
                 print(
                     f"bridge: {args.can_interface} {channel}, "
                     f"serving {shell.node.keys(ep.BRIDGE_COMMAND)}",

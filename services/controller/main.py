@@ -12,6 +12,7 @@ import sys
 
 from manus.config import load_arm_config
 from manus.process import freeze_startup_heap, wait_for_signal
+from manus.realtime import add_realtime_argument, raise_priority, setting
 from manus.session import add_bus_arguments, bus_settings
 from schemas import endpoints as ep
 from services.controller.config import QUANTIZERS, ControllerConfig
@@ -37,11 +38,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jog-max-linear-mm-s", type=float, default=JogConfig.max_linear * 1e3,
                         help="Cartesian jog speed at the top level [mm/s] (default 150, "
                              "at most 250)")  # fmt: skip
+    add_realtime_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve goals until interrupted."""
     settings = bus_settings(args)
+    priority = setting(args)
     config = ControllerConfig(
         arm=load_arm_config(args.arm_config),
         default_quantizer=args.quantizer,
@@ -51,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     stop = wait_for_signal()
     with ControllerShell(settings, config) as shell:
         freeze_startup_heap()
+        raise_priority(priority, "manus controller")
         print(f"controller: serving {shell.node.keys(ep.GOAL)}", file=sys.stderr, flush=True)
         stop.wait()
         with shell.node.lock:

@@ -6,8 +6,8 @@
         --bridge-channel /dev/ttyACM0                         # its own adapter on the arm's bus
 
 An independent process with its own CAN connection: it imports :mod:`manus.protocol`,
-:mod:`manus.canbus` and :mod:`manus.can_sharing` (Zenoh-free), python-can and the
-standard library only (no Zenoh, nothing of the bridge or the controller). With
+:mod:`manus.canbus`, :mod:`manus.can_sharing` and :mod:`manus.realtime` (Zenoh-free),
+python-can and the standard library only (no Zenoh, nothing of the bridge or the controller). With
 ``slcan`` and no ``--can-channel`` the channel is read from ``--device-file``
 (``manus sim --nodes 2`` writes node 1's pty to ``<its --device-file>.1``; default
 ``$MANUS_SIM_DEVICE_FILE.1`` or ``/tmp/manus-sim.device.1``).
@@ -51,6 +51,7 @@ import can
 from manus.can_sharing import DISABLED_SINGLE_READER, claim_channel, second_reader_refusal
 from manus.errors import ConfigError
 from manus.protocol import BITRATE
+from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
 from services.guardian.core import DEFAULT_DEADLINE_MS, Action, GuardianCore
 from services.guardian.loop import LoopStats, run_loop
 
@@ -102,6 +103,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect", nargs="+", metavar="ENDPOINT", help="router (reporter)")
     parser.add_argument("--prefix", help="key prefix (reporter; default $MANUS_PREFIX)")
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
+    add_realtime_argument(parser, CAN_EDGE)
 
 
 def guardian_channel(args: argparse.Namespace) -> str:
@@ -212,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    priority = setting(args, default=CAN_EDGE)
     channel = guardian_channel(args)
     bridge_interface = args.bridge_interface or args.can_interface
     why = second_reader_refusal(args.can_interface, channel, bridge_interface, args.bridge_channel)
@@ -227,6 +230,7 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         loop.start()
+        raise_priority(priority, "manus guardian")  # after the reporter started: not it
         where = f"{args.can_interface} {channel}, deadline {args.deadline_ms:g} ms"
         reports.put("started", detail=where)
         print(f"guardian: {where}", file=sys.stderr, flush=True)

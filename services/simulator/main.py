@@ -34,6 +34,7 @@ from manus.canbus import open_bus
 from manus.node import Node
 from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
+from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
 from manus.session import settings_from_env
 from schemas import endpoints as ep
 from schemas.simfault import SimFault
@@ -121,6 +122,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PNG",
         help="write the joint 2 step-response plot (the thesis's experiment) and exit",
     )
+    add_realtime_argument(parser, CAN_EDGE)
 
 
 def open_sim_bus(interface: str, channel: str, bitrate: int, nodes: int = 1) -> can.BusABC:
@@ -172,6 +174,7 @@ def run(args: argparse.Namespace) -> int:
 
         print(f"plot: {plot_step_response(args.step_response, config)}")
         return 0
+    priority = setting(args, default=CAN_EDGE)
     stop = wait_for_signal()
     deadline = None if args.duration is None else time.monotonic() + args.duration
     bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate, args.nodes)
@@ -206,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
         if not stop.is_set():
             freeze_startup_heap()
             live.start()
+            raise_priority(priority, "manus sim")
             stop.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
             live.stop()
         stats = {
