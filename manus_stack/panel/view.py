@@ -253,9 +253,7 @@ class PanelView:
         """The person can say "done": the running task's step is a follow step (the drink's
         hold at the mouth; the sequencer's ``done`` ends it and the task goes on)."""
         task = self.task
-        return (
-            task is not None and task.state == TaskState.RUNNING and task.kind == StepKind.FOLLOW
-        )
+        return task is not None and task.state == TaskState.RUNNING and task.kind == StepKind.FOLLOW
 
     def task_words(self) -> str:
         """The task's progress in plain words ('' when none runs)."""
