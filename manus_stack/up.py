@@ -189,15 +189,13 @@ class LocalStack:
         log = logs / f"{name}.log"
         stream = log.open("wb")
         argv = [sys.executable, "-m", "manus_stack.cli", command or name, *args]
-        nice = NICE.get(name, 0)
         proc = subprocess.Popen(
             argv,
             stdout=stream,
             stderr=subprocess.STDOUT,
             env=self._env(),
             start_new_session=True,
-            # its own session: its own scheduling group, lowered with it (lower_priority)
-            preexec_fn=(lambda: lower_priority(nice)) if nice else None,  # noqa: PLW1509 (no threads yet)
+            preexec_fn=(lambda: lower_priority(NICE[name])) if name in NICE else None,  # noqa: PLW1509 (no threads yet)
         )
         child = Child(name, argv, log, proc, stream)
         self.children.append(child)
