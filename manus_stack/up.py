@@ -38,6 +38,7 @@ from typing import IO
 from manus.errors import ManusError
 from manus.node import Node
 from manus.presence import disabled_services
+from manus.process import lower_priority
 from manus.realtime import ENV, describe
 from manus.session import client_settings
 from manus.validity import warm_up
@@ -188,14 +189,13 @@ class LocalStack:
         log = logs / f"{name}.log"
         stream = log.open("wb")
         argv = [sys.executable, "-m", "manus_stack.cli", command or name, *args]
-        nice = NICE.get(name, 0)
         proc = subprocess.Popen(
             argv,
             stdout=stream,
             stderr=subprocess.STDOUT,
             env=self._env(),
             start_new_session=True,
-            preexec_fn=(lambda: os.nice(nice)) if nice else None,  # noqa: PLW1509 (no threads yet)
+            preexec_fn=(lambda: lower_priority(NICE[name])) if name in NICE else None,  # noqa: PLW1509 (no threads yet)
         )
         child = Child(name, argv, log, proc, stream)
         self.children.append(child)

@@ -1,7 +1,8 @@
 """``manus demo drink`` end to end: every service its own process, over Zenoh, real time,
 judged on the simulator's truth (docs/drink.md).
 
-About 100 s of wall time (the whole drink in real time, 5 s at the mouth); run in CI.
+About 90 s of wall time (the whole drink in real time, 5 s at the mouth): skipped unless
+``MANUS_TEST_LIVE_DRINK=1`` (marker ``live_drink``, docs/testing.md).
 """
 
 from __future__ import annotations

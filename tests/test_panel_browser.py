@@ -383,14 +383,33 @@ def test_every_colour_meets_wcag_aa(rig: PanelRig, page: Page) -> None:
 @pytest.mark.live_drink
 def test_pressing_drink_runs_the_task_on_the_simulator(rig: PanelRig, page: Page) -> None:
     """The whole drink (docs/drink.md) from the folded arm: the cup from the table to the
-    swaying mouth, held for the task's 20 s, back on the table, folded; judged on the
-    truth. Last in the module: a drink stopped half-way leaves the arm where the panel's
-    Fold cannot plan from."""
+    swaying mouth, held there until the person presses Done (the task alone would hold
+    for 20 s), back on the table, folded; judged on the truth. Last in the module: a
+    drink stopped half-way leaves the arm where the panel's Fold cannot plan from."""
     arm_to(rig, page, "folded")
     cup_before = _cup(rig)
+    assert page.locator("#done").is_hidden()
     page.click("#task-drink")
     rig.wait_moving(timeout=30.0)
     assert page.text_content("#arm") == "Busy: Drink"
+    # Done shows with the follow step (4 of 7); the step's progress starts once the cup
+    # holds at the mouth: 44 % of the task is a little of that hold. (A task that ends
+    # before, failed, ends the waits: wait_done says why.)
+    page.wait_for_function(
+        "document.getElementById('task').hidden"
+        " || Number(document.getElementById('task-bar').getAttribute('aria-valuenow')) >= 44",
+        timeout=DRINK_TIMEOUT_S * 1000,
+    )
+    if page.locator("#task").is_hidden():
+        wait_done(page, "Drink", 1.0)  # says why it ended
+        pytest.fail("the drink ended before it held at the mouth")
+    assert page.locator("#done").is_visible()
+    words = page.text_content("#task-words") or ""
+    assert words.startswith("Drink: Holding it for you, step 4 of 7"), words
+    page.click("#done")
+    # the hold ends at the person's word, long before the task's own 20 s
+    page.wait_for_function("document.getElementById('done').hidden", timeout=10_000)
+    assert "step 4 of 7" not in (page.text_content("#task-words") or "")
     wait_done(page, "Drink", DRINK_TIMEOUT_S)
     assert page.text_content("#arm") == "Ready"
     truth = rig.latest()

@@ -108,3 +108,13 @@ def test_stop_and_bad_messages_stop_the_pad() -> None:
         "jog down", "estop True", "stop", "estop False", "jog open", "stop", "jog close", "stop",
     ]  # fmt: skip
     assert sorted(calls[8:]) == ["control pause", "level 3"]  # in threads: any order
+
+
+def test_done_goes_to_the_sequencer_as_its_done() -> None:
+    """The page's Done button: the sequencer's ``done`` through the supervisor API."""
+
+    async def script(ws: ClientWebSocketResponse) -> None:
+        await ws.send_json({"t": "control", "action": "done"})
+        await ws.close()
+
+    assert asyncio.run(_session(script)) == ["control done"]

@@ -280,3 +280,27 @@ def test_the_panel_uses_the_supervisor_and_jog_apis_only() -> None:
     keys = {name for name in dir(ep) if getattr(ep, name) in PANEL_KEYS}
     assert named and named <= keys | {"SIM_TRUTH"}, named - keys  # the truth: the test rig
     assert all(key.audience is ep.Audience.SUPERVISOR for key in PANEL_KEYS)
+
+
+def test_done_is_offered_while_a_follow_step_runs() -> None:
+    """The drink's hold at the mouth ends when the person says so: the page offers Done
+    while the running step is a follow step, and not while paused or at another step."""
+    view = PanelView(load_buttons())
+    assert view.snapshot()["task"] is None
+
+    def event(seq: int, kind: str, step: int = 3, what: str = "step_started") -> None:
+        view.on_event(TaskEvent(stamp_ns=seq, seq=seq, task_id="d", event=what, step=step,
+                                total=7, kind=kind))  # fmt: skip
+
+    event(0, "", -1, "accepted")
+    event(1, "pick", 1)
+    assert not view.can_finish() and not view.snapshot()["task"]["can_finish"]
+    event(2, "follow")
+    assert view.can_finish() and view.snapshot()["task"]["can_finish"]
+    assert view.task_words() == "A task: Holding it for you, step 4 of 7 (43 %)"
+    event(3, "follow", what="paused")
+    assert not view.can_finish()
+    event(4, "follow", what="resumed")
+    assert view.can_finish()
+    event(5, "place", 4)
+    assert not view.can_finish()

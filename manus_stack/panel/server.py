@@ -11,7 +11,8 @@ The page and the server speak JSON over the WebSocket ``/ws``. The page sends:
 - ``{"t": "release"}`` when the button is let go: a stop at once;
 - ``{"t": "stop"}`` (STOP) and ``{"t": "release_stop"}``: the e-stop, engaged or released;
 - ``{"t": "task", "id": ID, "object": NAME}``, ``{"t": "control", "action": A}`` (pause,
-  resume, cancel) and ``{"t": "level", "level": N}``.
+  resume, cancel, done: the person ends the follow step that holds, the drink's hold at
+  the mouth) and ``{"t": "level", "level": N}``.
 
 A socket that closes (the tab closed, the page left, the WebSocket's ping unanswered for
 :data:`HEARTBEAT_S`) while its pad was held publishes a stop at once; when the last page
@@ -204,7 +205,7 @@ class PanelServer:
             self.bus.estop(False)
         elif kind == "task":
             self._start(str(data["id"]), str(data.get("object", "")))
-        elif kind == "control" and data["action"] in ("pause", "resume", "cancel"):
+        elif kind == "control" and data["action"] in ("pause", "resume", "cancel", "done"):
             self._off_loop(self.bus.control, str(data["action"]))
         elif kind == "level":
             self._off_loop(self.bus.set_level, max(1, int(data["level"])))

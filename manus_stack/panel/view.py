@@ -36,6 +36,7 @@ STEP_WORDS: dict[str, str] = {
     StepKind.POSE: "Moving",
     StepKind.GRIPPER: "Moving the hand",
     StepKind.WAIT: "Waiting",
+    StepKind.FOLLOW: "Holding it for you",
 }
 """What a step does, in words (a kind not here: "Working")."""
 
@@ -248,6 +249,12 @@ class PanelView:
             return "Moving by hand"
         return "Ready"
 
+    def can_finish(self) -> bool:
+        """The person can say "done": the running task's step is a follow step (the drink's
+        hold at the mouth; the sequencer's ``done`` ends it and the task goes on)."""
+        task = self.task
+        return task is not None and task.state == TaskState.RUNNING and task.kind == StepKind.FOLLOW
+
     def task_words(self) -> str:
         """The task's progress in plain words ('' when none runs)."""
         task = self.task
@@ -275,6 +282,7 @@ class PanelView:
                 "state": str(task.state),
                 "words": self.task_words(),
                 "progress": round(task.progress, 3),
+                "can_finish": self.can_finish(),
             },
             "notice": None
             if notice is None

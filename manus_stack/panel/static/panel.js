@@ -135,6 +135,7 @@ function show(v) {
     $("task-bar").setAttribute("aria-valuenow", String(pct));
     $("pause").hidden = task.state !== "running";
     $("resume").hidden = task.state !== "paused";
+    $("done").hidden = !task.can_finish;
   }
   for (const b of $("tasks").children) b.disabled = Boolean(task);
   $("level").textContent = v.level ? `Speed ${v.level} of ${v.levels}` : "Speed –";
@@ -154,6 +155,7 @@ $("release-stop").addEventListener("click", () => send({ t: "release_stop" }));
 $("pause").addEventListener("click", () => send({ t: "control", action: "pause" }));
 $("resume").addEventListener("click", () => send({ t: "control", action: "resume" }));
 $("cancel").addEventListener("click", () => send({ t: "control", action: "cancel" }));
+$("done").addEventListener("click", () => send({ t: "control", action: "done" }));
 $("slower").addEventListener("click", () => view && send({ t: "level", level: view.level - 1 }));
 $("faster").addEventListener("click", () => view && send({ t: "level", level: view.level + 1 }));
 // (an unknown level, 0, goes to 1: the slowest)
