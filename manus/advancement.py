@@ -55,6 +55,13 @@ class Advancement:
         self._reach[:] = reach
         self.margin = margin
 
+    @property
+    def free(self) -> np.ndarray:
+        """Each body's margin at the anchor [m], shape (B,) (read only: a view)."""
+        view = self._free.view()
+        view.flags.writeable = False
+        return view
+
     def forget(self) -> None:
         """No anchor: nothing is proven until the next one (a wider gripper, say)."""
         self._free[:] = -math.inf

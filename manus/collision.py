@@ -212,12 +212,15 @@ class CollisionModel:
 
     # --- motions --------------------------------------------------------------------------
 
-    def probe(self, q: np.ndarray, time: float = 0.0, *, reach: bool = True) -> Probe:
+    def probe(
+        self, q: np.ndarray, time: float = 0.0, *, reach: bool = True, skip: Any = None
+    ) -> Probe:
         """At ``q``, per moving body: its tightest margin (how far it may travel before any
         of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
-        False: cheaper); and the tightest check."""
+        False: cheaper); and the tightest check (of the bodies asked: ``skip``, a bool
+        per moving body, leaves those bodies' pairs out, their margins inf)."""
         q = np.asarray(q, dtype=float)
-        free, tight, tight_row = self.pair_margins(q)
+        free, tight, tight_row = self.pair_margins(q, skip)
         points = self.cover.world(self.data)
         for margin, check, per_body in self.cover.keep_in_at(points):
             np.minimum(free, per_body, out=free)
@@ -233,16 +236,19 @@ class CollisionModel:
         reaches = self.cover.reach(points) if reach else self._no_reach
         return Probe(best, np.maximum(free, 0.0, out=free), reaches)
 
-    def pair_margins(self, q: np.ndarray) -> tuple[np.ndarray, float, int]:
+    def pair_margins(self, q: np.ndarray, skip: Any = None) -> tuple[np.ndarray, float, int]:
         """The pair checks at ``q`` [rad] (no keep-in zones): each moving body's tightest
-        margin [m] (inf: nothing to keep clear of), shape (moving bodies,); the tightest
-        margin of all [m] and its row in :attr:`checks` (-1: none)."""
+        margin [m] (inf: nothing to keep clear of, or left out by ``skip``, a bool per
+        moving body), shape (moving bodies,); the tightest margin of all [m] and its row
+        in :attr:`checks` (-1: none)."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q)
         update, distances = pin.updateGeometryPlacements, pin.computeDistances
         free = self._no_margin.copy()
         tight, tight_row = math.inf, -1
         for b, gm, gd, rows in self._live:
+            if skip is not None and skip[b]:
+                continue
             update(model, data, gm, gd)
             k = distances(gm, gd)
             if k >= len(rows):

@@ -124,6 +124,9 @@ class ValidityChecker:
         self._obstacles = obstacles(model, self.bodies)
         self._others = self._obstacles.others
         self._opening, self._moved = model.opening, model.moved.version
+        self._by_opening: dict[float, tuple[Any, ...]] = {}
+        """The arrays built per gripper opening while no object moved (a gripper that
+        closes and opens again: the same arrays, not built again; at most 8)."""
         self._build()
 
     # --- building ----------------------------------------------------------------------------
@@ -192,26 +195,22 @@ class ValidityChecker:
         local = np.array([np.eye(4) if m else np.zeros((4, 4)) for m in moving]).reshape(-1, 4, 4)
         for o in np.flatnonzero(moving):
             local[o] = found.prims[o].pose
-        self._scene = (
-            o_kind,
-            o_R,
-            o_t,
-            o_s,
-            req,
-            found.applies,
-            zk,
-            zR,
-            zt,
-            zs,
-            z_req,
-            holds,
-            boxes,
-            found.partner,
-            found.rigid,
-            found.joint.astype(np.int64),
-            local,
-        )
-        n, B, m = len(pieces), len(self.bodies), len(cover_body)
+        self._scene = (o_kind, o_R, o_t, o_s, req, found.applies, zk, zR, zt, zs, z_req, holds,
+            boxes, found.partner, found.rigid, found.joint.astype(np.int64), local)  # fmt: skip
+        self._lever_table = lever_table(self.model, self._arm, self._joint_of)
+        if self.model.moved.version == 0:
+            if len(self._by_opening) >= 8:
+                self._by_opening.clear()
+            self._by_opening[self._opening] = (list(self._shape_of), self._obstacles,
+                self._arm, self._scene, self._zone_checks, self._lever_table)  # fmt: skip
+        self._fresh_scratch()
+        self._warm_up()
+
+    def _fresh_scratch(self) -> None:
+        """The kernels' work arrays, as new (one holds each body's nearest obstacle last
+        time: a new check starts without it)."""
+        n, B = len(self._arm[3]), len(self.bodies)
+        m = len(self._arm[14])
         self._scratch = (
             np.zeros((self._placements.shape[0], 4, 4)),
             np.zeros((n, 3)),
@@ -223,8 +222,6 @@ class ValidityChecker:
         )
         self._free = np.empty(B)
         self._levers = np.empty((self._placements.shape[0] - 1, B))
-        self._lever_table = lever_table(self.model, self._arm, self._joint_of)
-        self._warm_up()
 
     def _warm_up(self) -> None:
         """Compile (or load) every kernel now, once per process: the first call costs
@@ -247,23 +244,19 @@ class ValidityChecker:
         motion_kernels.stretch_bounds(
             np.zeros((1, 6)), np.zeros((2, 1)), np.zeros((2, 6, 1)), np.empty(1), np.empty(1)
         )
-        motion_kernels.motion(  # past the margins to the reach: compiled too
-            q,
-            q + 1e-3,
-            -math.inf,
-            1,
-            self._arm,
-            self._scene,
-            self._scratch,
-            self._free,
-            self._levers,
-            math.inf,
-        )
+        arrays = (self._arm, self._scene, self._scratch, self._free, self._levers, math.inf)
+        motion_kernels.motion(q, q + 1e-3, -math.inf, 1, *arrays)  # past the margins: too
 
     def _follow_opening(self) -> None:
         self._moved = place_moved(self.model, self._obstacles, self._scene, self._moved)
         if self.model.opening != self._opening:
             self._opening = self.model.opening
+            built = self._by_opening.get(self._opening) if self._moved == 0 else None
+            if built is not None:  # the arrays of a rebuild, as they were for this opening
+                shapes, self._obstacles, self._arm, self._scene, self._zone_checks, levers = built
+                self._shape_of, self._lever_table = list(shapes), levers
+                self._fresh_scratch()
+                return
             gripper = self.bodies.index("gripper")
             self._shape_of[gripper] = self._shape(self.model.body_index["gripper"])
             self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover

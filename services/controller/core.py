@@ -26,8 +26,9 @@ Contract (docs/architecture.md, Time; Freshness and safety rules; Command source
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from services.controller.command_source import (
     CommandSource,
     Cycle,
     End,
+    Host,
     Refused,
     Sent,
 )
@@ -112,7 +114,8 @@ class ControllerCore:
         the guard keeps clear like the arm's own bodies."""
         self.moved: dict[str, np.ndarray] = {}
         """Scene objects a tracker moved (name -> pose, chair frame), kept across scenes."""
-        self.sources = tuple(kind(self) for kind in SOURCES)
+        # A weak reference, no cycle: a core let go of frees its guard's model at once.
+        self.sources = tuple(kind(cast(Host, weakref.proxy(self))) for kind in SOURCES)
         """One of each registered command source."""
         self._ranked = sorted(self.sources, key=lambda s: -s.PRIORITY)
         self._observers = [s for s in self.sources if type(s).observe is not CommandSource.observe]
@@ -243,12 +246,12 @@ class ControllerCore:
     def on_scene(self, scene: SceneState) -> Output:
         """The planner's scene (replaced at run time, or its periodic announcement): the
         guard follows it (one that does not build keeps the guard as it was; the planner
-        validated it already). The same scene again changes nothing."""
+        validated it already). The same scene again, or no guard at all: nothing."""
         if scene.same_scene(self.scene_seen):
             return []
         self.scene_seen = scene
-        guard = scene_guard(scene, self._config.arm, self.world.held, self.moved)
-        if guard is not None and self.guard is not None:
+        guard = self.guard and scene_guard(scene, self._config.arm, self.world.held, self.moved)
+        if guard is not None:
             self.guard = guard
         return []
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import weakref
 from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
@@ -39,13 +40,16 @@ from manus.config import ArmConfig
 from manus.held import HeldBody
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
-from manus.scene import SceneError, parse_scene, scene_from_setting
+from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.validity import checker_for
 from schemas.collision import ClearanceReport, SceneState
 from schemas.state import JointState
 
 _NOTHING = (0.0,) * 6
 """The DH velocities in flight when the frame in flight is not a joint move [rad/s]."""
+
+_ROUNDING_M = 1e-6
+"""More than a margin's rounding in ``distance - required`` [m] (a report's comparisons)."""
 
 _SAME = np.eye(6)
 """The rates the prediction takes are DH rates already: no map."""
@@ -228,10 +232,23 @@ class Guard:
 
     def _report(self, q: np.ndarray) -> Clearance | None:
         """Coal's tightest check at ``q`` when it may be below :attr:`report_below` (the
-        fast bound says whether it can be), else None."""
-        if self.advance.margin >= self.report_below:
+        fast bound says whether it can be), else None; ``q`` is the anchor.
+
+        Coal computes only the bodies whose fast margin at the anchor (a lower bound of
+        each of its checks where it is not negative, 10 um under Coal's) may be below
+        :attr:`report_below`: the tightest of the others cannot be. A result that is not
+        below it (by more than a rounding) is None, as the caller would not keep it. With
+        held objects every body is computed (a pair between a held body and an arm body
+        may count for either in the fast check's bodies)."""
+        below = self.report_below
+        if self.advance.margin >= below:
             return None
-        return self.model.probe(q, reach=False).best
+        if self.model.held:
+            return self.model.probe(q, reach=False).best
+        lower = self.advance.free
+        skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M)
+        best = self.model.probe(q, reach=False, skip=skip).best
+        return best if best.margin < below + _ROUNDING_M else None
 
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
         best, free, reach = self.model.probe(q)
@@ -316,6 +333,48 @@ def scene_guard(
 
 
 def run_guard(scene: str, arm: ArmConfig) -> RunGuard | None:
-    """The guard for a scene setting (``default``, ``none`` or a file; None: no guard)."""
+    """The guard for a scene setting (``default``, ``none`` or a file; None: no guard).
+
+    Its collision model is one a guard of the same scene and arm left unchanged (its
+    objects where the scene puts them) when there is one: building a model is most of a
+    core's start (5 ms), and a process (a replay check, a benchmark, lock-step runs)
+    starts many cores. Distances do not depend on what was asked before (Coal starts
+    each query afresh, :func:`manus.shapes.fresh_guesses`), so the model used again
+    answers as a new one would; its gripper opening is set back to the built one's.
+    """
     loaded = scene_from_setting(scene)
-    return None if loaded is None else RunGuard(Guard(CollisionModel(loaded, arm)))
+    if loaded is None:
+        return None
+    guard = Guard(_spare_model(loaded, arm))
+    weakref.finalize(guard, _give_back, loaded, arm, guard.model)
+    return RunGuard(guard)
+
+
+_SPARE: dict[tuple[int, ArmConfig], tuple[Scene, list[CollisionModel]]] = {}
+"""Per scene (a loaded file's, shared by the process: :func:`manus.scene.load_scene`)
+and arm: the models of guards that are gone, as they were built."""
+
+
+def _spare_model(scene: Scene, arm: ArmConfig) -> CollisionModel:
+    """A model of ``scene`` and ``arm`` no guard uses, or a new one."""
+    entry = _SPARE.get((id(scene), arm))
+    try:
+        model = entry[1].pop() if entry is not None and entry[0] is scene else None
+    except IndexError:  # none left
+        model = None
+    if model is None:
+        return CollisionModel(scene, arm)
+    model.set_opening(arm.gripper_max)  # as built (the fast check follows it)
+    return model
+
+
+def _give_back(scene: Scene, arm: ArmConfig, model: CollisionModel) -> None:
+    """Keep ``model`` (its guard is gone) for the next guard of ``scene`` and ``arm``,
+    unless something in it changed that a new model would not have (a moved object)."""
+    if model.moved.version != 0 or model.held:
+        return
+    key = (id(scene), arm)
+    entry = _SPARE.get(key)
+    if entry is None or entry[0] is not scene:
+        entry = _SPARE[key] = (scene, [])
+    entry[1].append(model)
