@@ -133,6 +133,10 @@ class CollisionModel:
         # Built on the first restrict (the sweep's): a third of building a model, which
         # the controller's guard never needs.
         self._partner_boxes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.derived: dict[str, object] = {}
+        """What other modules build from this model once (the fast check, the sweep's body
+        points): it lives and dies with the model (a table keyed by the model, whose
+        values refer to their key, would keep every model alive for the process)."""
         self._no_reach = np.zeros((6, len(self.moving)))
         self._no_reach.flags.writeable = False
         overlaps = self.base_overlaps()

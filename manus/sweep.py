@@ -37,7 +37,6 @@ straight lines in joint space.
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -336,14 +335,12 @@ class _Motion:
         return lows, farthest, inner_best
 
 
-_BODY_POINTS: weakref.WeakKeyDictionary[CollisionModel, BodyPoints] = weakref.WeakKeyDictionary()
-
-
 def _body_points(model: CollisionModel) -> BodyPoints:
-    """The model's :class:`BodyPoints`, built once per model."""
-    found = _BODY_POINTS.get(model)
-    if found is None:
-        found = _BODY_POINTS[model] = BodyPoints(model)
+    """The model's :class:`BodyPoints`, built once per model and kept by it
+    (:attr:`CollisionModel.derived`)."""
+    found = model.derived.get("body_points")
+    if not isinstance(found, BodyPoints):
+        found = model.derived["body_points"] = BodyPoints(model)
     return found
 
 

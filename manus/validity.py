@@ -26,7 +26,6 @@ start, never in a control cycle (``manus bench validity`` reports the cost).
 from __future__ import annotations
 
 import math
-import weakref
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -371,7 +370,7 @@ class ValidityChecker:
         return Check(self.bodies[body], name, cls, required)
 
 
-_CHECKERS: weakref.WeakKeyDictionary[CollisionModel, ValidityChecker] = weakref.WeakKeyDictionary()
+
 
 
 def warm_up() -> None:
@@ -382,10 +381,12 @@ def warm_up() -> None:
 
 
 def checker_for(model: CollisionModel) -> ValidityChecker:
-    """The model's checker, built once per model."""
-    found = _CHECKERS.get(model)
-    if found is None:
-        found = _CHECKERS[model] = ValidityChecker(model)
+    """The model's checker, built once per model and kept by it (:attr:`CollisionModel.
+    derived`: a table keyed by the model whose values refer to their key would keep every
+    model alive for the whole process)."""
+    found = model.derived.get("validity")
+    if not isinstance(found, ValidityChecker):
+        found = model.derived["validity"] = ValidityChecker(model)
     return found
 
 
