@@ -12,6 +12,9 @@ subscriber while it is still stopped (a blocked router would hold them until the
 SIGCONT). The router cuts the stopped one off once its queue has stayed full for
 ``manus.session.BLOCK_CLOSE_US``; a subscriber that is merely slow keeps every message
 (blocking congestion control kept: the recorder loses nothing while it is alive).
+
+Live tests (``slow``): they judge a router against time, so they run in a live lane, at
+its priority (tests/scheduling.py), not beside a CPU-bound pure test on a loaded machine.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import threading
 import time
 from collections.abc import Iterator
 
+import pytest
 import zenoh
 
 from manus.node import Node
@@ -32,6 +36,8 @@ from manus.session import ZenohSettings, client_settings, open_session
 from schemas import endpoints as ep
 from schemas.control import Heartbeat
 from tests.conftest import eventually, matched_publisher
+
+pytestmark = pytest.mark.slow
 
 SUBSCRIBER = """
 import sys, time
