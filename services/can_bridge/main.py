@@ -31,7 +31,7 @@ from typing import Any
 import can
 
 from manus.can_sharing import claim_channel
-from manus.canbus import open_bus
+from manus.canbus import open_bus, settles_at_once
 from manus.errors import ConfigError
 from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
@@ -102,12 +102,12 @@ def open_arm_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
     For slcan, the serial read timeout is raised from python-can's 1 ms to
     ``SLCAN_READ_TIMEOUT_S``: a read returns as soon as a byte is in, so latency is the
     same, but the receive loop no longer wakes a thousand times a second. A
-    pseudo-terminal (the simulator) needs no settle time after opening.
+    pseudo-terminal or a socket (the simulator) needs no settle time after opening.
     """
     extra: dict[str, Any] = {}
     if interface == "slcan":
         extra["timeout"] = SLCAN_READ_TIMEOUT_S
-        if channel.startswith("/dev/pts/"):
+        if settles_at_once(channel):
             extra["sleep_after_open"] = 0
     return open_bus(interface, channel, bitrate, **extra)
 

@@ -49,6 +49,7 @@ from typing import IO, Any
 import can
 
 from manus.can_sharing import DISABLED_SINGLE_READER, claim_channel, second_reader_refusal
+from manus.canbus import open_bus, settles_at_once
 from manus.errors import ConfigError
 from manus.protocol import BITRATE
 from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
@@ -128,12 +129,12 @@ def open_guardian_bus(args: argparse.Namespace, channel: str) -> can.BusABC:
     extra = dict[str, Any]()
     if args.can_interface == "slcan":
         # non-blocking serial reads: the loop waits in select (services.guardian.loop)
-        extra = {"timeout": 0, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
+        extra = {"timeout": 0, "sleep_after_open": 0 if settles_at_once(channel) else 2}
     try:
         claim_channel(args.can_interface, channel, "manus guardian")
+        return open_bus(args.can_interface, channel, args.bitrate, **extra)
     except ConfigError as exc:
         raise SystemExit(str(exc)) from exc
-    return can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
 
 
 class Reports:
