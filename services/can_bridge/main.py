@@ -42,7 +42,7 @@ from services.can_bridge.config import load_bridge_config
 from services.can_bridge.shell import BridgeShell
 
 DEFAULT_DEVICE_FILE = "/tmp/manus-sim.device"
-"""Where ``manus bridge`` looks for the simulator's pty by default (see the module doc)."""
+"""Where ``manus bridge`` looks for the simulator's channel by default (see the module doc)."""
 GIL_SWITCH_S = 0.0005
 """Interpreter thread switch interval in ``manus bridge`` [s] (Python's default is 5 ms):
 a Zenoh callback thread holding the interpreter delays the receive loop by at most this."""
@@ -65,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device-file",
         default=os.environ.get("MANUS_SIM_DEVICE_FILE", DEFAULT_DEVICE_FILE),
-        help="file holding the simulator's slcan device path (manus sim --device-file)",
+        help="file holding the simulator's slcan channel (manus sim --device-file)",
     )
     parser.add_argument(
         "--wait-device", type=float, default=10.0, help="wait this long for the device file [s]"

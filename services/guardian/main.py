@@ -9,7 +9,7 @@ An independent process with its own CAN connection: it imports :mod:`manus.proto
 :mod:`manus.canbus`, :mod:`manus.can_sharing` and :mod:`manus.realtime` (Zenoh-free),
 python-can and the standard library only (no Zenoh, nothing of the bridge or the controller). With
 ``slcan`` and no ``--can-channel`` the channel is read from ``--device-file``
-(``manus sim --nodes 2`` writes node 1's pty to ``<its --device-file>.1``; default
+(``manus sim --nodes 2`` writes node 1's channel to ``<its --device-file>.1``; default
 ``$MANUS_SIM_DEVICE_FILE.1`` or ``/tmp/manus-sim.device.1``).
 
 It never shares a single-reader channel with the bridge (:mod:`manus.can_sharing`: two
@@ -72,12 +72,16 @@ def default_device_file() -> str:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``manus guardian``."""
     parser.add_argument("--can-interface", default="slcan", help="python-can interface")
-    parser.add_argument("--can-channel", default="", help="channel (can0, a pty, ...)")
+    parser.add_argument(
+        "--can-channel",
+        default="",
+        help="channel (can0, /dev/ttyACM1, socket://127.0.0.1:PORT ...)",
+    )
     parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
     parser.add_argument(
         "--device-file",
         default=default_device_file(),
-        help="with slcan and no --can-channel: file holding the simulator node's pty",
+        help="with slcan and no --can-channel: file holding the simulator node's channel",
     )
     parser.add_argument("--wait-device", type=float, default=10.0, help="wait for it [s]")
     parser.add_argument(
