@@ -14,7 +14,9 @@ import pytest
 
 from manus.can_sharing import claim_channel, same_channel, second_reader_refusal
 from manus.canbus import from_can, open_bus, settles_at_once, to_can
+from manus.errors import ConfigError
 from manus.protocol import Frame, FrameId, empty_frame, sync_frame
+from services.simulator.main import SIM_INTERFACE, open_sim_bus
 from services.simulator.nodes import slcan_node
 from services.simulator.slcan_socket import SlcanSocketBus
 
@@ -166,3 +168,10 @@ def test_one_socket_node_is_one_channel_for_the_guardian() -> None:
     assert not same_channel(bridge, "socket://127.0.0.1:40002")
     assert second_reader_refusal("slcan", bridge, "slcan", bridge)
     assert not second_reader_refusal("slcan", "socket://127.0.0.1:40002", "slcan", bridge)
+
+
+def test_manus_sim_names_a_port_it_cannot_have(server: SlcanSocketBus) -> None:
+    with pytest.raises(ConfigError, match="no slcan adapter on tcp 'x'"):
+        open_sim_bus(SIM_INTERFACE, "x", 250_000)
+    with pytest.raises(ConfigError, match=f"no slcan adapter on tcp '{server.port}'"):
+        open_sim_bus(SIM_INTERFACE, str(server.port), 250_000, nodes=2)  # the port is taken
