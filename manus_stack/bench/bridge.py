@@ -11,7 +11,7 @@ Figures, over ``cycles`` cycles once the bridge is running (5000 = 5 min by defa
 
 - ``reply_latency_ms``: 0x37F arrival (its python-can timestamp) to the reply handed to
   the bus; ``missed_windows``: replies later than 20 ms by that clock, or not latched by
-  the simulator (its own count, which also sees pty transfer time);
+  the simulator (its own count, which also sees the link's transfer time);
 - ``state_latency_ms``: 0x360 arrival to the joint state published;
   ``state_delivery_ms``: 0x360 arrival to the joint state received by the controller's
   session (through the router);

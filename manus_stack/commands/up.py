@@ -39,6 +39,7 @@ from pathlib import Path
 from manus.process import wait_for_signal
 from manus.realtime import Priority
 from manus_stack.up import LocalStack, StackOptions
+from services.simulator.nodes import LINKS
 
 
 def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
@@ -64,7 +65,7 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--sim-link",
-        choices=("tcp", "pty"),
+        choices=LINKS,
         default="tcp",
         help="how the bridge and the guardian reach the simulator's slcan adapters: TCP on "
         "127.0.0.1 (default: under CPU load a pty's bytes wait in a kernel worker, "
