@@ -24,6 +24,12 @@ So the bridge and the CAN guardian never share a single-reader channel:
   so a second opener is refused with an error naming the device before it writes or
   reads a byte, whatever started it (a hand-written command, a compose file, a symlink
   such as ``/dev/serial/by-id/...`` to the same device).
+
+The simulator's slcan adapters are TCP servers by default (``socket://127.0.0.1:PORT``,
+docs/simulator.md): no device file to lock, so :func:`claim_channel` claims nothing, and
+the server itself admits one client at a time (a second connection is closed at once).
+:func:`same_channel` compares such URLs by host and port, so the guardian is still kept
+off the bridge's.
 """
 
 from __future__ import annotations
@@ -66,12 +72,22 @@ def device_path(channel: str) -> Path | None:
 
 
 def same_channel(a: str, b: str) -> bool:
-    """Whether two channels are one: the same device file (through links), else the same
-    name."""
+    """Whether two channels are one: the same device file (through links), the same
+    ``socket://`` host and port (``localhost`` is 127.0.0.1), else the same name."""
     da, db = device_path(a), device_path(b)
     if da is not None and db is not None:
         return da == db
-    return a == b
+    return _socket_address(a) == _socket_address(b)
+
+
+def _socket_address(channel: str) -> str:
+    """``host:port`` of a ``socket://`` channel (pyserial's options after ``?`` left
+    out, ``localhost`` as 127.0.0.1); any other channel unchanged."""
+    if not channel.startswith("socket://"):
+        return channel
+    address = channel.removeprefix("socket://").split("?", 1)[0].rstrip("/").lower()
+    host, _, port = address.rpartition(":")
+    return f"{'127.0.0.1' if host == 'localhost' else host}:{port}"
 
 
 def second_reader_refusal(

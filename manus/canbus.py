@@ -6,6 +6,8 @@ so the same code drives socketcan, pcan, kvaser, slcan or the in-process ``virtu
 
 from __future__ import annotations
 
+import os
+import socket
 from collections.abc import Callable
 from typing import Any
 
@@ -14,19 +16,50 @@ import can
 from manus.errors import ConfigError
 from manus.protocol import BITRATE, Frame
 
+SOCKET_URL = "socket://"
+"""How a serial-line channel (slcan) that is a TCP connection begins: pyserial's URL,
+``socket://127.0.0.1:PORT`` (the simulator's default link, docs/simulator.md)."""
+
+
+def is_socket_channel(channel: str) -> bool:
+    """Whether ``channel`` is a pyserial ``socket://`` URL rather than a device."""
+    return channel.startswith(SOCKET_URL)
+
+
+def settles_at_once(channel: str) -> bool:
+    """Whether an slcan ``channel`` needs no settle time after opening (python-can waits
+    2 s for a USB adapter): a pseudo-terminal or a socket, the simulator's links."""
+    return channel.startswith("/dev/pts/") or is_socket_channel(channel)
+
 
 def open_bus(interface: str, channel: str, bitrate: int = BITRATE, **kwargs: Any) -> can.BusABC:
-    """Open a python-can bus, with an error that names the interface and channel.
+    """Open a python-can bus, with an error that names the interface and channel. A
+    ``socket://`` channel gets ``TCP_NODELAY`` (:func:`send_at_once`).
 
     Raises:
         ConfigError: the interface is unknown or the channel cannot be opened.
     """
     try:
-        return can.Bus(interface=interface, channel=channel, bitrate=bitrate, **kwargs)
+        bus = can.Bus(interface=interface, channel=channel, bitrate=bitrate, **kwargs)
+        if is_socket_channel(channel):
+            send_at_once(bus)
+        return bus
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise ConfigError(
             f"cannot open CAN interface {interface!r} channel {channel!r} at {bitrate} bit/s: {exc}"
         ) from exc
+
+
+def send_at_once(bus: can.BusABC) -> None:
+    """Set ``TCP_NODELAY`` on the TCP connection under a ``socket://`` bus.
+
+    pyserial's ``socket://`` leaves Nagle's algorithm on, which holds a small write back
+    while an earlier one is unacknowledged; an slcan line is one frame, and a cycle's
+    frames must not wait for each other. The option is set through a duplicate of the
+    connection's descriptor (the same socket), as pyserial does not expose the socket.
+    """
+    with socket.socket(fileno=os.dup(bus.fileno())) as sock:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
 LINE_ERRORS = (ValueError, IndexError)

@@ -4,9 +4,9 @@ Order: a Zenoh router on loopback (``manus router``, a Python session in router 
 ``manus record`` (waited for: its token is up once it listens, so the recording holds
 every service's whole life, from the simulator's power-up and the bridge's first cycle
 to their shutdown, and ``manus replay --check`` can replay it through a core), the
-simulator on a new slcan pseudo-terminal (``manus sim``, with its objects and its camera;
-skipped with a real arm),
-``manus bridge`` on that device (or the real CAN interface), ``manus guardian`` beside it
+simulator, an slcan adapter on 127.0.0.1 (``manus sim``, with its objects and its camera;
+``--link pty`` in ``sim_args``: on a pseudo-terminal; skipped with a real arm),
+``manus bridge`` on that channel (or the real CAN interface), ``manus guardian`` beside it
 (the simulator's second node; on a real arm its own channel, else the bridge's if it may
 be shared, else it stays off: ``manus_stack.guardian_can``), ``manus planner``,
 ``manus controller`` and ``manus sequencer``, then
@@ -133,7 +133,7 @@ class StackOptions:
 
     @property
     def device_file(self) -> Path:
-        """Where the simulator writes its pty device path."""
+        """Where the simulator writes its adapter's channel (a socket URL or a pty)."""
         return self.run_dir / "sim.device"
 
 

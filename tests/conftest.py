@@ -92,11 +92,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 LIVE_DRINK = "MANUS_TEST_LIVE_DRINK"
 """Environment variable: 1 runs the live drink tests (marker ``live_drink``)."""
 LIVE_DRINK_SKIP = (
-    "known problem: on a loaded machine the live drink often fails: the simulated CAN bus is "
-    "a pseudo-terminal whose bytes a kernel worker of the ordinary scheduling policy moves, "
-    "so the arm's frames can reach the bridge 0.2-0.5 s late whatever the simulator's and the "
-    "bridge's priority (resync, the task stopped); `manus bench drink` runs 10/10 in "
-    f"lock-step; set {LIVE_DRINK}=1 to run it (docs/testing.md)"
+    "`manus demo drink` through the CLI takes about 90 s of real time and repeats what the "
+    "panel's live drink test (tests/test_panel_browser.py) and `manus bench drink` (lock-step) "
+    f"check; set {LIVE_DRINK}=1 to run it (docs/testing.md)"
 )
 
 

@@ -19,7 +19,7 @@ import can
 import pytest
 from can.interfaces.slcan import slcanBus
 
-from manus.canbus import from_can, to_can
+from manus.canbus import from_can, open_bus, to_can
 from manus.node import Node
 from manus.protocol import (
     GEN_ANGLES_MEASURED,
@@ -43,6 +43,7 @@ from services.simulator.live import LiveSim
 from services.simulator.scripted import joint_move
 from services.simulator.shell import MessagePublisher, TruthPublisher
 from services.simulator.slcan import SlcanPtyBus
+from services.simulator.slcan_socket import SlcanSocketBus
 from tests.conftest import eventually
 
 pytestmark = pytest.mark.slow
@@ -224,3 +225,19 @@ def test_the_camera_publishes_on_the_stacks_clock(
     assert all(before <= m.stamp_ns <= after for m in got)  # the wall clock, not sim time
     assert [m.seq for m in got] == sorted(m.seq for m in got)
     assert {o.id for m in got for o in m.objects} == {"cup", "bottle", "phone"}
+
+
+def test_live_sim_on_the_slcan_socket() -> None:
+    server = SlcanSocketBus()
+    client = open_bus("slcan", server.device, 250000, sleep_after_open=0)
+    live = LiveSim(SimCore(FAST), server)
+    try:
+        while not server.is_open:
+            server.recv(timeout=0.05)  # what `manus sim` does before powering up
+        live.start()
+        frames = _drive(client, 1.2, joint_move(0, 10))
+    finally:
+        live.stop()
+        client.shutdown()
+        server.shutdown()
+    _check_order_and_motion(frames, 1)

@@ -1,4 +1,5 @@
-"""The simulated bus with several PC-side nodes: CAN broadcast over one slcan pty each."""
+"""The simulated bus with several PC-side nodes: CAN broadcast over one slcan link each
+(a loopback TCP connection or a pty)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from services.simulator.nodes import NodeHub
+from services.simulator.nodes import LINKS, NodeHub
 
 
 def _recv(bus: can.BusABC, hub: NodeHub | None = None, timeout: float = 2.0) -> can.Message | None:
@@ -22,9 +23,9 @@ def _recv(bus: can.BusABC, hub: NodeHub | None = None, timeout: float = 2.0) -> 
     return None
 
 
-@pytest.fixture
-def hub() -> Iterator[tuple[NodeHub, list[can.BusABC]]]:
-    hub = NodeHub(3)
+@pytest.fixture(params=LINKS)
+def hub(request: pytest.FixtureRequest) -> Iterator[tuple[NodeHub, list[can.BusABC]]]:
+    hub = NodeHub(3, request.param)
     clients = [
         can.Bus(interface="slcan", channel=dev, bitrate=250_000, sleep_after_open=0, timeout=0.005)
         for dev in hub.devices

@@ -1,4 +1,5 @@
-"""`manus sim` as its own process on a pseudo-terminal, driven from this process over slcan."""
+"""`manus sim` as its own process, driven from this process over slcan: on its loopback TCP
+link and on a pseudo-terminal."""
 
 from __future__ import annotations
 
@@ -12,10 +13,9 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import can
 import pytest
 
-from manus.canbus import from_can, to_can
+from manus.canbus import from_can, open_bus, to_can
 from manus.protocol import (
     GEN_ANGLES_MEASURED,
     ZERO_JOINT_MOVE,
@@ -31,11 +31,13 @@ ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture
-def sim_process(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], str]]:
+@pytest.fixture(params=["tcp", "pty"])
+def sim_process(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> Iterator[tuple[subprocess.Popen[str], str]]:
     device_file = tmp_path / "device"
     cmd = [
-        sys.executable, "-m", "manus_stack.cli", "sim",
+        sys.executable, "-m", "manus_stack.cli", "sim", "--link", request.param,
         "--device-file", str(device_file), "--no-zenoh", "--seed", "3",
     ]  # fmt: skip
     proc = subprocess.Popen(
@@ -63,10 +65,10 @@ def sim_process(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], str]]:
             proc.stderr.close()
 
 
-def test_sim_process_over_slcan_pty(sim_process: tuple[subprocess.Popen[str], str]) -> None:
+def test_sim_process_over_slcan(sim_process: tuple[subprocess.Popen[str], str]) -> None:
     proc, device = sim_process
-    assert device.startswith("/dev/")
-    bus = can.Bus(interface="slcan", channel=device, bitrate=250000, sleep_after_open=0)
+    assert device.startswith(("/dev/", "socket://127.0.0.1:"))
+    bus = open_bus("slcan", device, 250000, sleep_after_open=0)
     frames: list[Frame] = []
     try:
         ready_at, answered = None, 0

@@ -62,7 +62,7 @@ def _start_arm(tmp_path: Path) -> tuple[subprocess.Popen[bytes], str, str]:
     with (tmp_path / "arm.log").open("wb") as arm_log:
         arm = subprocess.Popen(
             [sys.executable, "-m", "manus_stack.cli", "sim", "--nodes", "2", "--no-zenoh",
-             "--device-file", str(device_file)],
+             "--link", "pty", "--device-file", str(device_file)],
             cwd=ROOT, stdout=arm_log, stderr=subprocess.STDOUT, start_new_session=True,
         )  # fmt: skip
     deadline = time.monotonic() + 30.0

@@ -1,16 +1,17 @@
-"""Bridge timing live: ``manus sim`` in another process over its slcan pty, the bridge here.
+"""Bridge timing live: ``manus sim`` in another process over its slcan link, the bridge here.
 
 Set-up: a loopback Zenoh router, the simulator as a separate process (``manus sim
---device-file``), the bridge shell on python-can's slcan backend, and a stand-in
-controller on its own Zenoh session that answers every joint state with a velocity
-command (joint 1 at +-5 deg/s, turning every 2 s), so replies carry real commands.
+--device-file``, its default link: slcan on 127.0.0.1), the bridge shell on python-can's
+slcan backend, and a stand-in controller on its own Zenoh session that answers every
+joint state with a velocity command (joint 1 at +-5 deg/s, turning every 2 s), so replies
+carry real commands.
 
 Figures, over ``cycles`` cycles once the bridge is running (5000 = 5 min by default,
 200 with ``--quick``):
 
 - ``reply_latency_ms``: 0x37F arrival (its python-can timestamp) to the reply handed to
   the bus; ``missed_windows``: replies later than 20 ms by that clock, or not latched by
-  the simulator (its own count, which also sees pty transfer time);
+  the simulator (its own count, which also sees the link's transfer time);
 - ``state_latency_ms``: 0x360 arrival to the joint state published;
   ``state_delivery_ms``: 0x360 arrival to the joint state received by the controller's
   session (through the router);
@@ -123,7 +124,7 @@ class _Window:
 
 
 def _start_sim(device_file: Path) -> subprocess.Popen[str]:
-    """``manus sim`` in its own process, writing its pty device path to ``device_file``."""
+    """``manus sim`` in its own process, writing its slcan channel to ``device_file``."""
     argv = [sys.executable, "-m", "manus_stack.cli", "sim", "--device-file", str(device_file)]
     return subprocess.Popen(
         [*argv, "--no-zenoh"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True

@@ -16,7 +16,7 @@ bridge SIGSTOP or SIGKILL at a seeded instant. From the bus (this node's receive
 ``reaction_on_wire_ms`` (that 0x370's arrival minus its sync's minus the 12 ms deadline: the
 guardian's reaction plus the simulator's forwarding, on the wire as the arm sees it). From
 ``sim/truth`` (the simulator's true joint speeds): fault -> at rest. Recovery: SIGCONT
-after 0.5 s, or a new bridge on the same pty; ``resumed`` counts trials where the arm
+after 0.5 s, or a new bridge on the same adapter; ``resumed`` counts trials where the arm
 moved again by itself (> 0.35 deg in the next second; the new bridge's start-up pulses of
 motors 4-6 are 0.3 deg at most). The guardian's own ``stats:`` line gives its CPU time
 per sync seen and its reaction (deadline -> ``bus.send`` returned).

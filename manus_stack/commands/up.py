@@ -1,6 +1,7 @@
 """``manus up``: the whole stack on this machine, each service its own process.
 
-    manus up                                   # simulator on a pty, everything else, recorder
+    manus up                                   # simulator (slcan on 127.0.0.1), the rest, recorder
+    manus up --sim-link pty                    # the simulator's slcan on pseudo-terminals
     manus up --can-interface socketcan --can-channel can0    # a real arm instead
     manus up --can-interface slcan --can-channel /dev/ttyACM0 \
         --guardian-channel /dev/ttyACM1          # slcan: the guardian on a second adapter
@@ -38,6 +39,7 @@ from pathlib import Path
 from manus.process import wait_for_signal
 from manus.realtime import Priority
 from manus_stack.up import LocalStack, StackOptions
+from services.simulator.nodes import LINKS
 
 
 def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
@@ -60,6 +62,14 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
         default="default",
         help="the simulator's objects, which its camera reports: 'default' (a cup, a bottle "
         "and a phone on the table), 'none' or an objects file (docs/objects.md)",
+    )
+    parser.add_argument(
+        "--sim-link",
+        choices=LINKS,
+        default="tcp",
+        help="how the bridge and the guardian reach the simulator's slcan adapters: TCP on "
+        "127.0.0.1 (default: under CPU load a pty's bytes wait in a kernel worker, "
+        "docs/simulator.md, Links) or pseudo-terminals, as a USB adapter's serial device",
     )
     parser.add_argument(
         "--guardian-channel",
@@ -130,6 +140,7 @@ def stack_options(args: argparse.Namespace) -> StackOptions:
         view_port=args.view_port,
         objects=args.objects,
         realtime=str(Priority.parse(args.realtime)) if args.realtime else "",
+        sim_args=["--link", args.sim_link],
     )
 
 

@@ -31,7 +31,7 @@ from typing import Any
 import can
 
 from manus.can_sharing import claim_channel
-from manus.canbus import open_bus
+from manus.canbus import open_bus, settles_at_once
 from manus.errors import ConfigError
 from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
@@ -42,7 +42,7 @@ from services.can_bridge.config import load_bridge_config
 from services.can_bridge.shell import BridgeShell
 
 DEFAULT_DEVICE_FILE = "/tmp/manus-sim.device"
-"""Where ``manus bridge`` looks for the simulator's pty by default (see the module doc)."""
+"""Where ``manus bridge`` looks for the simulator's channel by default (see the module doc)."""
 GIL_SWITCH_S = 0.0005
 """Interpreter thread switch interval in ``manus bridge`` [s] (Python's default is 5 ms):
 a Zenoh callback thread holding the interpreter delays the receive loop by at most this."""
@@ -65,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device-file",
         default=os.environ.get("MANUS_SIM_DEVICE_FILE", DEFAULT_DEVICE_FILE),
-        help="file holding the simulator's slcan device path (manus sim --device-file)",
+        help="file holding the simulator's slcan channel (manus sim --device-file)",
     )
     parser.add_argument(
         "--wait-device", type=float, default=10.0, help="wait this long for the device file [s]"
@@ -102,12 +102,12 @@ def open_arm_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
     For slcan, the serial read timeout is raised from python-can's 1 ms to
     ``SLCAN_READ_TIMEOUT_S``: a read returns as soon as a byte is in, so latency is the
     same, but the receive loop no longer wakes a thousand times a second. A
-    pseudo-terminal (the simulator) needs no settle time after opening.
+    pseudo-terminal or a socket (the simulator) needs no settle time after opening.
     """
     extra: dict[str, Any] = {}
     if interface == "slcan":
         extra["timeout"] = SLCAN_READ_TIMEOUT_S
-        if channel.startswith("/dev/pts/"):
+        if settles_at_once(channel):
             extra["sleep_after_open"] = 0
     return open_bus(interface, channel, bitrate, **extra)
 

@@ -9,7 +9,7 @@ An independent process with its own CAN connection: it imports :mod:`manus.proto
 :mod:`manus.canbus`, :mod:`manus.can_sharing` and :mod:`manus.realtime` (Zenoh-free),
 python-can and the standard library only (no Zenoh, nothing of the bridge or the controller). With
 ``slcan`` and no ``--can-channel`` the channel is read from ``--device-file``
-(``manus sim --nodes 2`` writes node 1's pty to ``<its --device-file>.1``; default
+(``manus sim --nodes 2`` writes node 1's channel to ``<its --device-file>.1``; default
 ``$MANUS_SIM_DEVICE_FILE.1`` or ``/tmp/manus-sim.device.1``).
 
 It never shares a single-reader channel with the bridge (:mod:`manus.can_sharing`: two
@@ -49,6 +49,7 @@ from typing import IO, Any
 import can
 
 from manus.can_sharing import DISABLED_SINGLE_READER, claim_channel, second_reader_refusal
+from manus.canbus import open_bus, settles_at_once
 from manus.errors import ConfigError
 from manus.protocol import BITRATE
 from manus.realtime import CAN_EDGE, add_realtime_argument, raise_priority, setting
@@ -71,12 +72,16 @@ def default_device_file() -> str:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``manus guardian``."""
     parser.add_argument("--can-interface", default="slcan", help="python-can interface")
-    parser.add_argument("--can-channel", default="", help="channel (can0, a pty, ...)")
+    parser.add_argument(
+        "--can-channel",
+        default="",
+        help="channel (can0, /dev/ttyACM1, socket://127.0.0.1:PORT ...)",
+    )
     parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
     parser.add_argument(
         "--device-file",
         default=default_device_file(),
-        help="with slcan and no --can-channel: file holding the simulator node's pty",
+        help="with slcan and no --can-channel: file holding the simulator node's channel",
     )
     parser.add_argument("--wait-device", type=float, default=10.0, help="wait for it [s]")
     parser.add_argument(
@@ -128,12 +133,12 @@ def open_guardian_bus(args: argparse.Namespace, channel: str) -> can.BusABC:
     extra = dict[str, Any]()
     if args.can_interface == "slcan":
         # non-blocking serial reads: the loop waits in select (services.guardian.loop)
-        extra = {"timeout": 0, "sleep_after_open": 0 if channel.startswith("/dev/pts/") else 2}
+        extra = {"timeout": 0, "sleep_after_open": 0 if settles_at_once(channel) else 2}
     try:
         claim_channel(args.can_interface, channel, "manus guardian")
+        return open_bus(args.can_interface, channel, args.bitrate, **extra)
     except ConfigError as exc:
         raise SystemExit(str(exc)) from exc
-    return can.Bus(interface=args.can_interface, channel=channel, bitrate=args.bitrate, **extra)
 
 
 class Reports:

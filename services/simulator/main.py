@@ -1,10 +1,16 @@
 """``manus sim``: the Manus simulator as a process, a python-can peer on any interface.
 
-    manus sim                                  # slcan on a new pty; prints "device: /dev/pts/N"
-    manus sim --device-file /tmp/manus.dev     # ... and writes the device path there
+    manus sim                                  # an slcan adapter on 127.0.0.1; prints
+                                               # "device: socket://127.0.0.1:PORT"
+    manus sim --device-file /tmp/manus.dev     # ... and writes that channel there
     manus sim --nodes 2 --device-file /tmp/m.dev   # two PC nodes: /tmp/m.dev, /tmp/m.dev.1
-    manus sim --can-interface slcan-pty --can-channel /tmp/manus-can   # ... plus a symlink
+    manus sim --link pty --can-channel /tmp/manus-can  # on a pty instead, plus a symlink
     manus sim --can-interface virtual --can-channel manus   # any python-can interface
+
+The built-in slcan adapter's link (``--link``) is a TCP connection on 127.0.0.1 by
+default: a pseudo-terminal's bytes wait in a kernel worker of normal priority, 0.2-0.6 s
+under CPU load (docs/simulator.md, Links); ``--link pty`` keeps the serial-device path a
+USB adapter has. Clients open either channel with python-can's ``slcan`` interface.
     manus sim --step-response fig51.png        # the thesis's step response, then exit
 
 Runs until SIGINT/SIGTERM (or ``--duration``), then prints one ``stats:`` JSON line
@@ -31,6 +37,7 @@ from pathlib import Path
 import can
 
 from manus.canbus import open_bus
+from manus.errors import ConfigError
 from manus.node import Node
 from manus.process import freeze_startup_heap, wait_for_signal
 from manus.protocol import BITRATE
@@ -43,37 +50,48 @@ from services.simulator.config import SimConfig, load_sim_config
 from services.simulator.core import SimCore
 from services.simulator.fault_desk import FaultDesk
 from services.simulator.live import LiveSim
-from services.simulator.nodes import NodeHub
+from services.simulator.nodes import LINKS, NodeHub, slcan_node
 from services.simulator.shell import MessagePublisher, TruthPublisher, open_node
-from services.simulator.slcan import SlcanPtyBus
+from services.simulator.slcan import SlcanDevice
 from services.simulator.truth_log import TruthLog
 
 log = logging.getLogger("manus.sim")
 
-PTY_INTERFACE = "slcan-pty"
-"""The interface name of the built-in slcan adapter on a pseudo-terminal."""
+SIM_INTERFACE = "slcan-sim"
+"""The interface name of the built-in slcan adapter (on the link ``--link`` chooses)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``manus sim``."""
     parser.add_argument(
         "--can-interface",
-        default=PTY_INTERFACE,
-        help=f"python-can interface, or {PTY_INTERFACE!r} (default): act as an slcan "
-        "adapter on a new pseudo-terminal for another process to open",
+        default=SIM_INTERFACE,
+        help=f"python-can interface, or {SIM_INTERFACE!r} (default): act as an slcan "
+        "adapter for another process to open (on the link --link chooses)",
+    )
+    parser.add_argument(
+        "--link",
+        choices=LINKS,
+        default="tcp",
+        help=f"{SIM_INTERFACE}: the adapter's link, a TCP server on 127.0.0.1 (tcp, the "
+        "default: no pty kernel worker in the way under load) or a new pseudo-terminal (pty)",
     )
     parser.add_argument(
         "--can-channel",
         default="",
-        help=f"channel; with {PTY_INTERFACE} an optional symlink path to the pty device",
+        help=f"channel; with {SIM_INTERFACE} the TCP port (tcp, default: any free one) or "
+        "an optional symlink path to the pty device (pty)",
     )
     parser.add_argument("--bitrate", type=int, default=BITRATE, help="bit/s (default 250000)")
-    parser.add_argument("--device-file", help=f"write the pty device path here ({PTY_INTERFACE})")
+    parser.add_argument(
+        "--device-file",
+        help=f"{SIM_INTERFACE}: write the channel clients open here (a socket:// URL, a pty)",
+    )
     parser.add_argument(
         "--nodes",
         type=int,
         default=1,
-        help=f"{PTY_INTERFACE}: PC-side nodes on the simulated bus, one pty each, with CAN "
+        help=f"{SIM_INTERFACE}: PC-side nodes on the simulated bus, one link each, with CAN "
         "broadcast between them (node i > 0 announced as '<device-file>.<i>'); default 1",
     )
     parser.add_argument("--config", help="simulator config JSON (default $MANUS_SIM_CONFIG)")
@@ -111,7 +129,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--wait-client",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help=f"{PTY_INTERFACE}: power the arm up only when a client opens the channel, so "
+        help=f"{SIM_INTERFACE}: power the arm up only when a client opens the channel, so "
         "that it sees the power-up messages (default: yes)",
     )
     parser.add_argument(
@@ -125,14 +143,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_realtime_argument(parser, CAN_EDGE)
 
 
-def open_sim_bus(interface: str, channel: str, bitrate: int, nodes: int = 1) -> can.BusABC:
-    """The bus the simulator speaks on (its own slcan pty, one per node with ``nodes`` > 1,
-    or any python-can interface: every other peer on its channel is a node)."""
-    if interface == PTY_INTERFACE:
+def open_sim_bus(
+    interface: str, channel: str, bitrate: int, nodes: int = 1, link: str = "tcp"
+) -> can.BusABC:
+    """The bus the simulator speaks on (its own slcan adapter on ``link``, one per node
+    with ``nodes`` > 1, or any python-can interface: every other peer on its channel is a
+    node).
+
+    Raises:
+        ConfigError: the adapter cannot be made (a port in use or no number).
+    """
+    if interface != SIM_INTERFACE:
+        return open_bus(interface, channel, bitrate)
+    try:
         if nodes > 1:
-            return NodeHub(nodes, channel or None, bitrate=bitrate)
-        return SlcanPtyBus(channel or None, bitrate=bitrate)
-    return open_bus(interface, channel, bitrate)
+            return NodeHub(nodes, link, channel or None, bitrate=bitrate)
+        return slcan_node(link, channel or None, 0, bitrate)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"manus sim: no slcan adapter on {link} {channel!r}: {exc}") from exc
 
 
 def write_device_file(path: str, device: str) -> None:
@@ -143,7 +171,7 @@ def write_device_file(path: str, device: str) -> None:
 
 
 def wait_for_client(
-    bus: SlcanPtyBus | NodeHub, stop: threading.Event, deadline: float | None
+    bus: SlcanDevice | NodeHub, stop: threading.Event, deadline: float | None
 ) -> None:
     """Block until a client opens the slcan channel, ``stop`` is set or the monotonic
     ``deadline`` [s] passes (frames the client sends meanwhile are discarded)."""
@@ -177,12 +205,12 @@ def run(args: argparse.Namespace) -> int:
     priority = setting(args, default=CAN_EDGE)
     stop = wait_for_signal()
     deadline = None if args.duration is None else time.monotonic() + args.duration
-    bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate, args.nodes)
+    bus = open_sim_bus(args.can_interface, args.can_channel, args.bitrate, args.nodes, args.link)
     node: Node | None = None
     truth_log: TruthLog | None = None
     try:
         devices = bus.devices if isinstance(bus, NodeHub) else []
-        if isinstance(bus, SlcanPtyBus):
+        if isinstance(bus, SlcanDevice):
             devices = [bus.device]
         for i, device in enumerate(devices):
             print(f"device: {device}" if i == 0 else f"device {i}: {device}", flush=True)
@@ -204,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
             live.on_message = MessagePublisher(node, lambda: live.wall_t0_ns)
             node.queryable(node.keys(ep.SIM_FAULT), SimFault, FaultDesk(live), locked=False)
             node.announce()
-        if isinstance(bus, SlcanPtyBus | NodeHub) and args.wait_client:
+        if isinstance(bus, SlcanDevice | NodeHub) and args.wait_client:
             wait_for_client(bus, stop, deadline)
         if not stop.is_set():
             freeze_startup_heap()

@@ -1,9 +1,12 @@
-"""Several PC-side nodes on the simulated bus: CAN broadcast over one slcan pty per node.
+"""Several PC-side nodes on the simulated bus: CAN broadcast over one slcan link per node.
 
 On a real CAN bus every frame reaches every other node: the bridge and the guardian
 (``manus guardian``) both see the arm's frames and each other's, and the arm sees both.
-A pseudo-terminal links two parties only, so :class:`NodeHub` holds one
-:class:`~services.simulator.slcan.SlcanPtyBus` per node and acts as the arm's one bus:
+An slcan link (a TCP connection, a pseudo-terminal) joins two parties only, so
+:class:`NodeHub` holds one :class:`~services.simulator.slcan.SlcanDevice` per node (a
+:class:`~services.simulator.slcan_socket.SlcanSocketBus` or a
+:class:`~services.simulator.slcan.SlcanPtyBus`, :func:`slcan_node`) and acts as the arm's
+one bus:
 a frame the arm sends goes to every node; a frame a node sends reaches the arm (through
 :meth:`NodeHub.recv`) and is passed on to every other node at once. Which of two replies
 in one window counts is the arm's business, as on a real bus: the first one received
@@ -21,7 +24,34 @@ from typing import Any
 
 import can
 
-from services.simulator.slcan import SlcanPtyBus
+from services.simulator.slcan import SlcanDevice, SlcanPtyBus
+from services.simulator.slcan_socket import SlcanSocketBus
+
+LINKS = ("tcp", "pty")
+"""How a PC-side node reaches the simulator's slcan adapter: a TCP connection on
+127.0.0.1 (the default: docs/simulator.md, Links) or a pseudo-terminal."""
+
+
+def slcan_node(link: str, channel: str | None, index: int, bitrate: int) -> SlcanDevice:
+    """Node ``index``'s slcan adapter on ``link``.
+
+    Args:
+        link: ``tcp`` or ``pty`` (:data:`LINKS`).
+        channel: ``tcp``: node 0's port (node i: port + i; empty: ports the system
+            chooses); ``pty``: a symlink path for node 0 (node i: ``<channel>.<i>``;
+            empty: no link).
+        index: the node's index (0: the bridge's).
+        bitrate: the bus bitrate [bit/s].
+
+    Raises:
+        ValueError: an unknown link or a port that is no number.
+    """
+    if link == "tcp":
+        port = int(channel) if channel else 0
+        return SlcanSocketBus(port + index if port else 0, bitrate=bitrate)
+    if link == "pty":
+        return SlcanPtyBus(f"{channel}.{index}" if channel and index else channel or None, bitrate)
+    raise ValueError(f"unknown slcan link {link!r}: one of {', '.join(LINKS)}")
 
 
 class NodeHub(can.BusABC):
@@ -29,23 +59,33 @@ class NodeHub(can.BusABC):
 
     Args:
         count: number of nodes (>= 1).
-        channel: optional symlink path for node 0 (node i > 0: ``<channel>.<i>``).
+        link: ``tcp`` or ``pty`` (:func:`slcan_node`).
+        channel: node 0's port (tcp) or symlink path (pty); see :func:`slcan_node`.
         bitrate: the bus bitrate [bit/s].
 
     Attributes:
-        nodes: the nodes' pty buses, node 0 first.
+        nodes: the nodes' slcan adapters, node 0 first.
         received: frames received from each node.
     """
 
     def __init__(
-        self, count: int, channel: str | None = None, bitrate: int = 250_000, **kwargs: Any
+        self,
+        count: int,
+        link: str = "tcp",
+        channel: str | None = None,
+        bitrate: int = 250_000,
+        **kwargs: Any,
     ) -> None:
         if count < 1:
             raise ValueError(f"a bus needs at least one node, got {count}")
-        self.nodes = [
-            SlcanPtyBus(f"{channel}.{i}" if channel and i else channel or None, bitrate=bitrate)
-            for i in range(count)
-        ]
+        self.nodes: list[SlcanDevice] = []
+        try:
+            for i in range(count):
+                self.nodes.append(slcan_node(link, channel, i, bitrate))
+        except (OSError, ValueError):
+            for node in self.nodes:
+                node.shutdown()
+            raise
         self.received = [0] * count
         self._ready: deque[tuple[int, can.Message]] = deque()
         super().__init__(channel=self.nodes[0].device, **kwargs)
@@ -53,7 +93,8 @@ class NodeHub(can.BusABC):
 
     @property
     def devices(self) -> list[str]:
-        """The pty device of each node, node 0 first."""
+        """The channel each node's client opens (a pty path, a ``socket://`` URL), node 0
+        first."""
         return [n.device for n in self.nodes]
 
     @property
@@ -89,7 +130,7 @@ class NodeHub(can.BusABC):
                 msg = node.recv(0.0)
 
     def _wait(self, timeout: float | None) -> None:
-        select.select([n.fileno() for n in self.nodes], [], [], timeout)
+        select.select([fd for n in self.nodes for fd in n.wait_fds()], [], [], timeout)
 
     def shutdown(self) -> None:
         """Close every node (idempotent)."""
