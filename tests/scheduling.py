@@ -2,15 +2,14 @@
 tests on the other workers.
 
 The live tests (marked ``slow``) run real processes against 60 ms real-time cycles. The
-first lane (:data:`LIVE_WORKERS` [0]) runs them one file after another from the start
-of the session, beside the workers of pure tests. A live test's process and the services
-it starts run at a real-time priority where permitted (:mod:`tests.live_priority`,
-:mod:`manus.realtime`), else the pure tests run at a lower one (:data:`PURE_NICE`):
-either way a live test's processes take a core at once when they wake. Once every pure
-test is given out, the second lane (:data:`LIVE_WORKERS` [1], idle
-until then) takes live files from the other end of the chain: two live stacks at once,
-and nothing else, on two cores. A file is one unit (its module fixtures, such as the
-panel's stack and browser, start once).
+first lane (:data:`LIVE_WORKERS` [0]) runs them one unit after another (:func:`units`)
+from the start of the session, beside the workers of pure tests. A live test's process
+and the services it starts run at a real-time priority where permitted
+(:mod:`tests.live_priority`, :mod:`manus.realtime`), else the pure tests run at a lower
+one (:data:`PURE_NICE`): either way a live test's processes take a core at once when
+they wake. Once every pure test is given out, the second lane (:data:`LIVE_WORKERS` [1],
+idle until then) takes the next units too: two live stacks at once, and nothing else,
+on two cores. The units come longest first, so both lanes end on short ones.
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway (with two workers, the second lane takes the
@@ -69,34 +68,66 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         os.environ.pop(LIVE_IDS, None)
 
 
+def units(live: list[pytest.Item]) -> list[list[str]]:
+    """The live tests in units, in the order the lanes take them: the tests of a module
+    whose fixtures outlive a test (the panel's stack and browser) form one unit, built
+    once on one lane; every other live test is a unit of its own. Units marked
+    ``slow(long=True)`` come first, then the larger ones, so that the lanes end on short
+    units, together."""
+    groups: dict[str, list[pytest.Item]] = {}
+    for item in live:
+        info = getattr(item, "_fixtureinfo", None)  # a pytest.Function's fixtures
+        shared = info is not None and any(
+            fixture.scope != "function"
+            for defs in info.name2fixturedefs.values()
+            for fixture in defs
+            if fixture.baseid  # the suite's own fixtures, not a plugin's session ones
+        )
+        key = item.nodeid.split("::")[0] if shared else item.nodeid
+        groups.setdefault(key, []).append(item)
+    ordered = sorted(groups.values(), key=lambda unit: (not any(map(_long, unit)), -len(unit)))
+    return [[item.nodeid for item in unit] for unit in ordered]
+
+
+def _long(item: pytest.Item) -> bool:
+    mark = item.get_closest_marker("slow")
+    return mark is not None and bool(mark.kwargs.get("long"))
+
+
 def tell_live(config: pytest.Config, live: list[pytest.Item]) -> None:
-    """In a worker, after collection: write the ids of the live tests for the scheduler
-    (every worker collects the same tests and writes the same file, before it reports its
-    collection)."""
+    """In a worker, after collection: write the live tests' units for the scheduler, one
+    test a line (``<unit>\\t<nodeid>``; every worker collects the same tests and writes the
+    same file, before it reports its collection)."""
     path = os.environ.get(LIVE_IDS)
     if hasattr(config, "workerinput") and path:
         part = Path(f"{path}.{os.getpid()}")
-        part.write_text("".join(f"{item.nodeid}\n" for item in live))
+        lines = [f"{n}\t{nodeid}\n" for n, unit in enumerate(units(live)) for nodeid in unit]
+        part.write_text("".join(lines))
         part.replace(path)
 
 
 def workers(config: pytest.Config) -> int:
-    """Workers for ``-n auto``: the two live lanes and one worker of pure tests per CPU
-    (at most :data:`MAX_WORKERS` in all: many pure tests wait on sockets and subprocesses
-    half their time) for the whole suite, none (one process) when the command line names
-    what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
+    """Workers for ``-n auto``: the two live lanes and one and a half workers of pure tests
+    per CPU (at most :data:`MAX_WORKERS` in all: many pure tests wait on sockets and
+    subprocesses half their time) for the whole suite, none (one process) when the command
+    line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
     forced = os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS")
     if forced:
         return int(forced)
     if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return 0
-    return min(MAX_WORKERS, len(LIVE_WORKERS) + (os.cpu_count() or 1))
+    cpus = os.cpu_count() or 1
+    return min(MAX_WORKERS, len(LIVE_WORKERS) + cpus + cpus // 2)
 
 
-def live_ids() -> list[str]:
-    """The ids the workers wrote, in the order to run (:func:`tell_live`)."""
+def live_units() -> list[list[str]]:
+    """The units the workers wrote, in order (:func:`tell_live`)."""
     path = os.environ.get(LIVE_IDS)
-    return Path(path).read_text().splitlines() if path else []
+    found: dict[str, list[str]] = {}
+    for line in Path(path).read_text().splitlines() if path else []:
+        unit, nodeid = line.split("\t", 1)
+        found.setdefault(unit, []).append(nodeid)
+    return list(found.values())
 
 
 class LiveApartScheduling:
@@ -119,7 +150,7 @@ class LiveApartScheduling:
         self.node2pending: dict[Any, list[int]] = {}
         self.collection: list[str] | None = None
         self.live: list[list[int]] = []
-        """Live files not sent yet: each the collection indices of its tests, in order."""
+        """Live units not sent yet: each the collection indices of its tests, in order."""
         self.pure: list[int] = []
         """Pure tests not sent yet."""
         self.lanes: list[Any] = [None] * len(LIVE_WORKERS)
@@ -170,14 +201,11 @@ class LiveApartScheduling:
                 self.log("the workers collected different tests: nothing runs")
                 return
             self.collection = collections[0]
-            self.live_ids = set(live_ids())
-            files: dict[str, list[int]] = {}
-            for index, nodeid in enumerate(self.collection):
-                if nodeid in self.live_ids:
-                    files.setdefault(nodeid.split("::")[0], []).append(index)
-                else:
-                    self.pure.append(index)
-            self.live = list(files.values())
+            where = {nodeid: index for index, nodeid in enumerate(self.collection)}
+            units = [[where[n] for n in unit if n in where] for unit in live_units()]
+            self.live = [unit for unit in units if unit]
+            self.live_ids = {self.collection[i] for unit in self.live for i in unit}
+            self.pure = [i for i, n in enumerate(self.collection) if n not in self.live_ids]
         for node in self.nodes:
             self.check_schedule(node)
 
@@ -214,7 +242,7 @@ class LiveApartScheduling:
     # -- the policy --------------------------------------------------------------------------
 
     def check_schedule(self, node: Any) -> None:
-        """Give ``node`` work: the next live file if it holds a lane that may run now,
+        """Give ``node`` work: the next live unit if it holds a lane that may run now,
         else pure tests, a few at a time; when nothing is left to give, every worker runs
         what it holds and leaves."""
         if node.shutting_down or self.collection is None:
@@ -223,8 +251,8 @@ class LiveApartScheduling:
         pending = self.node2pending[node]
         lane = self.lanes.index(node) if node in self.lanes else None
         if lane is not None and (lane == 0 or not self.pure):
-            while self.live and len(pending) < 2:  # a worker runs a test when it holds the next
-                self._send(node, self.live.pop(0) if lane == 0 else self.live.pop())
+            while self.live and len(pending) < 2:  # a worker runs a test once it holds the next
+                self._send(node, self.live.pop(0))
         if len(pending) >= 2:
             return
         pure_workers = [n for n in self.nodes if n not in self.lanes and not n.shutting_down]

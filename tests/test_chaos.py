@@ -231,7 +231,7 @@ def test_no_bridge_fault_nor_its_aftermath_is_tolerated_any_more() -> None:
     assert _open({"fault": "record_sigkill", "step": "move"})  # what is still known
 
 
-@pytest.mark.slow
+@pytest.mark.slow(long=True)  # the longest unit: first in the first lane (tests/scheduling.py)
 def test_a_one_minute_soak_with_a_fixed_seed(tmp_path: Path) -> None:
     figures = run_soak(tmp_path / "run", minutes=1.0, seed=0, out=None)
     assert figures["faults_injected"] >= 4, figures

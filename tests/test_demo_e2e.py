@@ -21,7 +21,7 @@ from manus_stack.up import free_port
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.mark.slow
+@pytest.mark.slow(long=True)
 @pytest.mark.timeout(240)
 def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"

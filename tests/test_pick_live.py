@@ -20,7 +20,7 @@ from services.simulator.shell import MessagePublisher
 from tests.conftest import eventually
 from tests.test_sequencer_live import FAST, ROOT, LiveStack
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow(long=True)
 
 
 @pytest.fixture

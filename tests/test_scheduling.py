@@ -39,8 +39,8 @@ def _run(
     """Schedule ``collection`` on ``workers`` fake workers that each run the tests they
     hold, one at a time, keeping one back until told more or to shut down (as xdist's do);
     the tests each one ran, and the (worker, test) order of the whole run."""
-    ids = tmp_path / "live.txt"
-    ids.write_text("".join(f"{n}\n" for n in live))
+    ids = tmp_path / "live.txt"  # as tell_live writes it: a unit per file here
+    ids.write_text("".join(f"{n.split('::')[0]}\t{n}\n" for n in live))
     mp.setenv(LIVE_IDS, str(ids))
     config = SimpleNamespace(getoption=lambda name: None)
     mp.setattr("xdist.workermanage.parse_tx_spec_config", lambda c: ["popen"] * workers)
@@ -70,7 +70,7 @@ def _run(
 LIVE = ["a.py::x", "a.py::y", *(f"f{i:02}.py::x" for i in range(12)), "z.py::x", "z.py::y"]
 
 
-def test_two_lanes_take_live_files_from_both_ends_and_every_test_runs_once(
+def test_two_lanes_take_live_units_in_order_and_every_test_runs_once(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     collection = [f"p{i}" for i in range(4)] + LIVE + [f"q{i}" for i in range(4)]
@@ -78,13 +78,13 @@ def test_two_lanes_take_live_files_from_both_ends_and_every_test_runs_once(
     assert sorted(t for tests in ran.values() for t in tests) == sorted(collection)  # once each
     assert ran["gw0"][:2] == ["a.py::x", "a.py::y"]  # the first lane from the start
     assert not set(ran["gw2"]) & set(LIVE)  # the worker of pure tests
-    assert set(ran["gw1"]) <= set(LIVE) and ran["gw1"][:2] == ["z.py::x", "z.py::y"]
+    assert set(ran["gw1"]) <= set(LIVE) and ran["gw1"]  # the second lane, once pure are out
     first_live_of_gw1 = order.index(("gw1", ran["gw1"][0]))
     pure_left = [t for w, t in order[first_live_of_gw1:] if t[0] in "pq"]
     assert len(pure_left) <= 2  # only once the pure tests were given out
-    for lane in ("gw0", "gw1"):  # a file stays in one lane, in its order
+    for lane in ("gw0", "gw1"):  # units in their order, from the front
         files = [t.split("::")[0] for t in ran[lane] if t in LIVE]
-        assert files == sorted(files) if lane == "gw0" else sorted(files, reverse=True)
+        assert files == sorted(files)
     assert {t.split("::")[0] for t in ran["gw0"] if t in LIVE}.isdisjoint(
         {t.split("::")[0] for t in ran["gw1"]}
     )
@@ -111,7 +111,27 @@ def test_workers_for_the_whole_suite_only(monkeypatch: pytest.MonkeyPatch) -> No
     whole = SimpleNamespace(args_source=pytest.Config.ArgsSource.TESTPATHS)
     named = SimpleNamespace(args_source=pytest.Config.ArgsSource.ARGS)
     monkeypatch.setattr("os.cpu_count", lambda: 2)
-    assert scheduling.workers(whole) == 4  # type: ignore[arg-type]  # two lanes, two pure
+    assert scheduling.workers(whole) == 5  # type: ignore[arg-type]  # two lanes, three pure
     assert scheduling.workers(named) == 0  # type: ignore[arg-type]
     monkeypatch.setenv("PYTEST_XDIST_AUTO_NUM_WORKERS", "4")
     assert scheduling.workers(named) == 4  # type: ignore[arg-type]
+
+
+def _item(nodeid: str, scope: str = "function", long: bool = False) -> SimpleNamespace:
+    fixture = SimpleNamespace(scope=scope, baseid="tests")
+    mark = SimpleNamespace(kwargs={"long": True} if long else {})
+    return SimpleNamespace(
+        nodeid=nodeid,
+        _fixtureinfo=SimpleNamespace(name2fixturedefs={"f": [fixture]}),
+        get_closest_marker=lambda name: mark,
+    )
+
+
+def test_units_keep_a_module_fixture_together_and_put_the_long_ones_first() -> None:
+    items = [
+        _item("a.py::x"), _item("a.py::y"),  # function fixtures only: a unit each
+        _item("m.py::x", "module"), _item("m.py::y", "module"), _item("m.py::z", "module"),
+        _item("s.py::soak", long=True),
+    ]  # fmt: skip
+    got = scheduling.units(items)  # type: ignore[arg-type]
+    assert got == [["s.py::soak"], ["m.py::x", "m.py::y", "m.py::z"], ["a.py::x"], ["a.py::y"]]
