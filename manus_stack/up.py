@@ -57,10 +57,10 @@ LIVELINESS = {
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
-NICE = {"planner": 5, "record": 5, "flight": 5, "view": 10}
-"""Niceness of the services off the 60 ms loop. Those on it (router, simulator, bridge,
-guardian, controller, sequencer: its heartbeat echo is on the deadman's path) raise their
-own priority once started (:mod:`manus.realtime`, docs/deployment.md)."""
+NICE = {"planner": 5, "view": 10}
+"""Niceness of the services off the 60 ms loop (the recorders keep 0: the router cuts a
+subscriber off after 50 ms of a full queue, so a starved recorder loses messages). Those
+on it raise their own priority once started (:mod:`manus.realtime`, docs/deployment.md)."""
 
 
 class StackError(ManusError):

@@ -1,5 +1,9 @@
 """The sequencer's supervisor API over Zenoh: the real sequencer and planner shells on a
 loopback router; the bridge and the controller are test fakes (tests/sequencer_fakes.py).
+
+Live tests (``slow``): the fake bridge publishes its joint states every 60 ms from a
+thread and the sequencer judges them in time, so they run in a live lane at its priority
+(tests/scheduling.py); beside CPU-bound pure tests and two CPU hogs a step failed.
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ from services.sequencer.shell import SequencerShell
 from services.sequencer.taskfile import parse_task_text, task_from_args
 from tests.conftest import eventually
 from tests.sequencer_fakes import FakeBridge, FakeController
+
+pytestmark = pytest.mark.slow
 
 ROOT = FilePath(__file__).resolve().parent.parent
 SQUARE = str(ROOT / "paths" / "thesis_square.txt")
