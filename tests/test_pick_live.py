@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow(long=True)
 
 @pytest.fixture
 def live(zenoh_settings: ZenohSettings) -> Iterator[LiveStack]:
-    stack = LiveStack(zenoh_settings, replace(FAST, objects="default"))
+    stack = LiveStack(zenoh_settings, replace(FAST, objects="default"), planner_process=True)
     stack.sim.on_message = MessagePublisher(stack.node, lambda: stack.sim.wall_t0_ns)
     try:
         eventually(lambda: "cup" in stack.sequencer.core.world.objects, timeout=10.0)

@@ -6,6 +6,7 @@ supervisor in another process (examples/supervisor.py).
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -54,14 +55,30 @@ gripper = 30
 
 
 class LiveStack:
-    def __init__(self, settings: ZenohSettings, sim: SimConfig = FAST) -> None:
+    """The stack in this process (the simulator on a virtual bus); with
+    ``planner_process`` the planner runs as ``manus planner`` in a process of its own, for
+    tests whose plans are heavy: a plan holding this process's GIL for long starved the
+    bridge's thread of the arm's frames (a resync mid-task)."""
+
+    def __init__(
+        self, settings: ZenohSettings, sim: SimConfig = FAST, *, planner_process: bool = False
+    ) -> None:
         channel = f"seq-{uuid.uuid4().hex}"
         self.arm_bus = can.Bus(interface="virtual", channel=channel)
         self.pc_bus = can.Bus(interface="virtual", channel=channel)
         self.sim = LiveSim(SimCore(sim), self.arm_bus)
         self.bridge = BridgeShell(self.pc_bus, settings)
         self.controller = ControllerShell(settings)
-        self.planner = PlannerShell(settings)
+        self.planner: PlannerShell | subprocess.Popen[bytes]
+        if planner_process:
+            endpoint, prefix = settings.connect[0], settings.prefix
+            argv = [sys.executable, "-m", "manus_stack.cli", "planner"]
+            env = dict(os.environ, PYTHONPATH=str(ROOT))
+            self.planner = subprocess.Popen(
+                [*argv, "--connect", endpoint, "--prefix", prefix], env=env
+            )
+        else:
+            self.planner = PlannerShell(settings)
         self.sequencer = SequencerShell(settings)
         self.node = Node("test_supervisor", settings, liveliness=False)
         self.client = TaskClient(self.node)
@@ -74,7 +91,7 @@ class LiveStack:
         self.bridge.start()
         self.sim.start()
         assert self.client.wait_for_arm(10.0) == "running"
-        eventually(lambda: not self.sequencer.core.missing_services())
+        eventually(lambda: not self.sequencer.core.missing_services(), 60.0, "every service")
 
     def follow(self, task_id: str, timeout: float = 30.0) -> list[TaskEvent]:
         got: list[TaskEvent] = []
@@ -95,7 +112,15 @@ class LiveStack:
     def close(self) -> None:
         self.node.close()
         self.sequencer.close()
-        self.planner.close()
+        if isinstance(self.planner, subprocess.Popen):
+            self.planner.send_signal(signal.SIGINT)
+            try:
+                self.planner.wait(timeout=10.0)
+            except subprocess.TimeoutExpired:
+                self.planner.kill()
+                self.planner.wait()
+        else:
+            self.planner.close()
         self.controller.close()
         self.bridge.stop(timeout=3.0)
         self.bridge.node.close()
