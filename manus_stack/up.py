@@ -57,10 +57,10 @@ LIVELINESS = {
 }
 """``manus`` subcommand -> the liveliness name its node declares."""
 
-NICE = {"planner": 5, "view": 10}
-"""Niceness of the services off the 60 ms loop (the recorders keep 0: the router cuts a
-subscriber off after 50 ms of a full queue, so a starved recorder loses messages). Those
-on it raise their own priority once started (:mod:`manus.realtime`, docs/deployment.md)."""
+NICE = {"view": 10}
+"""Niceness of the services off the 60 ms loop: the viewer's only (the router cuts a
+starved subscriber off after 50 ms of a full queue: a planner or recorder at 5 lost its
+token or messages). Those on the loop raise their own priority (:mod:`manus.realtime`)."""
 
 
 class StackError(ManusError):
