@@ -111,7 +111,7 @@ def test_workers_for_the_whole_suite_only(monkeypatch: pytest.MonkeyPatch) -> No
     whole = SimpleNamespace(args_source=pytest.Config.ArgsSource.TESTPATHS)
     named = SimpleNamespace(args_source=pytest.Config.ArgsSource.ARGS)
     monkeypatch.setattr("os.cpu_count", lambda: 2)
-    assert scheduling.workers(whole) == 5  # type: ignore[arg-type]  # two lanes, three pure
+    assert scheduling.workers(whole) == 4  # type: ignore[arg-type]  # two lanes, two pure
     assert scheduling.workers(named) == 0  # type: ignore[arg-type]
     monkeypatch.setenv("PYTEST_XDIST_AUTO_NUM_WORKERS", "4")
     assert scheduling.workers(named) == 4  # type: ignore[arg-type]
