@@ -42,6 +42,11 @@ class SequencerConfig:
         bridge_wait_s: how long a task submitted while the bridge is still starting
             waits for phase ``running`` and a valid joint state before it is refused [s]
             (0: refused at once; :mod:`services.sequencer.bridge_wait`).
+        resync_wait_s: how long a goal the controller refused because the bridge was
+            not ``running`` waits for it to run again, mid-task, before the task fails
+            [s] (0: fails at once). A lost or late frame puts the bridge in ``resync``
+            for two clean cycles (120 ms); a goal sent then, between two motions, is
+            sent again once it runs (:class:`services.sequencer.goal_step.GoalStep`).
         scene: the scene folds are checked against (``""`` = ``$MANUS_SCENE`` or the
             shipped one, ``default``, ``none`` or a file; the planner checks every move
             against its own, the same by default).
@@ -60,6 +65,7 @@ class SequencerConfig:
     link_timeout_s: float = 0.5
     history: int = 100
     bridge_wait_s: float = 30.0
+    resync_wait_s: float = 1.0
     scene: str = ""
     pick: PickConfig = field(default_factory=PickConfig)
 

@@ -1,4 +1,12 @@
-"""Steps that run a controller goal: acknowledged, followed, ended by its result."""
+"""Steps that run a controller goal: acknowledged, followed, ended by its result.
+
+A goal the controller refuses because the bridge is not ``running`` (``not_ready``) while
+the bridge is on its way back there by itself (a ``resync``: a frame lost or late, two
+clean cycles to resume) is sent again once the bridge runs, within
+``SequencerConfig.resync_wait_s`` of the refusal; past it, or with the bridge in a
+phase it does not leave by itself (stopped, e-stopped, an arm error), the task fails
+with the refusal. The arm does not move meanwhile: the bridge sends zeros in ``resync``.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +26,7 @@ from schemas.control import (
 )
 from schemas.jog import USER_TOOK_OVER
 from schemas.sequencing import TaskStep
+from schemas.state import ON_ITS_WAY_PHASES, BridgePhase, BridgeState
 from services.sequencer.actions import Action
 from services.sequencer.step import BY_REQUEST, Phase, Step, StepContext, stop_command
 
@@ -30,8 +39,16 @@ class GoalStep(Step):
     def __init__(self, spec: TaskStep, ctx: StepContext) -> None:
         super().__init__(spec, ctx)
         self.goal_id = ""
+        self.sent: tuple[str, TrajectoryGoal | GripperGoal, float] | None = None
+        """The last goal sent: its endpoint, itself and its deadline [s]."""
+        self.refused_at: int | None = None
+        """When the controller first refused it as not ready [ns] (None: it has not)."""
+        self.refusal = ""
 
     def _send(self, suffix: str, goal: TrajectoryGoal | GripperGoal, span_s: float) -> list[Action]:
+        if self.sent is None or self.sent[1] is not goal:
+            self.refused_at = None  # a new goal: a wait of its own
+        self.sent = (suffix, goal, span_s)
         self.ctx.set_deadline(span_s)
         self.phase = Phase.ACKING
         return [self.ctx.query(suffix, goal, GoalAck, wait=True)]
@@ -56,7 +73,42 @@ class GoalStep(Step):
     def _refused(self, reply: GoalAck) -> list[Action]:
         if reply.refusal == Refusal.BUSY and reply.held_by == CommandSourceKind.JOG:
             return self.ctx.paused(USER_TOOK_OVER)  # the user jogs: pause, not fail
+        wait_s = self.ctx.config.resync_wait_s
+        if reply.refusal == Refusal.NOT_READY and self.sent is not None and wait_s > 0:
+            if self.refused_at is None:
+                self.refused_at = self.ctx.now
+            left_s = wait_s - (self.ctx.now - self.refused_at) / 1e9
+            if left_s > 0 and self._bridge_returns():
+                self.refusal = reply.reason
+                self.phase = Phase.WAITING_BRIDGE
+                self.ctx.set_deadline(left_s)
+                return self._again() if self.ctx.bridge_phase == BridgePhase.RUNNING else []
         return self.ctx.fail(f"controller refused the goal: {reply.reason}")
+
+    def _bridge_returns(self) -> bool:
+        """The bridge runs, or is on its way back by itself (a resync)."""
+        phase = self.ctx.bridge_phase
+        return phase == BridgePhase.RUNNING or phase in ON_ITS_WAY_PHASES
+
+    def _again(self) -> list[Action]:
+        """Send the refused goal again (the bridge runs)."""
+        assert self.sent is not None
+        suffix, goal, span_s = self.sent
+        self.goal_id = goal.goal_id
+        return self._send(suffix, goal, span_s)
+
+    def on_bridge_state(self, bs: BridgeState) -> list[Action] | None:
+        if self.phase != Phase.WAITING_BRIDGE:
+            return None
+        if bs.phase == BridgePhase.RUNNING:
+            return self._again()
+        if not self._bridge_returns():
+            self.phase = Phase.IDLE
+            return self.ctx.fail(
+                f"controller refused the goal: {self.refusal} (then the bridge went to "
+                f"phase {bs.phase!r}: {bs.detail})"
+            )
+        return None
 
     def _stop_goal(self, phase: Phase) -> list[Action]:
         self.phase = phase
@@ -98,6 +150,11 @@ class GoalStep(Step):
         return self.ctx.cancelled(BY_REQUEST)
 
     def on_deadline(self) -> list[Action]:
+        if self.phase == Phase.WAITING_BRIDGE:
+            return self.ctx.fail(
+                f"controller refused the goal: {self.refusal} (still so "
+                f"{self.ctx.config.resync_wait_s:g} s later)"
+            )
         if self.phase in (Phase.PAUSING, Phase.CANCELLING):
             goal_id, self.goal_id = self.goal_id, ""
             stop = self.ctx.query(ep.BRIDGE_COMMAND, stop_command(), ArmCommandReply)

@@ -76,6 +76,10 @@ class StageContext:
         return self.outer.cancel_requested or self.owner.replanning
 
     @property
+    def bridge_phase(self) -> str:
+        return self.outer.bridge_phase
+
+    @property
     def latest(self) -> JointState | None:
         return self.outer.latest
 

@@ -62,6 +62,7 @@ class Phase(StrEnum):
     ACTIVE = "active"
     FOLDING = "folding"
     WAITING = "waiting"
+    WAITING_BRIDGE = "waiting_bridge"
     PAUSING = "pausing"
     PAUSED = "paused"
     CANCELLING = "cancelling"
@@ -74,6 +75,8 @@ class StepContext(Protocol):
 
     pause_requested: bool
 
+    @property
+    def bridge_phase(self) -> str: ...  # the bridge's newest phase ("" before its first)
     @property
     def config(self) -> SequencerConfig: ...
     @property

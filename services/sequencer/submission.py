@@ -62,7 +62,6 @@ class TaskSubmission(TaskRun):
 
     def __init__(self, config: SequencerConfig | None = None) -> None:
         super().__init__(config)
-        self.bridge_phase = ""
         self.alive: set[str] = set()
         self.seen: set[str] = set()
         """Services whose tokens this sequencer has seen up (a required one missing and

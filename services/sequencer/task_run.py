@@ -84,6 +84,7 @@ class TaskRun:
         self.step = -1
         self.reason = ""
         self.now = 0
+        self.bridge_phase = ""  # the bridge's newest phase ("" before its first state)
         self._seq = 0
         self._token = 0
         self._goals = 0
