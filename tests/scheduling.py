@@ -1,15 +1,20 @@
 """How the suite runs in parallel (pytest-xdist): the live tests in two lanes, the pure
 tests on the other workers.
 
-The live tests (marked ``slow``) run real processes against 60 ms real-time cycles. The
-first lane (:data:`LIVE_WORKERS` [0]) runs them one unit after another (:func:`units`)
-from the start of the session, beside the workers of pure tests. A live test's process
-and the services it starts run at a real-time priority where permitted
-(:mod:`tests.live_priority`, :mod:`manus.realtime`), else the pure tests run at a lower
-one (:data:`PURE_NICE`): either way a live test's processes take a core at once when
-they wake. Once every pure test is given out, the second lane (:data:`LIVE_WORKERS` [1],
-idle until then) takes the next units too: two live stacks at once, and nothing else,
-on two cores. The units come longest first, so both lanes end on short ones.
+The live tests (marked ``slow``) run real processes against 60 ms real-time cycles. Two
+lanes (:data:`LIVE_WORKERS`) run them one unit after another (:func:`units`) from the
+start of the session, beside the workers of pure tests (one per CPU but one:
+:func:`workers`). A live test's process and the services it starts run at a real-time
+priority where permitted (:mod:`tests.live_priority`, :mod:`manus.realtime`), else the
+pure tests run at a lower one (:data:`PURE_NICE`): either way a live test's processes
+take a core at once when they wake. The units come longest first, so both lanes end on
+short ones; a lane with no live unit left takes pure tests.
+
+Why so: the live units hold about 500 s of wall time between them (a stack runs in real
+time, mostly waiting), the pure tests about 200 s of CPU. With the second lane waiting
+until every pure test was given out (two workers of them), it started at about 110 s and
+the run took 317 s on 2 cores; with both lanes from the start and one worker of pure
+tests, the three end together, about 260 s.
 
 A run that names test files or ids runs in one process (parallel only costs start-up
 there); ``-n N`` asks for workers anyway (with two workers, the second lane takes the
@@ -35,8 +40,8 @@ the scheduler (xdist sends the controlling process ids only, not markers)."""
 
 MAX_WORKERS = 8
 LIVE_WORKERS = ("gw0", "gw1")
-"""The workers of the two live lanes: the first from the start, the second once the pure
-tests are given out (another worker takes a lane only if its own died)."""
+"""The workers of the two live lanes, both from the start (the second after the pure tests
+when no other worker takes them; another worker takes a lane only if its own died)."""
 PURE_NICE = 5
 """Niceness of the workers of pure tests where a live test cannot run real-time
 (:mod:`tests.live_priority`): a live test's processes (niceness 0) get three times their
@@ -107,17 +112,18 @@ def tell_live(config: pytest.Config, live: list[pytest.Item]) -> None:
 
 
 def workers(config: pytest.Config) -> int:
-    """Workers for ``-n auto``: the two live lanes and one worker of pure tests per CPU (at
-    most :data:`MAX_WORKERS` in all; many pure tests wait on sockets and subprocesses half
-    their time, but with three on 2 cores the live tests beside them failed: a bridge
-    resync, the soak's planner cut off) for the whole suite, none (one process) when the
-    command line names what to run. ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
+    """Workers for ``-n auto``: the two live lanes and a worker of pure tests for every CPU
+    but one, at least one (at most :data:`MAX_WORKERS` in all; the two lanes' stacks take
+    about a core between them: with three workers of pure tests beside one lane on 2
+    cores, the live tests failed: a bridge resync, the soak's planner cut off) for the
+    whole suite, none (one process) when the command line names what to run.
+    ``PYTEST_XDIST_AUTO_NUM_WORKERS`` overrides both."""
     forced = os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS")
     if forced:
         return int(forced)
     if config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return 0
-    return min(MAX_WORKERS, len(LIVE_WORKERS) + (os.cpu_count() or 1))
+    return min(MAX_WORKERS, len(LIVE_WORKERS) + max(1, (os.cpu_count() or 1) - 1))
 
 
 def live_units() -> list[list[str]]:
@@ -250,12 +256,12 @@ class LiveApartScheduling:
         self._choose_lanes()
         pending = self.node2pending[node]
         lane = self.lanes.index(node) if node in self.lanes else None
-        if lane is not None and (lane == 0 or not self.pure):
+        pure_workers = [n for n in self.nodes if n not in self.lanes and not n.shutting_down]
+        if lane is not None and (lane == 0 or pure_workers or not self.pure):
             while self.live and len(pending) < 2:  # a worker runs a test once it holds the next
                 self._send(node, self.live.pop(0))
         if len(pending) >= 2:
             return
-        pure_workers = [n for n in self.nodes if n not in self.lanes and not n.shutting_down]
         if self.pure and (lane is None or not pure_workers or not self.live):
             count = max(2, len(self.pure) // (4 * len(self.node2pending))) - len(pending)
             chunk, self.pure = self.pure[:count], self.pure[count:]
