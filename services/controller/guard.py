@@ -17,7 +17,8 @@ stays under each body's margin at the anchor nothing can be violated (conservati
 advancement, :class:`manus.advancement.Advancement`, compiled). An anchor takes the fast
 check's margins first (:mod:`manus.validity`, lower bounds); only when they do not
 prove the command (a margin under ``slow_zone_m``) does Coal compute, and the guard
-decides on exact distances as it always did. The clearance a goal reports is Coal's:
+decides on exact distances as it always did (those ahead only when the fast check's
+bounds there do not already give the pass). The clearance a goal reports is Coal's:
 computed at an anchor whose fast bound says it may be below the goal's smallest so far.
 
 Pure: no clock, no I/O; the same inputs give the same commands.
@@ -140,7 +141,8 @@ class Guard:
         if self.advance.anchor_fast(q_s) >= self.slow_zone_m and self.advance.proven(nxt, end):
             return Verdict(counts, 1.0, "", self._report(q_s))  # the fast bounds prove it
         now = self._anchor_at(q_s)
-        if now.margin >= self.slow_zone_m and self.advance.proven(nxt, end):
+        fresh = now.margin >= self.slow_zone_m and self.advance.proven(nxt, end)
+        if fresh or self._bounds_pass(q_next, q_end, now.margin):
             return Verdict(counts, 1.0, "", now.clearance)  # the fresh margins prove it
         floor = min(0.0, now.margin) - 1e-4
         m_next = self._margin(q_next)
@@ -225,6 +227,19 @@ class Guard:
             if check == found.check:
                 return Clearance(margin, margin + check.required, check, 0.0, q)
         return now.clearance
+
+    def _bounds_pass(self, q_next: np.ndarray, q_end: np.ndarray, now: float) -> bool:
+        """Whether the fast check's lower bounds at ``q_next`` and ``q_end`` [rad] already
+        give :meth:`_decide` its pass (``now``: Coal's margin at the anchor [m]): neither
+        below 0 (the stop's floor is under it), and ``q_end``'s not below ``now`` where a
+        closing motion would be slowed. Exact margins at least as large decide the same,
+        so Coal computes them only when the bounds leave it open (two calls of 0.1-0.4 ms
+        each, against tens of microseconds)."""
+        need = now if 0.0 < now < self.slow_zone_m else 0.0
+        bounds = self.advance.checker.margins_batch(np.array([q_next, q_end]), cap=need)
+        passed = bool(bounds.tight[0] >= 0.0 and bounds.tight[1] >= need)
+        self.computed += 2 if passed else 0  # (else Coal computes the same two)
+        return passed
 
     def _margin(self, q: np.ndarray) -> Clearance:
         self.computed += 1
