@@ -52,6 +52,9 @@ _NOTHING = (0.0,) * 6
 _ROUNDING_M = 1e-6
 """More than a margin's rounding in ``distance - required`` [m] (a report's comparisons)."""
 
+_OPENING_M = 0.005
+"""A gripper opening this much other than the model's [m]: the model follows it."""
+
 _SAME = np.eye(6)
 """The rates the prediction takes are DH rates already: no map."""
 
@@ -115,7 +118,7 @@ class Guard:
         if not any(motor) and not any(applied):
             return Verdict(counts, 1.0, "", None)
         model = self.model
-        if abs(model.opening - opening) > 0.005:  # a wider gripper: the proof is void
+        if abs(model.opening - opening) > _OPENING_M:  # a wider gripper: the proof is void
             model.set_opening(opening)
             self.advance.forget()
         ahead = self.cycle_s + self.runout_s
@@ -164,13 +167,8 @@ class Guard:
         if scale > 0.0 and scaled.any():
             check = self._margin(self._ahead(q_next, scaled))
             if check.margin >= floor:
-                return Verdict(
-                    scaled,
-                    scale,
-                    f"slowed to {scale:.2f}: {check.describe()} ahead",
-                    now.clearance,
-                    now.clearance,
-                )
+                reason = f"slowed to {scale:.2f}: {check.describe()} ahead"
+                return Verdict(scaled, scale, reason, now.clearance, now.clearance)
         near = self._now(now, m_end, q_s)
         return self._stopped(counts, m_end, "ahead at the commanded speed", near)
 
@@ -229,12 +227,10 @@ class Guard:
         return now.clearance
 
     def _bounds_pass(self, q_next: np.ndarray, q_end: np.ndarray, now: float) -> bool:
-        """Whether the fast check's lower bounds at ``q_next`` and ``q_end`` [rad] already
-        give :meth:`_decide` its pass (``now``: Coal's margin at the anchor [m]): neither
-        below 0 (the stop's floor is under it), and ``q_end``'s not below ``now`` where a
-        closing motion would be slowed. Exact margins at least as large decide the same,
-        so Coal computes them only when the bounds leave it open (two calls of 0.1-0.4 ms
-        each, against tens of microseconds)."""
+        """Whether the fast check's lower bounds at ``q_next`` and ``q_end`` [rad] give
+        :meth:`_decide` its pass (``now``: Coal's margin at the anchor [m]): neither below 0
+        (the floor is under it), nor ``q_end``'s below ``now`` where closing is slowed.
+        Exact margins, at least as large, decide the same: no Coal call (0.1-0.4 ms each)."""
         need = now if 0.0 < now < self.slow_zone_m else 0.0
         bounds = self.advance.checker.margins_batch(np.array([q_next, q_end]), cap=need)
         passed = bool(bounds.tight[0] >= 0.0 and bounds.tight[1] >= need)
@@ -304,6 +300,13 @@ class RunGuard:
         ):
             self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
         return verdict
+
+    def prepare(self, js: JointState) -> None:
+        """Build now what a command answering a state like ``js`` would build in its cycle
+        (the fast check for a new gripper opening, about 1 ms): a source was admitted."""
+        g = self.guard
+        if abs(g.model.opening - js.gripper) > _OPENING_M:
+            g.advance.checker.prepare(js.gripper)
 
     def move_object(self, name: str, pose: np.ndarray) -> None:
         """Place the scene object ``name`` at ``pose`` (4x4, chair frame).
