@@ -36,15 +36,8 @@ from manus.clearance import Check
 from manus.collision import CollisionModel
 from manus.collision_pairs import STATIC_BODIES
 from manus.config import ArmConfig
-from manus.validity_parts import (
-    Piece,
-    body_pieces,
-    cover_points,
-    lever_table,
-    primitive_arrays,
-    primitive_box,
-)
-from manus.validity_scene import obstacles, place_moved, static_shapes
+from manus.validity_arrays import SLACK_M, KernelArrays, Shaped, kernel_arrays
+from manus.validity_scene import Obstacles, obstacles, place_moved
 
 MOTION_FLOOR_M = 0.0005
 """Along a motion, a configuration whose margin bound is below this [m] ends the proof:
@@ -56,8 +49,20 @@ MAX_STEPS = 2000
 _WARM = False
 """Whether this process has compiled (or loaded) the kernels."""
 
-SLACK_M = 1e-5
-"""Taken off every bound [m]: Coal's distances carry a tolerance of their own."""
+__all__ = [
+    "MAX_STEPS",
+    "MOTION_FLOOR_M",
+    "SLACK_M",
+    "BatchMargins",
+    "Margins",
+    "MotionCheck",
+    "ValidityChecker",
+    "checker_for",
+    "warm_up",
+]
+
+_Built = tuple[list[Shaped], Obstacles, KernelArrays]
+"""What is kept per gripper opening: the bodies' shapes, the obstacles, the arrays."""
 
 
 class Margins(NamedTuple):
@@ -117,20 +122,18 @@ class ValidityChecker:
         self.bodies: list[str] = [model.shapes[i].name for i in moving]
         """The bodies checked, in the order of :attr:`Margins.free`."""
         self._joint_of = [int(model.geom.geometryObjects[i].parentJoint) for i in moving]
-        self._shape_of: list[tuple[str, tuple[float, ...], np.ndarray]] = [
-            self._shape(i) for i in moving
-        ]
+        self._shape_of: list[Shaped] = [self._shape(i) for i in moving]
         self._obstacles = obstacles(model, self.bodies)
         self._others = self._obstacles.others
         self._opening, self._moved = model.opening, model.moved.version
-        self._by_opening: dict[float, tuple[Any, ...]] = {}
+        self._by_opening: dict[float, _Built] = {}
         """The arrays built per gripper opening while no object moved (a gripper that
         closes and opens again: the same arrays, not built again; at most 8)."""
         self._build()
 
     # --- building ----------------------------------------------------------------------------
 
-    def _shape(self, index: int) -> tuple[str, tuple[float, ...], np.ndarray]:
+    def _shape(self, index: int) -> Shaped:
         shape = self.model.shapes[index]
         obj = self.model.geom.geometryObjects[index]
         size = shape.size
@@ -140,70 +143,45 @@ class ValidityChecker:
 
     def _build(self) -> None:
         """The kernels' arrays from the bodies, the obstacles and the keep-in zones."""
-        pieces: list[Piece] = []
-        p_joint, p_body, b_start, b_center, b_radius = [], [], [0], [], []
-        for b, ((kind, size, placement), joint) in enumerate(
-            zip(self._shape_of, self._joint_of, strict=True)
-        ):
-            mine = body_pieces(kind, size, placement)
-            pieces += mine
-            p_joint += [joint] * len(mine)
-            p_body += [b] * len(mine)
-            b_start.append(len(pieces))
-            centre = np.mean([p.center for p in mine], axis=0)
-            b_center.append(centre)
-            b_radius.append(max(float(np.linalg.norm(p.center - centre)) + p.rb for p in mine))
-        statics = static_shapes(self.model)
-        cover_local, cover_r, cover_joint, cover_body = cover_points(
-            statics, self._shape_of, self._joint_of
+        built = self._by_opening.get(self._opening) if self.model.moved.version == 0 else None
+        if built is None:
+            built = self._arrays(list(self._shape_of), self._obstacles)
+        _, _, arrays = built
+        self._arm, self._scene, self._zone_checks, self._lever_table = arrays
+        self._fresh_scratch()
+        self._warm_up()
+
+    def _arrays(self, shaped: list[Shaped], found: Obstacles) -> _Built:
+        """The arrays for the bodies shaped as ``shaped`` and the obstacles ``found``,
+        kept for the model's opening now while no object moved (at most 8 openings)."""
+        arrays = kernel_arrays(
+            self.model, self._placements, shaped, self._joint_of, self.bodies, found
         )
-        cover_names = [STATIC_BODIES[-1 - b] if b < 0 else self.bodies[b] for b in cover_body]
-        self._arm = (
-            self._placements,
-            np.array(p_joint, dtype=np.int64),
-            np.array(p_body, dtype=np.int64),
-            np.array([p.center for p in pieces]),
-            np.array([p.axes for p in pieces]),
-            np.array([p.half for p in pieces]),
-            np.array([p.rc for p in pieces]),
-            np.array([p.rs for p in pieces]),
-            np.array([p.rb for p in pieces]),
-            np.array(b_start, dtype=np.int64),
-            np.array(self._joint_of, dtype=np.int64),
-            np.array(b_center),
-            np.array(b_radius),
-            cover_joint,
-            cover_body,
-            cover_local,
-            cover_r,
-        )
-        found = self._obstacles
-        o_kind, o_R, o_t, o_s = primitive_arrays(found.prims)
-        req = np.array([r for _, _, r in self._others]) + SLACK_M
-        zones = self.model.keep_in_bodies
-        zk, zR, zt, zs = primitive_arrays([z for _, z, _ in zones])
-        holds = np.zeros((len(zones), len(cover_body)), dtype=np.bool_)
-        for z, (_, _, members) in enumerate(zones):
-            names = {self.model.shapes[i].name for i in members}
-            holds[z] = [name in names for name in cover_names]
-        z_req = np.array([c.required for c, _, _ in zones]) + SLACK_M
-        self._zone_checks = [c for c, _, _ in zones]
-        moving = found.partner >= 0
-        boxes = np.array([primitive_box(p) for p in found.prims]).reshape(-1, 2, 3)
-        boxes[moving] = [np.full(3, -math.inf), np.full(3, math.inf)]  # placed per configuration
-        local = np.array([np.eye(4) if m else np.zeros((4, 4)) for m in moving]).reshape(-1, 4, 4)
-        for o in np.flatnonzero(moving):
-            local[o] = found.prims[o].pose
-        self._scene = (o_kind, o_R, o_t, o_s, req, found.applies, zk, zR, zt, zs, z_req, holds,
-            boxes, found.partner, found.rigid, found.joint.astype(np.int64), local)  # fmt: skip
-        self._lever_table = lever_table(self.model, self._arm, self._joint_of)
+        built = (shaped, found, arrays)
         if self.model.moved.version == 0:
             if len(self._by_opening) >= 8:
                 self._by_opening.clear()
-            self._by_opening[self._opening] = (list(self._shape_of), self._obstacles,
-                self._arm, self._scene, self._zone_checks, self._lever_table)  # fmt: skip
-        self._fresh_scratch()
-        self._warm_up()
+            self._by_opening[self.model.opening] = built
+        return built
+
+    def prepare(self, opening: float) -> None:
+        """Build now the arrays for gripper ``opening`` [m] (clamped as the model clamps
+        it), kept as a rebuild keeps them: when the model's opening becomes that, the
+        check takes them instead of building (about 1 ms) in that call. Nothing changes
+        meanwhile (nothing is kept while an object is moved, as then the arrays follow
+        it); the model's opening is set back as it was."""
+        model = self.model
+        was = model.opening
+        model.set_opening(opening)
+        try:
+            key = model.opening
+            if key == self._opening or key in self._by_opening or model.moved.version != 0:
+                return
+            shaped = list(self._shape_of)
+            shaped[self.bodies.index("gripper")] = self._shape(model.body_index["gripper"])
+            self._arrays(shaped, obstacles(model, self.bodies))
+        finally:
+            model.set_opening(was)
 
     def _fresh_scratch(self) -> None:
         """The kernels' work arrays, as new (one holds each body's nearest obstacle last
@@ -252,13 +230,12 @@ class ValidityChecker:
             self._opening = self.model.opening
             built = self._by_opening.get(self._opening) if self._moved == 0 else None
             if built is not None:  # the arrays of a rebuild, as they were for this opening
-                shapes, self._obstacles, self._arm, self._scene, self._zone_checks, levers = built
-                self._shape_of, self._lever_table = list(shapes), levers
-                self._fresh_scratch()
-                return
-            gripper = self.bodies.index("gripper")
-            self._shape_of[gripper] = self._shape(self.model.body_index["gripper"])
-            self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover
+                shapes, self._obstacles, _ = built
+                self._shape_of = list(shapes)
+            else:
+                gripper = self.bodies.index("gripper")
+                self._shape_of[gripper] = self._shape(self.model.body_index["gripper"])
+                self._obstacles = obstacles(self.model, self.bodies)  # the gripper as a mover
             self._build()
 
     # --- questions -------------------------------------------------------------------------

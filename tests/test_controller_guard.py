@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Any
 
 import numpy as np
 
+from manus.clearance import Probe
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
 from manus.quantize import step_rates
@@ -156,3 +158,49 @@ def test_what_the_guard_lets_through_keeps_the_clearance_near_the_head() -> None
             stopped += 1
             assert verdict.reason.startswith("stopped: ")
     assert stopped > 0 and passed > 0
+
+
+class _Counted(CollisionModel):
+    """The collision model, counting the exact distances it computes."""
+
+    probes = 0
+
+    def probe(self, q: np.ndarray, time: float = 0.0, **kw: Any) -> Probe:
+        self.probes += 1
+        return super().probe(q, time, **kw)
+
+
+class _CoalAhead(Guard):
+    """The guard as it was: Coal's margins ahead of every exact anchor."""
+
+    def _bounds_pass(self, q_next: np.ndarray, q_end: np.ndarray, now: float) -> bool:
+        return False
+
+
+def test_the_fast_bounds_ahead_decide_as_coals_margins_would() -> None:
+    # Seeded walks of commands from the unfolded pose, drifting toward poses about it and
+    # toward the folded one (into the slow zone and the stops): every verdict the same.
+    fast, exact = _Counted(default_scene(), DEFAULT_ARM), _Counted(default_scene(), DEFAULT_ARM)
+    slowed = 0
+    for seed in range(4):
+        guard, coal = Guard(fast), _CoalAhead(exact)
+        rng = np.random.default_rng(seed)
+        q, applied = np.radians(UNFOLDED_Q_DEG), [0.0] * 6
+        goal = np.radians(FOLDED_Q_DEG) if seed % 2 else q + rng.normal(0.0, 1.0, 6)
+        for _ in range(150):
+            drift = np.round((goal - q) * 8.0) + rng.integers(-3, 4, 6)
+            counts = np.clip(drift, -6, 6).astype(np.int64)
+            got = guard.filter(list(q), applied, counts, 0.05)
+            want = coal.filter(list(q), applied, counts, 0.05)
+            assert (got.counts == want.counts).all() and got.reason == want.reason
+            assert got.scale == want.scale
+            assert (got.clearance is None) == (want.clearance is None)
+            if got.clearance is not None and want.clearance is not None:
+                assert got.clearance.margin == want.clearance.margin
+                assert got.clearance.check == want.clearance.check
+            slowed += got.scale < 1.0
+            applied = step_rates(got.counts.tolist())
+            q = q + np.array(applied) * guard.cycle_s
+        assert guard.computed == coal.computed
+    assert slowed > 0
+    assert fast.probes < exact.probes  # the bounds decided some, with fewer exact distances

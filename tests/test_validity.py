@@ -194,6 +194,21 @@ def test_the_gripper_opening_of_the_model_is_followed() -> None:
     assert opened < closed
 
 
+def test_an_opening_prepared_ahead_changes_nothing_now_and_checks_as_one_built_then() -> None:
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    fast = ValidityChecker(model)
+    Q = random_configurations(50, 3)
+    before = fast.margins_batch(Q).free
+    fast.prepare(0.03)
+    assert model.opening == DEFAULT_ARM.gripper_max
+    assert np.array_equal(fast.margins_batch(Q).free, before)
+    assert 0.03 in fast._by_opening  # built now, kept for when the opening is that
+    model.set_opening(0.03)
+    fresh = ValidityChecker(CollisionModel(default_scene(), DEFAULT_ARM, opening=0.03))
+    assert np.array_equal(fast.margins_batch(Q).free, fresh.margins_batch(Q).free)
+    assert np.array_equal(fast.levers(), fresh.levers())
+
+
 def test_without_a_scene_only_the_arm_itself_is_checked() -> None:
     model = CollisionModel(None, DEFAULT_ARM)
     fast = ValidityChecker(model)

@@ -29,7 +29,12 @@ bridge and controller cores; the simulator's tracker at 30 Hz, 40 ms latency):
   against the person's clearance (50 mm; the closer approach's rim: 20 mm); entries, and
   entries the arm's own motion made (the person leaning into the arm is the rest).
 - ``cpu_ms_per_cycle``: the controller core's CPU time per joint state while following,
-  the target frames taken since the last joint state included.
+  the target frames taken since the last joint state included; ``goal_query_max``: the
+  largest CPU time of a follow goal's query (its admission, where the guard builds what
+  the first command needs). The start-up heap frozen as the service freezes its own
+  (:class:`Timed`); ``cycles_with_a_collection``: cycles in which a garbage collection
+  ran (it walks every young object of this process: the simulator's, the bridge's, the
+  probe's), ``p99_less_collections``: the p99 with their time taken out.
 - ``streamed_via_points``: 10 via points appended one by one while the arm moves, against
   the same path planned whole (:mod:`.follow_stream`).
 """
@@ -37,7 +42,6 @@ bridge and controller cores; the simulator's tracker at 30 Hz, 40 ms latency):
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import numpy as np
@@ -46,14 +50,14 @@ from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG
 from manus.kinematics import fk
 from manus.protocol import FrameId
 from manus.scene import default_scene
-from manus_stack.bench import follow_stream
+from manus_stack.bench import follow_cpu, follow_stream
+from manus_stack.bench.follow_cpu import Timed
 from manus_stack.bench.follow_floor import floor_errors, pose_ik
 from manus_stack.follow_lockstep import FollowArm, FollowSample
 from schemas import endpoints as ep
 from schemas.target import TargetPose
 from services.controller.config import ControllerConfig
 from services.controller.follow_config import FollowConfig
-from services.controller.follow_source import FollowSource
 from services.simulator.config import SimConfig
 from services.simulator.target_config import LostWindow, TargetConfig, TargetMove
 
@@ -77,37 +81,8 @@ PLAY = (0.15, 0.05, 0.05, 0.3, 0.3, 0.3)
 """The simulator's belt play [deg] (its default), as a calibration would give it."""
 
 
-class Timed:
-    """The controller core's CPU time per joint state, the target frames taken since the
-    last one included (wraps the core's two entry points)."""
-
-    def __init__(self, arm: FollowArm) -> None:
-        self.spent: list[float] = []
-        self._carry = 0.0
-        core = arm.core
-        on_js, take = core.on_joint_state, core.take
-
-        def timed_js(js: Any) -> Any:
-            t = time.thread_time_ns()
-            out = on_js(js)
-            if core.source(FollowSource).goal is not None:
-                self.spent.append(self._carry + (time.thread_time_ns() - t) / 1e9)
-            self._carry = 0.0
-            return out
-
-        def timed_take(kind: Any, handle: Any, msg: Any) -> Any:
-            t = time.thread_time_ns()
-            out = take(kind, handle, msg)
-            self._carry += (time.thread_time_ns() - t) / 1e9
-            return out
-
-        core.on_joint_state = timed_js  # type: ignore[method-assign]
-        core.take = timed_take  # type: ignore[method-assign]
-
-
 SAMPLES: list[list[FollowSample]] = []
 """Every run's truth samples (the safety figures are taken over all of them)."""
-CPU: list[float] = []
 
 
 def _arm(
@@ -169,7 +144,7 @@ def sinusoid(hz: float, variant: str = "default", seconds: float = 10.0) -> dict
     arm.run(2.0)
     first = len(arm.samples)
     arm.run(seconds)
-    CPU.extend(timer.spent)
+    timer.done()
     seg = arm.samples[first:]
     errors = [s.error for s in seg]
     out = {
@@ -284,7 +259,7 @@ def mouth(lean_s: float) -> dict[str, Any]:
     arm.run(4.0)
     first = len(arm.samples)
     arm.run(6.0)
-    CPU.extend(timer.spent)
+    timer.done()
     seg = arm.samples[first:]
     before = [s.error for s in seg if s.t_ns < 6.0e9]
     return {
@@ -336,7 +311,7 @@ def safety(clearance: float = 0.05) -> dict[str, Any]:
 def run(quick: bool = False) -> dict[str, Any]:
     """Every figure (``quick``: the sinusoids' default variant only)."""
     SAMPLES.clear()
-    CPU.clear()
+    follow_cpu.clear()
     out: dict[str, Any] = {"targets": TARGETS}
     variants = ["default"] if quick else ["default", "ideal_arm", "play_set", "noisy_tracker"]
     out["sinusoid"] = {v: {f"{hz}_hz": sinusoid(hz, v) for hz in (0.1, 0.2, 0.5)} for v in variants}
@@ -347,11 +322,5 @@ def run(quick: bool = False) -> dict[str, Any]:
     out["close"] = close()
     out["safety"] = {"default_clearance": person, "close_approach": safety(0.02)}
     out["streamed_via_points"] = follow_stream.figures()
-    a = np.asarray(CPU) * 1e3
-    out["cpu_ms_per_cycle"] = {
-        "p50": round(float(np.median(a)), 3),
-        "p99": round(float(np.percentile(a, 99)), 3),
-        "max": round(float(a.max()), 3),
-        "n": len(CPU),
-    }
+    out["cpu_ms_per_cycle"] = follow_cpu.figures()
     return out

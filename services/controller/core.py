@@ -134,11 +134,13 @@ class ControllerCore:
 
     def admission(self, source: CommandSource) -> Refused | None:
         """Why a request of ``source`` is refused now: a source above it holds the arm,
-        or nothing may move (None: it may take the arm)."""
+        or nothing may move (None: it may take the arm; the guard prepares its checks)."""
         above = next((s for s in self._ranked if s.PRIORITY > source.PRIORITY and s.engaged), None)
         if above is not None:
             return Refused(Refusal.BUSY, above.BUSY, above.KIND)
         reason = self._not_ready()
+        if reason is None and self.guard is not None and self._last_js is not None:
+            self.guard.prepare(self._last_js)  # not in the first command's cycle
         return None if reason is None else Refused(Refusal.NOT_READY, reason)
 
     def finish(self, outcome: GoalOutcome) -> None:
@@ -191,7 +193,7 @@ class ControllerCore:
             return out
         if was and source.STOPS_AT_ONCE and not source.engaged:
             out.append(self._zeros_now(js))
-        return out + self._flush(js.stamp_ns)
+        return out + self.outbox.flush(js.stamp_ns)
 
     def ask(
         self, kind: type[S], handle: Callable[[S, Any], Message], query: str, request: Any
@@ -229,7 +231,7 @@ class ControllerCore:
         self.arm_error = st.text or f"arm error code {st.msg_code}"
         if first:
             self._stop_all(EndCause.ARM_ERROR, f"arm error: {self.arm_error}")
-        return self._flush(st.stamp_ns)
+        return self.outbox.flush(st.stamp_ns)
 
     def on_bridge_state(self, bs: BridgeState) -> Output:
         """Follow the bridge's phase: sources run only while it is ``running``.
@@ -240,7 +242,7 @@ class ControllerCore:
         self.bridge_phase = bs.phase
         if bs.phase in STOPPING_PHASES and any(s.engaged for s in self.sources):
             self._stop_all(EndCause.BRIDGE_PHASE, f"bridge phase {bs.phase}: {bs.detail}")
-            return self._flush(bs.stamp_ns)
+            return self.outbox.flush(bs.stamp_ns)
         return []
 
     def on_scene(self, scene: SceneState) -> Output:
@@ -281,7 +283,7 @@ class ControllerCore:
             return out
         if reason:
             out.append(self._zeros_now(js))
-        return out + self._flush(js.stamp_ns)
+        return out + self.outbox.flush(js.stamp_ns)
 
     def _not_ready(self) -> str | None:
         """Why nothing may move now (None: it may)."""
@@ -394,7 +396,4 @@ class ControllerCore:
         sent = Sent(js, cmd, guarded)
         for s in self.sources:
             out += s.reports(sent)
-        return out + self._flush(js.stamp_ns)
-
-    def _flush(self, stamp_ns: int) -> Output:
-        return self.outbox.flush(stamp_ns)
+        return out + self.outbox.flush(js.stamp_ns)
