@@ -27,8 +27,13 @@ Seen = Callable[[int], tuple[list[tuple[SimObject, np.ndarray]], list[Primitive]
 def next_event_ns(camera: Camera | None, target: MovingTarget | None) -> int | None:
     """The next capture or publication of the camera or the target's tracker [ns] (None:
     both off)."""
-    due = [s.next_event_ns() for s in (camera, target) if s is not None]
-    return min(due, default=None)
+    # Asked several times a tick (:meth:`~services.simulator.core.SimCore.advance`): no
+    # list, no generator, for the one or two that are on.
+    if target is None:
+        return None if camera is None else camera.next_event_ns()
+    if camera is None:
+        return target.next_event_ns()
+    return min(camera.next_event_ns(), target.next_event_ns())
 
 
 def event(
