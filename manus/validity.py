@@ -347,9 +347,6 @@ class ValidityChecker:
         return Check(self.bodies[body], name, cls, required)
 
 
-
-
-
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of the fast check now, in this
     process: what a service's start or a test session pays once (seconds with an empty
