@@ -349,7 +349,13 @@ class GoalResult(Message):
         unit="ns",
         default_factory=list,
     )
-    final_error: float = field("gripper position error at the end", unit="m", default=0.0)
+    final_error: float = field(
+        "how far from its end the goal ended: a trajectory's gripper from its last via "
+        "point (measured while it settles at the end, and where the collision guard stopped "
+        "it; 0 when it ended before either), a gripper goal's opening from its target",
+        unit="m",
+        default=0.0,
+    )
     duration: float = field("time from start to end", unit="s", default=0.0)
     clearance: ClearanceReport | None = field(
         "smallest clearance the collision guard computed while the goal ran (None: none)",

@@ -8,10 +8,12 @@ import math
 from typing import Any
 
 import numpy as np
+import pytest
 
 from manus.clearance import Probe
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM, FOLDED_Q_DEG, UNFOLDED_Q_DEG
+from manus.kinematics import gripper_position
 from manus.quantize import step_rates
 from manus.scene import default_scene
 from manus.viapoints import parse_viapoints
@@ -67,6 +69,12 @@ def test_a_trajectory_into_the_head_is_stopped_at_the_clearance() -> None:
     assert result.clearance is not None and result.clearance.other == "head"
     arm.ls.run_for(1.0)  # the arm has come to rest: nothing moves any more
     truth = arm.ls.sim.truth()
+    # how far from the path's end it stopped (the head's centre): where it stands now,
+    # within the run-out after the stop and the encoders' counts
+    end = gripper_position(reply.trajectory.positions[-1], DEFAULT_ARM)
+    stood = gripper_position(truth.q_true, DEFAULT_ARM)
+    assert result.final_error == pytest.approx(math.dist(stood, end), abs=0.005)
+    assert result.final_error > 0.05
     closest = min(closest, head_distance(model, truth.q_true))
     assert truth.contacts == 0
     # The truth never came within the person clearance (50 mm), and it stopped near it.

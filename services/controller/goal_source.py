@@ -241,11 +241,14 @@ class GoalSource(CommandSource):
         return Command(counts, grip, run.goal.goal_id if run is not None else "")
 
     def guarded(self, command: Command, verdict: Verdict) -> None:
-        """The guard stopped the trajectory's command: the goal aborts."""
+        """The guard stopped the trajectory's command: the goal aborts, its
+        ``final_error`` how far the gripper stopped from the path's end."""
         ran = self._ran[1] if self._ran is not None else None
-        if verdict.scale == 0.0 and ran is not None and self.run is ran[1]:
+        if verdict.scale == 0.0 and ran is not None and self.run is ran[1] and self._ran:
+            run = ran[1]
+            run.final_error = math.dist(self._ran[0], run.ref.via_xyz[-1])
             why = f"collision guard {verdict.reason}"
-            self._end_run(ran[1], End(ResultStatus.ABORTED, EndCause.COLLISION, why))
+            self._end_run(run, End(ResultStatus.ABORTED, EndCause.COLLISION, why))
 
     def reports(self, sent: Sent) -> Output:
         """The feedback of a cycle in which a goal ran."""
