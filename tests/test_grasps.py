@@ -9,12 +9,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from manus.config import ArmConfig
+from manus.config import DEFAULT_ARM, UNFOLDED_Q_DEG, ArmConfig
+from manus.errors import KinematicsError
 from manus.grasp_poses import blocked_by, grasps_of, tilt
 from manus.grasps import Approach, GraspError, load_grasps, parse_grasps
+from manus.kinematics import ik_nearest
 from manus.orientation import matrix_to_ypr, pose_matrix
 from manus.scene import default_scene
-from schemas.goals import LineFrame, LineMotion
+from schemas.goals import JointGoal, LineFrame, LineMotion
 from schemas.objects import WorldObject
 from schemas.planning import Trajectory
 from schemas.sequencing import TaskStep
@@ -23,11 +25,11 @@ from services.sequencer.object_stages import (
     ObjectProblem,
     ObjectView,
     pick_plan,
-    pick_stages,
     surface_under,
 )
 from services.sequencer.object_step import object_problems
 from services.sequencer.pick_config import PickConfig
+from services.sequencer.pick_stages import LIFT_OFF_M, pick_stages
 from services.sequencer.taskfile import TaskFileError, parse_task_text
 
 GOOD = """version: 1
@@ -153,8 +155,8 @@ def test_pick_stages_in_order_and_table_as_touch_object() -> None:
     stages = pick_stages(plan, plan.grasps[0], v)
     labels = [s.label for s in stages]
     assert labels == [
-        "open", "pre-grasp", "approach", "close", "attach", "lift", "clear of the surface",
-        "retreat",
+        "open", "pre-grasp", "approach", "close", "attach", "lift off", "lift",
+        "clear of the surface", "retreat",
     ]  # fmt: skip
     assert stages[0].opening == pytest.approx(0.09)  # 80 mm + 25, at most the gripper's 90
     assert stages[3].holds == pytest.approx(0.08)
@@ -162,6 +164,33 @@ def test_pick_stages_in_order_and_table_as_touch_object() -> None:
     approach = stages[2].motion(np.zeros(6))  # type: ignore[misc]
     assert isinstance(approach, LineMotion) and approach.frame == LineFrame.TOOL
     assert approach.xyz == pytest.approx([0.0, 0.0, 0.08])
+
+
+def test_the_lift_off_raises_the_object_on_the_shoulder_alone() -> None:
+    v = view(cup())
+    plan = pick_plan(v, "cup")
+    tried = 0
+    for grasp in plan.grasps[:4]:
+        try:
+            q = ik_nearest(v.in_base(grasp.grasp), np.radians(UNFOLDED_Q_DEG), DEFAULT_ARM)
+        except KinematicsError:
+            continue  # out of reach or beyond a limit: not a grasp the pick would use
+        stages = {s.label: s for s in pick_stages(plan, grasp, v)}
+        goal = stages["lift off"].motion(q)  # type: ignore[misc]
+        assert isinstance(goal, JointGoal)
+        moved = np.array(goal.joints) - q
+        assert np.count_nonzero(moved) == 1 and moved[1] != 0.0  # joint 2 only
+        before, after = v.gripper(q), v.gripper(np.array(goal.joints))
+        assert after[2, 3] - before[2, 3] == pytest.approx(LIFT_OFF_M, abs=2e-4)
+        # every point of the cup's bottom (35 mm around the grasp point) rises
+        for angle in np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False):
+            p = np.array([0.035 * np.cos(angle), 0.035 * np.sin(angle), 0.0, 1.0])
+            assert (after @ p)[2] - (before @ p)[2] > 0.5 * LIFT_OFF_M
+        tried += 1
+    assert tried >= 2
+    # from no surface (held in the air) no lift off
+    plan_air = replace(plan, surface="")
+    assert "lift off" not in [s.label for s in pick_stages(plan_air, plan.grasps[0], v)]
 
 
 def test_surface_under_allows_perception_noise_either_way() -> None:

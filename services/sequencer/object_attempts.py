@@ -25,8 +25,8 @@ from services.sequencer.object_stages import (
     PickPlan,
     Stage,
     pick_plan,
-    pick_stages,
 )
+from services.sequencer.pick_stages import pick_stages
 
 OUT_OF_REACH = ("unreachable", "joint_limit", "singular", "zone")
 """The planner's reasons that mean a grasp is beyond what the arm may reach (``zone``:

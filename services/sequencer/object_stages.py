@@ -21,7 +21,6 @@ from manus.grasps import GraspClass, GraspError, grasp_class
 from manus.kinematics import fk
 from manus.orientation import matrix_to_ypr, rot_z
 from manus.scene import Scene
-from manus.urdf import GRIPPER_FRAME
 from schemas.goals import LineFrame, LineMotion, PoseGoal
 from schemas.motion import Motion
 from schemas.objects import WorldObject
@@ -343,38 +342,6 @@ def _check_reach(view: ObjectView, obj: WorldObject, grasps: list[Grasp]) -> Non
             f"centre {nearest * 1e3:.0f} mm from the shoulder (the arm reaches "
             f"{(arm.l2 + arm.l3) * 1e3:.0f} mm)"
         )
-
-
-def pick_stages(plan: PickPlan, grasp: Grasp, view: ObjectView) -> list[Stage]:
-    """Open, pre-grasp pose (a search), straight approach, close, attach, lift, retreat."""
-    how = plan.how
-    touch = (plan.surface,) if plan.surface else ()
-    stages = [
-        Stage("open", opening=min(MAX_OPENING_M, grasp.width + how.open_margin)),
-        Stage(
-            "pre-grasp",
-            motion=pose_goal(view, grasp.pregrasp),
-            watch=True,
-            retry=True,
-            search=True,
-        ),
-        Stage(
-            "approach",
-            motion=line_tool(how.pregrasp),
-            watch=True,
-            retry=True,
-            aim=True,
-            reach_tolerance=APPROACH_TOLERANCE_M,
-        ),
-        Stage("close", opening=max(0.0, grasp.width - how.squeeze), holds=grasp.width),
-        Stage("attach", attach=GRIPPER_FRAME, touch_objects=touch, upright=how.keep_level),
-        Stage("lift", motion=line_up(view, how.lift), carrying=True, retry=True),
-    ]
-    if touch:
-        stages.append(Stage("clear of the surface", attach=GRIPPER_FRAME))
-    retreat = line_toward(view, view.mount[:3, 3], how.pregrasp)
-    stages.append(Stage("retreat", motion=retreat, carrying=True))
-    return stages
 
 
 def held_upright(view: ObjectView, obj: WorldObject, q: np.ndarray) -> np.ndarray:
