@@ -48,8 +48,8 @@ know although it had just advertised it. The SDK's server (0.30, and its main br
 connected_client.rs) sends the ``advertise`` first and only then enters the channels in
 the client's own map, which ``subscribe`` looks them up in: a client that answers fast
 enough, or a server thread put off by a loaded machine between the two, meets "Unknown
-channel ID". Seen twice in 5 runs of the suite beside two CPU hogs (``manus view`` runs
-at niceness 10)."""
+channel ID". Seen once in the suite beside two CPU hogs (``test_stack_up``; ``manus view``
+runs at niceness 10)."""
 
 
 def protobuf_decoder(advert: dict[str, Any]) -> Callable[[bytes], dict[str, Any]]:
