@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import json
+import re
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -34,6 +35,21 @@ class Received:
     messages: dict[str, list[tuple[int, Any]]] = field(default_factory=dict)  # topic -> (t, msg)
     assets: dict[int, bytes | str] = field(default_factory=dict)  # request id -> data or error
     statuses: list[dict[str, Any]] = field(default_factory=list)
+    subscribed: dict[int, int] = field(default_factory=dict)  # channel id -> subscription id
+    resubscribed: int = 0
+    """Subscriptions sent again after the server called their channel unknown (below)."""
+
+
+UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")
+RESUBSCRIBE_S = 0.05
+"""How long to wait before subscribing again to a channel the server said it does not
+know although it had just advertised it. The SDK's server (0.30, and its main branch on
+2026-11-26: ``ConnectedClient::advertise_channels`` in rust/foxglove/src/websocket/
+connected_client.rs) sends the ``advertise`` first and only then enters the channels in
+the client's own map, which ``subscribe`` looks them up in: a client that answers fast
+enough, or a server thread put off by a loaded machine between the two, meets "Unknown
+channel ID". Seen once in the suite beside two CPU hogs (``test_stack_up``; ``manus view``
+runs at niceness 10)."""
 
 
 def protobuf_decoder(advert: dict[str, Any]) -> Callable[[bytes], dict[str, Any]]:
@@ -76,9 +92,15 @@ def _text(msg: dict[str, Any], got: Received, topics: list[str], decoders: Decod
             if ch["topic"] in topics:
                 sub = len(decoders) + 1
                 decoders[sub] = (ch["topic"], decoder(ch))
+                got.subscribed[ch["id"]] = sub
                 subs.append({"id": sub, "channelId": ch["id"]})
     elif op == "status":
         got.statuses.append(msg)
+        unknown = UNKNOWN_CHANNEL.fullmatch(str(msg.get("message", "")))
+        channel = int(unknown.group(1)) if unknown else -1
+        if channel in got.subscribed and got.resubscribed < 3 * len(got.subscribed):
+            got.resubscribed += 1
+            subs.append({"id": got.subscribed[channel], "channelId": channel})
     return subs
 
 
@@ -118,7 +140,10 @@ async def collect(
             except TimeoutError:
                 break
             if isinstance(frame, str):
-                subs = _text(json.loads(frame), got, topics, decoders)
+                msg = json.loads(frame)
+                subs = _text(msg, got, topics, decoders)
+                if subs and msg.get("op") == "status":
+                    await asyncio.sleep(RESUBSCRIBE_S)  # see RESUBSCRIBE_S
                 if subs:
                     await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
             else:
