@@ -76,8 +76,15 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
         rest, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+            # Ctrl-C first: `manus up` stops its services, each in a session of its own,
+            # which a kill of `manus up` alone would leave running (a failed try of this
+            # test once left a whole stack running beside the rest of the suite)
+            os.kill(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
     out = "".join(lines) + rest
     assert proc.returncode == 0, out + err
     assert f"router: {endpoint} (prefix uptest)" in out
