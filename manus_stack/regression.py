@@ -16,7 +16,8 @@ its queryables' mirrored requests in; its publications and mirrored replies out.
 
 - ``planner``: joint states, perception frames, plan requests, scene updates and attach
   requests in, plan, scene and attach replies and the world model's updates out
-  (``compute_ms`` is wall time and is not compared).
+  (``compute_ms`` is wall time and is not compared; the scene it announces is compared
+  by its changes, not by which joint state repeated it: :func:`_changes`).
 - ``controller``: the bridge's joint states, status and phase, the heartbeat, the jog
   stream (a ``jog`` payload that does not decode goes to its input's ``bad`` handler, as
   the live shell does), the scene, the world model's updates (what the arm holds), the
@@ -104,6 +105,21 @@ def _inputs(
                 yield rec, None
 
 
+def _changes(announced: list[Recorded]) -> list[Recorded]:
+    """The planner's scene announcements where the scene changed: each repeat of the one
+    before is left out. The planner repeats the scene in use on joint states (every
+    ``scene_every_ms`` of their stamps since it last did), so which joint state a repeat
+    follows depends on every joint state the live planner took: one it did not take (a
+    loaded computer) moves every repeat after it, while the recording holds them all
+    (seen: "planner/scene_state #37: the replay produced nothing"). The scenes, and when
+    an update replaced one, are still compared."""
+    kept: list[Recorded] = []
+    for rec in announced:
+        if not kept or rec.payload != kept[-1].payload:
+            kept.append(rec)
+    return kept
+
+
 def _present(recording: Recording, suffixes: tuple[str, ...]) -> list[str]:
     have = {c.suffix for c in recording.info.channels.values()}
     return [s for s in suffixes if s in have]  # none: no input at all
@@ -133,15 +149,21 @@ def check_planner(path: str | Path, config: PlannerConfig | None = None) -> Chec
     )
     outputs = PLANNER.output_suffixes
     recorded, last_ns = _recorded_outputs(recording, outputs, window)
+    recorded[ep.SCENE_STATE] = _changes(recorded[ep.SCENE_STATE])
     cmp = Comparer(recorded, last_ns, CPU_ROUNDING)
     window = (window[0], last_ns)
     recorded_ms = {s: [plain(r.payload) for r in recorded[s]] for s in outputs}
     inputs = 0
+    scene = b""
     for rec, msg in _inputs(recording, PLANNER.input_suffixes, window):
         inputs += 1
         if msg is None:  # a bad jog payload: not the planner's
             continue
         for suffix, out in PLANNER.feed(core, rec.suffix, msg, rec.log_ns):
+            if suffix == ep.SCENE_STATE:
+                if out.encode() == scene:
+                    continue  # the same scene announced again (_changes)
+                scene = out.encode()
             sent = out
             if isinstance(out, PlanReply):  # compute_ms is wall time: not compared
                 rank = len(cmp.replayed[suffix])

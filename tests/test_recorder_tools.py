@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -22,6 +23,7 @@ from manus_stack.recordings import record_thesis_run
 from manus_stack.regression import check_controller, check_planner
 from manus_stack.service_window import EVERYTHING, service_window
 from schemas.base import Message
+from schemas.collision import SceneState
 from schemas.commands import JointVelocityCommand
 from schemas.liveliness import LIVELINESS, LivelinessChange
 from schemas.state import CanFrame
@@ -142,7 +144,41 @@ def test_planner_core_reproduces_the_recorded_plan(path: Path) -> None:
     states = len(list(Recording(path).messages(["planner/scene_state"])))
     objects = len(list(Recording(path).messages(["planner/objects"])))
     assert states >= 15 and objects == states
-    assert result.compared == 1 + states + objects
+    # the scene's repeats are compared as the scene's changes: one scene here
+    assert result.compared == 1 + 1 + objects
+
+
+def test_the_scene_is_checked_by_its_changes_not_by_which_joint_state_repeated_it(
+    tmp_path: Path,
+) -> None:
+    """A live planner that did not take a joint state the recorder did (a loaded
+    computer) repeats its scene at other joint states after it: not a difference. A
+    scene of another content is."""
+    src = Recording(SQUARE)
+
+    def rewritten(name: str, change: Callable[[int, SceneState], SceneState | None]) -> Path:
+        out = tmp_path / name
+        with RecordingWriter(out, source=name) as writer:
+            rank = 0
+            for r in src.messages():
+                msg: Message | None = decode(r)
+                if r.suffix == "planner/scene_state":
+                    assert isinstance(msg, SceneState)
+                    msg = change(rank, msg)
+                    rank += 1
+                if msg is not None:
+                    writer.write(r.suffix, msg, r.log_ns)
+        return out
+
+    skipped = rewritten("skipped.mcap", lambda rank, m: None if rank in (3, 7) else m)
+    assert check_planner(skipped).ok
+    changed = rewritten(
+        "changed.mcap",
+        lambda rank, m: dataclasses.replace(m, text=m.text + "# edited\n") if rank == 5 else m,
+    )
+    result = check_planner(changed)
+    assert not result.ok and result.difference is not None
+    assert result.difference.suffix == "planner/scene_state"
 
 
 def test_replay_as_bridge_drives_a_controller_core_to_the_same_commands() -> None:
