@@ -97,7 +97,12 @@ def test_sim_process_over_slcan(sim_process: tuple[subprocess.Popen[str], str]) 
     cyclic = ids[start : start + (len(ids) - start) // 3 * 3]
     assert cyclic == [0x350, 0x360, 0x37F] * (len(cyclic) // 3)
     syncs = [f.t_ns for f in frames if f.id == FrameId.SYNC]
-    assert all(20e6 < b - a < 100e6 for a, b in itertools.pairwise(syncs))
+    if device.startswith("socket://"):
+        assert all(20e6 < b - a < 100e6 for a, b in itertools.pairwise(syncs))
+    # Over a pty the kernel's worker thread moves the bytes at an ordinary priority: beside
+    # CPU hogs it held frames 0.2-0.6 s (docs/simulator.md, Links; seen here as a sync 100
+    # ms after the last), so the pty's arrival times do not show the simulator's cycle;
+    # the replies it latched in its own 20 ms windows (below) do, on either link.
     statuses = [decode_status(f.data) for f in frames[ready_at:] if f.id == FrameId.STATUS]
     assert statuses[-1].mode == 4
     assert statuses[-1].fields[0] - statuses[2].fields[0] > 20  # joint 1 moved > 2 deg
