@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from manus.grasp_poses import Grasp
+from manus.kinematics import jacobian
 from manus.urdf import GRIPPER_FRAME
 from schemas.goals import JointGoal
 from services.sequencer.object_stages import (
@@ -34,9 +35,6 @@ LIFT_OFF_M = 0.004
 """How far the shoulder alone raises the gripper off the surface [m] (the line up's first
 steps tip the object by tenths of a millimetre at its bottom's edge)."""
 
-_DQ = 1e-4
-"""The step of the numerical derivative of the gripper's height by joint 2 [rad]."""
-
 
 def lift_off(view: ObjectView, rise: float = LIFT_OFF_M) -> MotionOf:
     """A move of joint 2 alone that raises the gripper by ``rise`` [m] (chair z): the
@@ -44,9 +42,7 @@ def lift_off(view: ObjectView, rise: float = LIFT_OFF_M) -> MotionOf:
     that every point of a held object rises, none tips down first."""
 
     def motion(q: np.ndarray) -> JointGoal:
-        bumped = q.copy()
-        bumped[1] += _DQ
-        dz = (view.gripper(bumped)[2, 3] - view.gripper(q)[2, 3]) / _DQ  # [m/rad]
+        dz = float((view.mount[:3, :3] @ jacobian(q, view.arm)[:3, 1])[2])  # chair z [m/rad]
         target = q.copy()
         target[1] += rise / dz if abs(dz) > 1e-6 else 0.0
         return JointGoal(joints=[float(v) for v in target])
