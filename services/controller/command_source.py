@@ -124,11 +124,14 @@ class Refused(NamedTuple):
         refusal: the kind.
         reason: in words.
         held_by: the source that holds the arm (refusal ``busy``), else ''.
+        transient: nothing may move only while the bridge resyncs (it runs again by
+            itself within ``max_outage_ms``, or every source stops): a stream may wait.
     """
 
     refusal: Refusal
     reason: str
     held_by: str = ""
+    transient: bool = False
 
 
 class Host(Protocol):

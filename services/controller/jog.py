@@ -14,7 +14,9 @@ it for each cycle's command. It ranks above the goals: a moving jog preempts eve
 - **Bad command** (not finite, outside -1..1 or the caps, an unknown kind, frame or
   units, values that do not belong to the kind) or one that arrives while nothing may
   move (no joint state yet, an arm error, the bridge not ``running``): refused, counted,
-  and the arm stops.
+  and the arm stops. Not while the bridge only resyncs (a few cycles of zeros after a
+  faulty one): a command then is taken and acts from the first joint state after it, so
+  a user holding a key jogs on; a resync longer than ``max_outage_ms`` stops the jog.
 - After any stop but a zero command (deadman, refusal, an arm error, a bridge phase, a
   long gap), nothing moves again until the user releases the controls: a zero command
   re-arms the jog.
@@ -75,8 +77,9 @@ class JogSource(CommandSource):
         self.level = self.cfg.default_level
         self.target: JogTarget | None = None
         """The speeds being executed (None: none)."""
-        self.ref_ns = 0
-        """Stamp [ns] of the newest joint state before the newest command (deadman)."""
+        self.ref_ns: int | None = 0
+        """Stamp [ns] of the newest joint state before the newest command (deadman); None:
+        it came while the bridge resynced, and is as old as the first joint state after."""
         self.command_seq = -1
         self.stopped: End | None = None
         """Why the jog stopped (None: armed); a zero command re-arms it."""
@@ -117,7 +120,8 @@ class JogSource(CommandSource):
         stamp = js.stamp_ns if js is not None and js.valid else None
         refused = self.host.admission(self)
         self.sender = cmd.source
-        self._receive(cmd, stamp, refused.reason if refused is not None else None)
+        waits = refused is not None and refused.transient and stamp is not None
+        self._receive(cmd, stamp, None if refused is None or waits else refused.reason, waits)
         return [self._taken(cmd)]
 
     def on_bad_command(self, error: str) -> Output:
@@ -211,9 +215,13 @@ class JogSource(CommandSource):
         after = js.seq if js is not None else -1
         return ep.JOG_TAKEN, JogTaken(after_seq=after, command=cmd, error=error)
 
-    def _receive(self, cmd: JogCommand, stamp_ns: int | None, not_ready: str | None) -> None:
+    def _receive(
+        self, cmd: JogCommand, stamp_ns: int | None, not_ready: str | None, waits: bool = False
+    ) -> None:
         """``stamp_ns``: the newest joint state's stamp (None: none yet); ``not_ready``:
-        why nothing may move now (None: it may)."""
+        why nothing may move now (None: it may); ``waits``: the bridge resyncs, so a moving
+        command is taken but acts from the first joint state after (the bridge sends zeros
+        meanwhile, and a resync that outlasts ``max_outage_ms`` stops every source)."""
         what = f"jog command seq {cmd.seq} from {cmd.source!r} refused"
         try:
             target = resolve(cmd, self.level, self.cfg)
@@ -235,7 +243,7 @@ class JogSource(CommandSource):
             return
         if self.target is None:
             self.announce = True
-        self.target, self.ref_ns = target, stamp_ns
+        self.target, self.ref_ns = target, None if waits else stamp_ns
 
     def _refuse(self, why: str) -> None:
         """Count a bad command and stop (a stop already in force stays as it is)."""
@@ -264,6 +272,8 @@ class JogSource(CommandSource):
         """Stop if the newest command is older than the timeout at this joint state."""
         if self.target is None:
             return
+        if self.ref_ns is None:
+            self.ref_ns = js.stamp_ns
         age = js.stamp_ns - self.ref_ns
         if age > self.cfg.timeout_ns:
             self.deadman_stops += 1
