@@ -107,6 +107,21 @@ def eventually(check: Callable[[], bool], timeout: float = 10.0, what: str = "co
         time.sleep(0.01)
 
 
+def progressing(
+    count: Callable[[], int], total: int, idle: float = 10.0, what: str = "items"
+) -> None:
+    """Poll ``count()`` until it reaches ``total``; AssertionError naming ``what`` and how
+    far it got once it has not grown for ``idle`` [s]. A wait for work that a loaded machine
+    does slowly but surely (a recorder writing thousands of messages): bounded by progress,
+    so a slow run passes and a stalled one (a message lost, a thread stuck) fails."""
+    last, since = -1, time.monotonic()
+    while (n := count()) < total:
+        if n != last:
+            last, since = n, time.monotonic()
+        assert time.monotonic() - since < idle, f"{what}: {n} of {total}, none more in {idle} s"
+        time.sleep(0.01)
+
+
 def matched_publisher(
     session: zenoh.Session, key: str, timeout: float = 10.0, *, block: bool = False
 ) -> zenoh.Publisher:
