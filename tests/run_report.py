@@ -4,7 +4,7 @@ processes of a failed live test wrote.
 The live tests (``slow``) get one rerun (tests/conftest.py): a failure that repeats is a
 fault, one that does not is a race or a deadline missed under load. Either way the test
 did not pass: the run fails, and its end names every rerun with the first attempt's
-error and the tail of its processes' logs, so a flake cannot hide behind the rerun.
+error, the end of its traceback and the tail of its processes' logs, so a flake cannot hide behind the rerun.
 These hooks are imported into tests/conftest.py; under pytest-xdist the reports come to
 the controlling process, which prints them.
 """
@@ -20,6 +20,8 @@ LOG_TAIL_LINES = 40
 """Lines of each child log shown when a slow test fails."""
 CRASH_LINES = 30
 """Lines of a rerun's first error shown."""
+TRACE_LINES = 60
+"""Lines of the end of a rerun's first traceback shown (the sub-exceptions of a group)."""
 CHILD_LOGS = "child logs"
 """The report section holding them."""
 
@@ -75,6 +77,10 @@ def pytest_terminal_summary(
         terminalreporter.write_line(f"RERUN {report.nodeid}: {lines[0]}")
         for line in lines[1:CRASH_LINES]:
             terminalreporter.write_line(f"    {line}")
+        trace = str(report.longrepr).splitlines()[-TRACE_LINES:]
+        terminalreporter.write_line(f"  the first attempt's traceback (last {len(trace)} lines):")
+        for line in trace:
+            terminalreporter.write_line(f"    | {line}")
         for name, text in report.sections:
             if name == CHILD_LOGS:
                 terminalreporter.write_line(text)
