@@ -4,7 +4,8 @@ processes of a failed live test wrote.
 The live tests (``slow``) get one rerun (tests/conftest.py): a failure that repeats is a
 fault, one that does not is a race or a deadline missed under load. Either way the test
 did not pass: the run fails, and its end names every rerun with the first attempt's
-error, the end of its traceback and the tail of its processes' logs, so a flake cannot hide behind the rerun.
+error, the end of its traceback and the tail of its processes' logs, so a flake cannot
+hide behind the rerun.
 These hooks are imported into tests/conftest.py; under pytest-xdist the reports come to
 the controlling process, which prints them.
 """

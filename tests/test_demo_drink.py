@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -18,6 +17,7 @@ from mcap.reader import make_reader
 
 from manus_stack.drink import MAX_TILT_DEG, PLACE_TOLERANCE_M
 from manus_stack.up import free_port
+from tests.stack_command import run_stack_command
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,9 +30,7 @@ def test_demo_drink_through_the_real_processes(tmp_path: Path) -> None:
     cmd = [sys.executable, "-m", "manus_stack.cli", "demo", "drink", "--seed", "0",
            "--plain", "--endpoint", endpoint, "--prefix", "drinktest",
            "--run-dir", str(tmp_path)]  # fmt: skip
-    proc = subprocess.run(
-        cmd, capture_output=True, text=True, timeout=400, cwd=ROOT, env=dict(os.environ)
-    )
+    proc = run_stack_command(cmd, 400, ROOT, dict(os.environ))
     out = proc.stdout
     assert proc.returncode == 0, out + proc.stderr
     assert "step 4/7 follow: step_finished" in out and "the user says done" in out

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from mcap.reader import make_reader
 from manus_stack.demo import THESIS_MAX_MM, THESIS_MEAN_MM
 from manus_stack.regression import check_controller, check_planner
 from manus_stack.up import free_port
+from tests.stack_command import run_stack_command
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -39,9 +39,7 @@ def test_demo_square_through_the_real_processes(tmp_path: Path) -> None:
         "--run-dir",
         str(tmp_path),
     ]
-    proc = subprocess.run(
-        cmd, capture_output=True, text=True, timeout=220, cwd=ROOT, env=dict(os.environ)
-    )
+    proc = run_stack_command(cmd, 220, ROOT, dict(os.environ))
     out = proc.stdout
     assert proc.returncode == 0, out + proc.stderr
     assert "step 5/5 fold_in: step_finished" in out
