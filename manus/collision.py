@@ -126,6 +126,11 @@ class CollisionModel:
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
         self._held_rows = self._held_pairs(pairs, built.mutual)
+        self.rigid = np.zeros(len(self.moving), dtype=bool)
+        """Per moving body: a held one with a pair on its own joint (the gripper's), whose
+        margin no motion changes and so no bound of the body's travel holds."""
+        for b, held_rows in self._held_rows:
+            self.rigid[b] = any(rigid for _, _, rigid in held_rows)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
         self._no_margin = np.full(len(self.moving), math.inf)
         self._set_aside = self._no_margin

@@ -14,6 +14,7 @@ import pytest
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM
+from manus.held import HeldBody
 from manus.scene import default_scene
 from manus.validity import checker_for
 from manus_stack.controlled import controller_input
@@ -77,11 +78,24 @@ def test_a_model_with_a_moved_object_is_not_used_again() -> None:
     assert other.guard is not None and other.guard.guard.model is not model
 
 
+HELD = {
+    "nothing": (),
+    "cup": (HeldBody("cup", "cup", "cylinder", (0.035, 0.1), (0.0, 0.0, 0.08), (0.0,) * 3),),
+    # Across the fingers, past both sides: nearer the arm's other bodies than the cup.
+    "rod": (HeldBody("rod", "rod", "capsule", (0.02, 0.35), (0.0, 0.02, 0.0), (0.0, 0.0, 1.5708)),),
+}
+
+
+@pytest.mark.parametrize("held", sorted(HELD))
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int) -> None:
+def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int, held: str) -> None:
+    """Also with a held body: the arm's bodies are skipped by their fast margins as
+    without one; the held body's pair with the gripper motor (on its own joint) no
+    margin bounds, so it is always computed."""
     rng = np.random.default_rng(seed)
-    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM))
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=HELD[held]))
     model = guard.model
+    assert model.rigid.any() == bool(HELD[held])  # each has a pair with the gripper motor
     lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
     compared = 0
     for _ in range(60):
@@ -117,3 +131,25 @@ def test_the_fast_check_for_an_opening_seen_before_answers_as_one_built_for_it()
             assert got.tight == want.tight and got.check == want.check
             assert np.array_equal(got.free, want.free)
         assert np.array_equal(checker.is_valid_batch(Q), fresh.is_valid_batch(Q))
+
+
+def test_a_held_bodys_pair_on_its_own_joint_is_reported_though_no_margin_bounds_it() -> None:
+    # A ball held 10 mm (margin) from the gripper motor, which shares its joint: that
+    # margin never changes, so no fast margin of the ball's travel includes it.
+    ball = HeldBody("ball", "ball", "sphere", (0.02,), (0.0, 0.0, -0.05), (0.0,) * 3)
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=(ball,)))
+    model = guard.model
+    rng = np.random.default_rng(4)
+    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+    held_skippable = 0
+    for _ in range(40):
+        q = rng.uniform(lo, -lo)
+        guard.advance.anchor_fast(q)
+        full = model.probe(q, reach=False).best
+        if full.check.other != "gripper_motor" or guard.advance.margin >= full.margin + 1e-3:
+            continue
+        guard.report_below = full.margin + 1e-3
+        held_skippable += bool(guard.advance.free[-1] >= guard.report_below + 1e-6)
+        got = guard._report(q)
+        assert got is not None and (got.margin, got.check) == (full.margin, full.check)
+    assert held_skippable > 10

@@ -248,16 +248,16 @@ class Guard:
         Coal computes only the bodies whose fast margin at the anchor (a lower bound of
         each of its checks where it is not negative, 10 um under Coal's) may be below
         :attr:`report_below`: the tightest of the others cannot be. A result that is not
-        below it (by more than a rounding) is None, as the caller would not keep it. With
-        held objects every body is computed (a pair between a held body and an arm body
-        may count for either in the fast check's bodies)."""
+        below it (by more than a rounding) is None, as the caller would not keep it. A
+        held body's pair with an arm body that moves lives in the held body's own checks,
+        and the fast check lowers both bodies' margins by a lower bound of it, so the held
+        body's margin bounds it as well; its pairs on its own joint (the gripper's) no
+        margin bounds: a held body with one is always computed (:attr:`CollisionModel.rigid`)."""
         below = self.report_below
         if self.advance.margin >= below:
             return None
-        if self.model.held:
-            return self.model.probe(q, reach=False).best
         lower = self.advance.free
-        skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M)
+        skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M) & ~self.model.rigid
         best = self.model.probe(q, reach=False, skip=skip).best
         return best if best.margin < below + _ROUNDING_M else None
 
