@@ -19,7 +19,7 @@ from manus.scene import default_scene
 from manus.validity import checker_for
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_runs
-from services.controller import guard as guard_module
+from services.controller import run_guard as guard_module
 from services.controller.core import ControllerCore
 from services.controller.guard import Guard
 from services.controller.wiring import WIRING as CONTROLLER
