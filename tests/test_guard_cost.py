@@ -153,3 +153,50 @@ def test_a_held_bodys_pair_on_its_own_joint_is_reported_though_no_margin_bounds_
         got = guard._report(q)
         assert got is not None and (got.margin, got.check) == (full.margin, full.check)
     assert held_skippable > 10
+
+
+def test_a_cover_point_moves_no_further_than_its_levers_say() -> None:
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    cover, levers = model.cover, model.cover.levers()
+    rng = np.random.default_rng(5)
+    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+    position = {b: k for k, b in enumerate(cover.moving)}
+    for _ in range(200):
+        q0 = rng.uniform(lo, -lo)
+        q1 = q0 + rng.normal(0.0, 0.3, 6)
+        model.probe(q0, reach=False)
+        p0 = cover.world(model.data)
+        model.probe(q1, reach=False)
+        moved = np.linalg.norm(cover.world(model.data) - p0, axis=1)
+        bound = np.abs(q1 - q0) @ levers
+        for i, body in enumerate(cover.point_body):
+            if int(body) in position:
+                assert moved[i] <= bound[position[int(body)]] + 1e-9
+            else:  # a body on the base (column, shoulder) never moves
+                assert moved[i] == 0.0
+
+
+def test_a_report_that_leaves_the_keep_in_zones_out_reports_what_one_with_them_does() -> None:
+    # Along a walk of small steps: the zones are left out where their margin where
+    # last computed, less how far any cover point can have moved, is over the bound.
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM))
+    model = guard.model
+    rng = np.random.default_rng(6)
+    q = np.radians([0.0, 30.0, -60.0, 0.0, 40.0, 0.0])
+    left_out = compared = 0
+    for _ in range(300):
+        q = q + rng.normal(0.0, 0.02, 6)
+        guard.advance.anchor_fast(q)
+        full = model.probe(q).best
+        below = full.margin + float(rng.choice([1e-3, 0.02, -1e-3]))
+        guard.report_below = below
+        at = guard._zones_at
+        left_out += at is not None and at[1] - guard._travel(q, at[0]) >= below + 1e-6
+        got = guard._report(q)
+        if guard.advance.margin < below and full.margin < below:
+            assert got is not None
+            assert (got.margin, got.distance, got.check) == (full.margin, full.distance, full.check)
+            compared += 1
+        elif guard.advance.margin < below:
+            assert got is None or got.margin >= below - 1e-6
+    assert left_out > 100 and compared > 100

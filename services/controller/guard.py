@@ -96,6 +96,9 @@ class Guard:
         smallest its caller has seen: :class:`services.controller.run_guard.RunGuard`, per goal)."""
         self.computed = 0
         """Configurations whose distances were computed (most cycles need none)."""
+        self._levers = model.cover.levers()
+        self._zones_at: tuple[np.ndarray, float] | None = None
+        """Where the keep-in zones were last computed, and their tightest margin there [m]."""
 
     def filter(
         self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
@@ -167,6 +170,7 @@ class Guard:
         by that much, so its proof stays conservative without a new distance."""
         if by > 0.0:
             self.advance.shrink(by)
+
     def _at_least_one(
         self, counts: np.ndarray, scaled: np.ndarray, q_next: np.ndarray
     ) -> np.ndarray:
@@ -248,13 +252,24 @@ class Guard:
             return None
         lower = self.advance.free
         skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M) & ~self.model.rigid
-        best = self.model.probe(q, reach=False, skip=skip).best
+        at = self._zones_at
+        clear = at is not None and at[1] - self._travel(q, at[0]) >= below + _ROUNDING_M
+        found = self.model.probe(q, reach=False, skip=skip, zones=not clear)
+        if not clear:
+            self._zones_at = (q.copy(), found.keep_in)
+        best = found.best
         return best if best.margin < below + _ROUNDING_M else None
 
+    def _travel(self, q: np.ndarray, origin: np.ndarray) -> float:
+        """How far any cover point of a body can have moved from ``origin`` to ``q`` [rad]
+        (:meth:`manus.body_cover.BodyCover.levers`) [m]."""
+        return float((np.abs(q - origin) @ self._levers).max(initial=0.0))
+
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
-        best, free, reach = self.model.probe(q)
+        best, free, reach, zones = self.model.probe(q)
         self.computed += 1
         self.advance.anchor(q, free, reach, best.margin)
+        self._zones_at = (q.copy(), zones)
         return _AnchorResult(best.margin, best)
 
 
