@@ -246,11 +246,19 @@ class Guard:
         held body's pair with an arm body that moves lives in the held body's own checks,
         and the fast check lowers both bodies' margins by a lower bound of it, so the held
         body's margin bounds it as well; its pairs on its own joint (the gripper's) no
-        margin bounds: a held body with one is always computed (:attr:`CollisionModel.rigid`)."""
+        margin bounds: a held body with one is always computed (:attr:`CollisionModel.rigid`).
+        A goal's first report (nothing to be below yet) computes first the body with the
+        smallest fast margin, alone: its margin is a bound the others must be below. The
+        keep-in zones are left out when they are surely above the bound (:meth:`_travel`
+        from where they were last computed)."""
         below = self.report_below
         if self.advance.margin >= below:
             return None
         lower = self.advance.free
+        if below == math.inf:
+            alone = np.ones(len(lower), dtype=bool)
+            alone[int(np.argmin(lower))] = False
+            below = self.model.probe(q, reach=False, skip=alone, zones=False).best.margin
         skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M) & ~self.model.rigid
         at = self._zones_at
         clear = at is not None and at[1] - self._travel(q, at[0]) >= below + _ROUNDING_M
