@@ -114,6 +114,24 @@ class BodyCover:
             out.append((float(inner[k]), check._replace(body=body), per_body))
         return out
 
+    def levers(self) -> np.ndarray:
+        """Per joint and moving body, the farthest any of the body's cover points can ever
+        be from the joint's origin [m], shape (6, moving bodies) (0: the joint does not
+        move it): the joint placements' lengths from the joint to the point's, plus the
+        point's own distance from its joint. Whatever the configuration, a cover point
+        (and so a keep-in margin) moves no further than ``|dq| @ levers`` in a joint
+        motion ``dq`` [rad]."""
+        n = self.model.njoints
+        length = [
+            float(np.linalg.norm(self.model.jointPlacements[k].translation)) for k in range(n)
+        ]
+        own = np.linalg.norm(self.points, axis=1)
+        out = np.zeros((n - 1, len(self.names)))
+        for i, (joint, body) in enumerate(zip(self.point_joint, self.point_body, strict=True)):
+            for j in range(1, int(joint) + 1):
+                out[j - 1, body] = max(out[j - 1, body], sum(length[j + 1 : joint + 1]) + own[i])
+        return out[:, self.moving]
+
     def holding_radius(self, body: int, joint: int) -> float:
         """The radius of the sphere about the shoulder that holds ``body`` (on joint
         ``joint``) in every configuration [m]: the joint placements' lengths up to it,

@@ -7,6 +7,7 @@ negative means violated (:mod:`manus.collision` computes them).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -78,8 +79,10 @@ class Probe(NamedTuple):
         reach: per joint and moving body, the farthest the body is from the joint's
             axis [m], shape (6, bodies): the body moves no faster than
             ``|qd| @ reach`` [m/s].
+        keep_in: the tightest margin inside a keep-in zone [m] (inf: none, or left out).
     """
 
     best: Clearance
     free: np.ndarray
     reach: np.ndarray
+    keep_in: float = math.inf

@@ -126,6 +126,11 @@ class CollisionModel:
         self._required = np.array([c.required for c in self.checks])
         self._per_body = self._split(pairs)
         self._held_rows = self._held_pairs(pairs, built.mutual)
+        self.rigid = np.zeros(len(self.moving), dtype=bool)
+        """Per moving body: a held one with a pair on its own joint (the gripper's), whose
+        margin no motion changes and so no bound of the body's travel holds."""
+        for b, held_rows in self._held_rows:
+            self.rigid[b] = any(rigid for _, _, rigid in held_rows)
         self._live = [(b, gm, gd, rows) for b, (gm, gd, rows) in enumerate(self._per_body) if rows]
         self._no_margin = np.full(len(self.moving), math.inf)
         self._set_aside = self._no_margin
@@ -217,28 +222,37 @@ class CollisionModel:
     # --- motions --------------------------------------------------------------------------
 
     def probe(
-        self, q: np.ndarray, time: float = 0.0, *, reach: bool = True, skip: Any = None
+        self,
+        q: np.ndarray,
+        time: float = 0.0,
+        *,
+        reach: bool = True,
+        skip: Any = None,
+        zones: bool = True,
     ) -> Probe:
         """At ``q``, per moving body: its tightest margin (how far it may travel before any
         of its gaps could close) and each joint's reach to it (zeros when ``reach`` is
-        False: cheaper); and the tightest check (of the bodies asked: ``skip``, a bool
-        per moving body, leaves those bodies' pairs out, their margins inf)."""
+        False: cheaper); and the tightest check (of the bodies asked: ``skip``, a bool per
+        moving body, leaves those bodies' pairs out, their margins inf; ``zones`` False,
+        with ``reach`` False, the keep-in zones: for a caller that knows them clear)."""
         q = np.asarray(q, dtype=float)
-        free, tight, tight_row = self.pair_margins(q, skip)
-        points = self.cover.world(self.data)
-        for margin, check, per_body in self.cover.keep_in_at(points):
-            np.minimum(free, per_body, out=free)
-            if margin < tight:
-                tight, tight_row, keep_in = margin, -2, check
+        (free, tight, tight_row), kept_in = self.pair_margins(q, skip), math.inf
+        if zones or reach:
+            points = self.cover.world(self.data)
+            for margin, check, per_body in self.cover.keep_in_at(points):
+                np.minimum(free, per_body, out=free)
+                kept_in = min(kept_in, margin)
+                if margin < tight:
+                    tight, tight_row, zone = margin, -2, check
         if tight_row >= 0:
             check = self.checks[tight_row]
         elif tight_row == -2:
-            check = keep_in
+            check = zone
         else:
             check = Check("", "", "self", 0.0)
         best = Clearance(tight, tight + check.required, check, time, q)
         reaches = self.cover.reach(points) if reach else self._no_reach
-        return Probe(best, np.maximum(free, 0.0, out=free), reaches)
+        return Probe(best, np.maximum(free, 0.0, out=free), reaches, kept_in)
 
     def pair_margins(self, q: np.ndarray, skip: Any = None) -> tuple[np.ndarray, float, int]:
         """The pair checks at ``q`` [rad] (no keep-in zones): each moving body's tightest

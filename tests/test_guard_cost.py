@@ -14,11 +14,12 @@ import pytest
 
 from manus.collision import CollisionModel
 from manus.config import DEFAULT_ARM
+from manus.held import HeldBody
 from manus.scene import default_scene
 from manus.validity import checker_for
 from manus_stack.controlled import controller_input
 from manus_stack.recordings import record_thesis_runs
-from services.controller import guard as guard_module
+from services.controller import run_guard as guard_module
 from services.controller.core import ControllerCore
 from services.controller.guard import Guard
 from services.controller.wiring import WIRING as CONTROLLER
@@ -77,11 +78,24 @@ def test_a_model_with_a_moved_object_is_not_used_again() -> None:
     assert other.guard is not None and other.guard.guard.model is not model
 
 
+HELD = {
+    "nothing": (),
+    "cup": (HeldBody("cup", "cup", "cylinder", (0.035, 0.1), (0.0, 0.0, 0.08), (0.0,) * 3),),
+    # Across the fingers, past both sides: nearer the arm's other bodies than the cup.
+    "rod": (HeldBody("rod", "rod", "capsule", (0.02, 0.35), (0.0, 0.02, 0.0), (0.0, 0.0, 1.5708)),),
+}
+
+
+@pytest.mark.parametrize("held", sorted(HELD))
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int) -> None:
+def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int, held: str) -> None:
+    """Also with a held body: the arm's bodies are skipped by their fast margins as
+    without one; the held body's pair with the gripper motor (on its own joint) no
+    margin bounds, so it is always computed."""
     rng = np.random.default_rng(seed)
-    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM))
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=HELD[held]))
     model = guard.model
+    assert model.rigid.any() == bool(HELD[held])  # each has a pair with the gripper motor
     lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
     compared = 0
     for _ in range(60):
@@ -117,3 +131,72 @@ def test_the_fast_check_for_an_opening_seen_before_answers_as_one_built_for_it()
             assert got.tight == want.tight and got.check == want.check
             assert np.array_equal(got.free, want.free)
         assert np.array_equal(checker.is_valid_batch(Q), fresh.is_valid_batch(Q))
+
+
+def test_a_held_bodys_pair_on_its_own_joint_is_reported_though_no_margin_bounds_it() -> None:
+    # A ball held 10 mm (margin) from the gripper motor, which shares its joint: that
+    # margin never changes, so no fast margin of the ball's travel includes it.
+    ball = HeldBody("ball", "ball", "sphere", (0.02,), (0.0, 0.0, -0.05), (0.0,) * 3)
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=(ball,)))
+    model = guard.model
+    rng = np.random.default_rng(4)
+    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+    held_skippable = 0
+    for _ in range(40):
+        q = rng.uniform(lo, -lo)
+        guard.advance.anchor_fast(q)
+        full = model.probe(q, reach=False).best
+        if full.check.other != "gripper_motor" or guard.advance.margin >= full.margin + 1e-3:
+            continue
+        guard.report_below = full.margin + 1e-3
+        held_skippable += bool(guard.advance.free[-1] >= guard.report_below + 1e-6)
+        got = guard._report(q)
+        assert got is not None and (got.margin, got.check) == (full.margin, full.check)
+    assert held_skippable > 10
+
+
+def test_a_cover_point_moves_no_further_than_its_levers_say() -> None:
+    model = CollisionModel(default_scene(), DEFAULT_ARM)
+    cover, levers = model.cover, model.cover.levers()
+    rng = np.random.default_rng(5)
+    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+    position = {b: k for k, b in enumerate(cover.moving)}
+    for _ in range(200):
+        q0 = rng.uniform(lo, -lo)
+        q1 = q0 + rng.normal(0.0, 0.3, 6)
+        model.probe(q0, reach=False)
+        p0 = cover.world(model.data)
+        model.probe(q1, reach=False)
+        moved = np.linalg.norm(cover.world(model.data) - p0, axis=1)
+        bound = np.abs(q1 - q0) @ levers
+        for i, body in enumerate(cover.point_body):
+            if int(body) in position:
+                assert moved[i] <= bound[position[int(body)]] + 1e-9
+            else:  # a body on the base (column, shoulder) never moves
+                assert moved[i] == 0.0
+
+
+def test_a_report_that_leaves_the_keep_in_zones_out_reports_what_one_with_them_does() -> None:
+    # Along a walk of small steps: the zones are left out where their margin where
+    # last computed, less how far any cover point can have moved, is over the bound.
+    guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM))
+    model = guard.model
+    rng = np.random.default_rng(6)
+    q = np.radians([0.0, 30.0, -60.0, 0.0, 40.0, 0.0])
+    left_out = compared = 0
+    for _ in range(300):
+        q = q + rng.normal(0.0, 0.02, 6)
+        guard.advance.anchor_fast(q)
+        full = model.probe(q).best
+        below = full.margin + float(rng.choice([1e-3, 0.02, -1e-3]))
+        guard.report_below = below
+        at = guard._zones_at
+        left_out += at is not None and at[1] - guard._travel(q, at[0]) >= below + 1e-6
+        got = guard._report(q)
+        if guard.advance.margin < below and full.margin < below:
+            assert got is not None
+            assert (got.margin, got.distance, got.check) == (full.margin, full.distance, full.check)
+            compared += 1
+        elif guard.advance.margin < below:
+            assert got is None or got.margin >= below - 1e-6
+    assert left_out > 100 and compared > 100

@@ -27,7 +27,7 @@ class Timed:
     """The controller core's CPU time per joint state, the target frames taken since the
     last one included (wraps the core's entry points), and per query (a goal's
     admission: the guard prepares its checks there,
-    :meth:`services.controller.guard.RunGuard.prepare`).
+    :meth:`services.controller.run_guard.RunGuard.prepare`).
 
     From here to :meth:`done` the start-up heap is frozen, as the controller's process
     freezes its own once started (:func:`manus.process.freeze_startup_heap`): else a

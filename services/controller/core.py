@@ -54,8 +54,8 @@ from services.controller.command_source import (
 )
 from services.controller.config import MS, ControllerConfig
 from services.controller.estimator import DriveEstimator
-from services.controller.guard import run_guard, scene_guard
 from services.controller.outbox import GoalOutcome, Outbox, Output
+from services.controller.run_guard import run_guard, scene_guard
 from services.controller.sources import SOURCES
 
 __all__ = ["STOPPING_PHASES", "ControllerCore", "Output"]

@@ -26,10 +26,8 @@ Pure: no clock, no I/O; the same inputs give the same commands.
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -37,22 +35,14 @@ import numpy as np
 from manus.advancement import Advancement
 from manus.clearance import Clearance
 from manus.collision import CollisionModel
-from manus.config import ArmConfig
-from manus.held import HeldBody
 from manus.joint_map import encoder_increments_to_dh_list
 from manus.quantize import COUNT_RAD_S
-from manus.scene import Scene, SceneError, parse_scene, scene_from_setting
 from manus.validity import checker_for
-from schemas.collision import ClearanceReport, SceneState
-from schemas.state import JointState
-
-_NOTHING = (0.0,) * 6
-"""The DH velocities in flight when the frame in flight is not a joint move [rad/s]."""
 
 _ROUNDING_M = 1e-6
 """More than a margin's rounding in ``distance - required`` [m] (a report's comparisons)."""
 
-_OPENING_M = 0.005
+OPENING_M = 0.005
 """A gripper opening this much other than the model's [m]: the model follows it."""
 
 _SAME = np.eye(6)
@@ -103,9 +93,12 @@ class Guard:
         self.advance = Advancement(checker_for(model))
         self.report_below = math.inf
         """A pass computes Coal's clearance only when it may be below this [m] (the
-        smallest its caller has seen: :class:`RunGuard`, per goal)."""
+        smallest its caller has seen: :class:`services.controller.run_guard.RunGuard`, per goal)."""
         self.computed = 0
         """Configurations whose distances were computed (most cycles need none)."""
+        self._levers = model.cover.levers()
+        self._zones_at: tuple[np.ndarray, float] | None = None
+        """Where the keep-in zones were last computed, and their tightest margin there [m]."""
 
     def filter(
         self, q: Sequence[float], applied: Sequence[float], counts: np.ndarray, opening: float
@@ -118,7 +111,7 @@ class Guard:
         if not any(motor) and not any(applied):
             return Verdict(counts, 1.0, "", None)
         model = self.model
-        if abs(model.opening - opening) > _OPENING_M:  # a wider gripper: the proof is void
+        if abs(model.opening - opening) > OPENING_M:  # a wider gripper: the proof is void
             model.set_opening(opening)
             self.advance.forget()
         ahead = self.cycle_s + self.runout_s
@@ -177,6 +170,7 @@ class Guard:
         by that much, so its proof stays conservative without a new distance."""
         if by > 0.0:
             self.advance.shrink(by)
+
     def _at_least_one(
         self, counts: np.ndarray, scaled: np.ndarray, q_next: np.ndarray
     ) -> np.ndarray:
@@ -248,151 +242,45 @@ class Guard:
         Coal computes only the bodies whose fast margin at the anchor (a lower bound of
         each of its checks where it is not negative, 10 um under Coal's) may be below
         :attr:`report_below`: the tightest of the others cannot be. A result that is not
-        below it (by more than a rounding) is None, as the caller would not keep it. With
-        held objects every body is computed (a pair between a held body and an arm body
-        may count for either in the fast check's bodies)."""
+        below it (by more than a rounding) is None, as the caller would not keep it. A
+        held body's pair with an arm body that moves lives in the held body's own checks,
+        and the fast check lowers both bodies' margins by a lower bound of it, so the held
+        body's margin bounds it as well; its pairs on its own joint (the gripper's) no
+        margin bounds: a held body with one is always computed (:attr:`CollisionModel.rigid`).
+        A goal's first report (nothing to be below yet) computes first the body with the
+        smallest fast margin, alone: its margin is a bound the others must be below. The
+        keep-in zones are left out when they are surely above the bound (:meth:`_travel`
+        from where they were last computed)."""
         below = self.report_below
         if self.advance.margin >= below:
             return None
-        if self.model.held:
-            return self.model.probe(q, reach=False).best
         lower = self.advance.free
-        skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M)
-        best = self.model.probe(q, reach=False, skip=skip).best
+        if below == math.inf:
+            alone = np.ones(len(lower), dtype=bool)
+            alone[int(np.argmin(lower))] = False
+            below = self.model.probe(q, reach=False, skip=alone, zones=False).best.margin
+        skip = (lower >= 0.0) & (lower >= below + _ROUNDING_M) & ~self.model.rigid
+        at = self._zones_at
+        clear = at is not None and at[1] - self._travel(q, at[0]) >= below + _ROUNDING_M
+        found = self.model.probe(q, reach=False, skip=skip, zones=not clear)
+        if not clear:
+            self._zones_at = (q.copy(), found.keep_in)
+        best = found.best
         return best if best.margin < below + _ROUNDING_M else None
 
+    def _travel(self, q: np.ndarray, origin: np.ndarray) -> float:
+        """How far any cover point of a body can have moved from ``origin`` to ``q`` [rad]
+        (:meth:`manus.body_cover.BodyCover.levers`) [m]."""
+        return float((np.abs(q - origin) @ self._levers).max(initial=0.0))
+
     def _anchor_at(self, q: np.ndarray) -> _AnchorResult:
-        best, free, reach = self.model.probe(q)
+        best, free, reach, zones = self.model.probe(q)
         self.computed += 1
         self.advance.anchor(q, free, reach, best.margin)
+        self._zones_at = (q.copy(), zones)
         return _AnchorResult(best.margin, best)
 
 
 class _AnchorResult(NamedTuple):
     margin: float
     clearance: Clearance
-
-
-class RunGuard:
-    """The :class:`Guard` as the controller core uses it: per joint state, and the
-    smallest clearance of each goal while it runs.
-
-    Args:
-        guard: the guard.
-    """
-
-    def __init__(self, guard: Guard) -> None:
-        self.guard = guard
-        self.lowest: dict[str, ClearanceReport] = {}
-
-    def command(self, js: JointState, counts: np.ndarray, goal_id: str) -> Verdict:
-        """Guard the command answering ``js`` for goal ``goal_id`` ("" : none)."""
-        applied = js.applied_velocity if js.applied_kind == "joint" else _NOTHING
-        low = self.lowest.get(goal_id)
-        # Only a clearance below the goal's smallest so far is worth Coal's time.
-        self.guard.report_below = (
-            -math.inf if not goal_id else math.inf if low is None else low.distance - low.required
-        )
-        verdict = self.guard.filter(js.position, applied, counts, js.gripper)
-        found = verdict.clearance
-        if (goal_id and found is not None) and (
-            low is None or found.distance - found.check.required < low.distance - low.required
-        ):
-            self.lowest[goal_id] = dataclasses.replace(found.report(), time=js.stamp_ns / 1e9)
-        return verdict
-
-    def prepare(self, js: JointState) -> None:
-        """Build now what a command answering a state like ``js`` would build in its cycle
-        (the fast check for a new gripper opening, about 1 ms): a source was admitted."""
-        g = self.guard
-        if abs(g.model.opening - js.gripper) > _OPENING_M:
-            g.advance.checker.prepare(js.gripper)
-
-    def move_object(self, name: str, pose: np.ndarray) -> None:
-        """Place the scene object ``name`` at ``pose`` (4x4, chair frame).
-
-        Raises:
-            SceneError: no such object.
-        """
-        self.guard.object_moved(self.guard.model.move_object(name, pose))
-
-    def result(self, goal_id: str) -> ClearanceReport | None:
-        """The smallest clearance of the goal (forgotten once read)."""
-        return self.lowest.pop(goal_id, None)
-
-    def hold(self, held: Sequence[HeldBody]) -> None:
-        """Keep ``held`` (the objects the arm holds) clear too, from the next command on:
-        the same guard on the model that carries them (nothing it proved holds for it)."""
-        g = self.guard
-        model = g.model.holding(held)
-        self.guard = Guard(model, cycle_s=g.cycle_s, runout_s=g.runout_s, slow_zone_m=g.slow_zone_m)
-
-
-def scene_guard(
-    state: SceneState,
-    arm: ArmConfig,
-    held: Sequence[HeldBody] = (),
-    moved: Mapping[str, np.ndarray] | None = None,
-) -> RunGuard | None:
-    """The guard for a scene published by the planner, the arm holding ``held``, its
-    objects of ``moved`` where a tracker last put them (name -> pose, 4x4, chair frame;
-    one the scene does not have is left out) (None: it does not build)."""
-    try:
-        scene = parse_scene(state.text, state.source)
-        scene = dataclasses.replace(scene, version=state.version)
-    except SceneError:
-        return None
-    names = {o.name for o in scene.objects}
-    there = {name: pose for name, pose in (moved or {}).items() if name in names}
-    try:
-        return RunGuard(Guard(CollisionModel(scene, arm, held=held, moved=there)))
-    except SceneError:
-        return None
-
-
-def run_guard(scene: str, arm: ArmConfig) -> RunGuard | None:
-    """The guard for a scene setting (``default``, ``none`` or a file; None: no guard).
-
-    Its collision model is one a guard of the same scene and arm left unchanged (its
-    objects where the scene puts them) when there is one: building a model is most of a
-    core's start (5 ms), and a process (a replay check, a benchmark, lock-step runs)
-    starts many cores. Distances do not depend on what was asked before (Coal starts
-    each query afresh, :func:`manus.shapes.fresh_guesses`), so the model used again
-    answers as a new one would; its gripper opening is set back to the built one's.
-    """
-    loaded = scene_from_setting(scene)
-    if loaded is None:
-        return None
-    guard = Guard(_spare_model(loaded, arm))
-    weakref.finalize(guard, _give_back, loaded, arm, guard.model)
-    return RunGuard(guard)
-
-
-_SPARE: dict[tuple[int, ArmConfig], tuple[Scene, list[CollisionModel]]] = {}
-"""Per scene (a loaded file's, shared by the process: :func:`manus.scene.load_scene`)
-and arm: the models of guards that are gone, as they were built."""
-
-
-def _spare_model(scene: Scene, arm: ArmConfig) -> CollisionModel:
-    """A model of ``scene`` and ``arm`` no guard uses, or a new one."""
-    entry = _SPARE.get((id(scene), arm))
-    try:
-        model = entry[1].pop() if entry is not None and entry[0] is scene else None
-    except IndexError:  # none left
-        model = None
-    if model is None:
-        return CollisionModel(scene, arm)
-    model.set_opening(arm.gripper_max)  # as built (the fast check follows it)
-    return model
-
-
-def _give_back(scene: Scene, arm: ArmConfig, model: CollisionModel) -> None:
-    """Keep ``model`` (its guard is gone) for the next guard of ``scene`` and ``arm``,
-    unless something in it changed that a new model would not have (a moved object)."""
-    if model.moved.version != 0 or model.held:
-        return
-    key = (id(scene), arm)
-    entry = _SPARE.get(key)
-    if entry is None or entry[0] is not scene:
-        entry = _SPARE[key] = (scene, [])
-    entry[1].append(model)
