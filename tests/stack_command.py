@@ -1,4 +1,4 @@
-"""Running a command that starts a whole stack (``manus demo``) to its end, from a test.
+"""Running a command that starts a whole stack (``manus demo``, ``manus up``) from a test.
 
 ``subprocess.run(timeout=...)`` kills such a command when it overruns, and its services,
 each in a session of its own, keep running beside the rest of the suite (a failed try of

@@ -78,6 +78,9 @@ def test_a_model_with_a_moved_object_is_not_used_again() -> None:
     assert other.guard is not None and other.guard.guard.model is not model
 
 
+LOW = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
+"""The low ends of the joint ranges the seeded configurations are drawn from [rad]."""
+
 HELD = {
     "nothing": (),
     "cup": (HeldBody("cup", "cup", "cylinder", (0.035, 0.1), (0.0, 0.0, 0.08), (0.0,) * 3),),
@@ -96,10 +99,9 @@ def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int, held: str) -
     guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=HELD[held]))
     model = guard.model
     assert model.rigid.any() == bool(HELD[held])  # each has a pair with the gripper motor
-    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
     compared = 0
     for _ in range(60):
-        q = rng.uniform(lo, -lo)
+        q = rng.uniform(LOW, -LOW)
         guard.advance.anchor_fast(q)
         full = model.probe(q, reach=False).best
         for below in (math.inf, full.margin + 1e-3, full.margin, full.margin - 1e-3,
@@ -119,8 +121,7 @@ def test_the_report_of_fewer_bodies_is_the_report_of_all(seed: int, held: str) -
 
 def test_the_fast_check_for_an_opening_seen_before_answers_as_one_built_for_it() -> None:
     rng = np.random.default_rng(4)
-    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
-    Q = rng.uniform(lo, -lo, size=(40, 6))
+    Q = rng.uniform(LOW, -LOW, size=(40, 6))
     used = CollisionModel(default_scene(), DEFAULT_ARM)
     checker = checker_for(used)
     for opening in (0.03, DEFAULT_ARM.gripper_max, 0.03):  # the last two: kept arrays
@@ -140,10 +141,9 @@ def test_a_held_bodys_pair_on_its_own_joint_is_reported_though_no_margin_bounds_
     guard = Guard(CollisionModel(default_scene(), DEFAULT_ARM, held=(ball,)))
     model = guard.model
     rng = np.random.default_rng(4)
-    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
     held_skippable = 0
     for _ in range(40):
-        q = rng.uniform(lo, -lo)
+        q = rng.uniform(LOW, -LOW)
         guard.advance.anchor_fast(q)
         full = model.probe(q, reach=False).best
         if full.check.other != "gripper_motor" or guard.advance.margin >= full.margin + 1e-3:
@@ -159,10 +159,9 @@ def test_a_cover_point_moves_no_further_than_its_levers_say() -> None:
     model = CollisionModel(default_scene(), DEFAULT_ARM)
     cover, levers = model.cover, model.cover.levers()
     rng = np.random.default_rng(5)
-    lo = np.radians([-170.0, -80.0, -150.0, -170.0, -110.0, -170.0])
     position = {b: k for k, b in enumerate(cover.moving)}
     for _ in range(200):
-        q0 = rng.uniform(lo, -lo)
+        q0 = rng.uniform(LOW, -LOW)
         q1 = q0 + rng.normal(0.0, 0.3, 6)
         model.probe(q0, reach=False)
         p0 = cover.world(model.data)

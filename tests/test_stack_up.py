@@ -22,6 +22,7 @@ from schemas.objects import Perception, WorldObject, WorldUpdate
 from services.recorder.reading import Recording
 from tests.conftest import eventually
 from tests.foxglove_client import collect
+from tests.stack_command import stop
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -75,16 +76,8 @@ def test_manus_up_starts_the_stack_and_ctrl_c_stops_it(tmp_path: Path) -> None:
         os.kill(proc.pid, signal.SIGINT)  # Ctrl-C
         rest, err = proc.communicate(timeout=60)
     finally:
-        if proc.poll() is None:
-            # Ctrl-C first: `manus up` stops its services, each in a session of its own,
-            # which a kill of `manus up` alone would leave running (a failed try of this
-            # test once left a whole stack running beside the rest of the suite)
-            os.kill(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        if proc.poll() is None:  # Ctrl-C first: `manus up` stops its services
+            stop(proc)
     out = "".join(lines) + rest
     assert proc.returncode == 0, out + err
     assert f"router: {endpoint} (prefix uptest)" in out

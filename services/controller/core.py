@@ -142,7 +142,7 @@ class ControllerCore:
         if reason is None and self.guard is not None and self._last_js is not None:
             self.guard.prepare(self._last_js)  # not in the first command's cycle
         transient = self.bridge_phase == "resync" and self.arm_error is None
-        return None if reason is None else Refused(Refusal.NOT_READY, reason, "", transient)
+        return None if reason is None else Refused(Refusal.NOT_READY, reason, transient=transient)
 
     def finish(self, outcome: GoalOutcome) -> None:
         """A goal ended: its result leaves with the next publication."""
