@@ -46,6 +46,12 @@ STOPS: list[tuple[int, float, float]] = []
 """(cut offset in the cycle [ms], cut -> first zero 0x374 [ms], cut -> arm at rest [ms])."""
 
 
+def deadman_cycles(timeout_s: float) -> int:
+    """The joint states after the last echoed one that still move under a deadman of
+    ``timeout_s`` [s], and the one answered with zeros: 2 at 0.1 s, 3 at 0.15 s."""
+    return 1 + int(round(timeout_s * 1e9) // CYCLE_NS)
+
+
 @dataclass
 class Link:
     """The network between the two computers."""
@@ -123,7 +129,7 @@ def _echoing(arm: ControlledArm) -> Link:
 
 
 @pytest.mark.parametrize("offset_ms", [5, 25, 45])
-def test_cut_link_stops_the_arm_within_two_cycles_and_nothing_resumes(offset_ms: int) -> None:
+def test_cut_link_stops_the_arm_on_the_deadman_and_nothing_resumes(offset_ms: int) -> None:
     rig = Rig()
     assert rig.submit(task_from_args([SQUARE])).accepted
     rig.run_until_event("step_started")
@@ -131,7 +137,8 @@ def test_cut_link_stops_the_arm_within_two_cycles_and_nothing_resumes(offset_ms:
     moving = rig.joint_frames(rig.ls.t_ns - CYCLE_NS * 3)
     assert moving and not all(zero for _, zero in moving)
     goals = [r for r in rig.requests if isinstance(r, TrajectoryGoal)]
-    assert goals[-1].heartbeat_timeout == pytest.approx(0.1)
+    timeout = goals[-1].heartbeat_timeout
+    assert timeout == pytest.approx(SequencerConfig().heartbeat_timeout_s)
 
     # cut the link at an instant `offset_ms` into a cycle of joint states
     last_js = rig.joint_states()[-1][0]
@@ -147,8 +154,9 @@ def test_cut_link_stops_the_arm_within_two_cycles_and_nothing_resumes(offset_ms:
     first_zero = next(t for t, zero in frames if zero)
     stop_ms = (first_zero - cut) / 1e6
     # the last heartbeat the controller got echoes a state at most one cycle before the
-    # cut: it allows two more cycles, then the command is zeros (2 cycles + the reply delay)
-    assert stop_ms <= 2 * 60 + 20, stop_ms
+    # cut; the states within the timeout of it move, the next is answered with zeros, sent
+    # 20 ms after it (0.15 s: 3 cycles + the reply delay)
+    assert stop_ms <= deadman_cycles(timeout) * 60 + 20, stop_ms
     assert all(zero for t, zero in frames if t >= first_zero), "moved again after the stop"
     # the simulator's truth: the arm's speed decays (drive lag, tau 20 ms) from the cycle
     # the zeros act in: under 0.05 deg/s within 3 cycles of the zeros' send time
@@ -235,7 +243,8 @@ def test_sequencer_core_heartbeats_only_while_a_task_runs() -> None:
     assert len(beats) == 1 and isinstance(beats[0], Heartbeat)
     assert (beats[0].ref_seq, beats[0].ref_stamp_ns, beats[0].task_id) == (3, 3, "t1")
     goal = rig.goals()[-1]
-    assert isinstance(goal, TrajectoryGoal) and goal.heartbeat_timeout == pytest.approx(0.1)
+    assert isinstance(goal, TrajectoryGoal)
+    assert goal.heartbeat_timeout == pytest.approx(SequencerConfig().heartbeat_timeout_s)
 
 
 def test_sequencer_core_fails_the_task_when_the_arm_falls_silent() -> None:

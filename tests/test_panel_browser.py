@@ -411,10 +411,10 @@ def test_pressing_drink_runs_the_task_on_the_simulator(rig: PanelRig, page: Page
     page.wait_for_function("document.getElementById('done').hidden", timeout=10_000)
     assert "step 4 of 7" not in (page.text_content("#task-words") or "")
     wait_done(page, "Drink", DRINK_TIMEOUT_S)
-    assert page.text_content("#arm") == "Ready"
+    assert page.text_content("#arm") == "Ready", rig.story()
     truth = rig.latest()
-    assert truth is not None and folded(rig)
-    assert truth.contacts == 0
+    assert truth is not None and folded(rig), rig.story()
+    assert truth.contacts == 0, rig.story()
     assert truth.held_min_person is not None and truth.held_min_person > 0.050
     assert truth.min_person_clearance is not None and truth.min_person_clearance > 0.050
     cup = _cup(rig)

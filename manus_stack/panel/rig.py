@@ -26,6 +26,7 @@ from manus.session import client_settings
 from manus_stack.panel.touch import Fingers
 from manus_stack.up import LocalStack, StackError, StackOptions, free_port, port_in_use
 from schemas import endpoints as ep
+from schemas.sequencing import TaskEvent, TaskEventKind
 from schemas.state import SimTruth
 from services.controller.jog_config import JogConfig
 from services.simulator.config import SimConfig
@@ -111,6 +112,8 @@ class PanelRig:
         self._lock = threading.Lock()
         self.truths: list[tuple[int, SimTruth]] = []
         """Every truth received: (receive time [ns, wall clock], truth)."""
+        self.events: list[TaskEvent] = []
+        """The sequencer's task events, as this process received them (the newest 200)."""
 
     def start(self, timeout: float = 90.0) -> None:
         """Start the stack, then the panel; wait until the panel listens.
@@ -123,6 +126,7 @@ class PanelRig:
         self._node = Node("panel_rig", client_settings(opts.endpoint, prefix=opts.prefix),
                           liveliness=False)  # fmt: skip
         self._node.subscribe(self._node.keys(ep.SIM_TRUTH), SimTruth, self._truth, locked=False)
+        self._node.subscribe(self._node.keys(ep.EVENTS), TaskEvent, self._event, locked=False)
         log = (self.run_dir / "logs" / "panel.log").open("wb")
         argv = [sys.executable, "-m", "manus_stack.cli", "panel", "--port", str(self.port),
                 "--connect", opts.endpoint, "--prefix", opts.prefix, *self._panel_args]  # fmt: skip
@@ -141,6 +145,25 @@ class PanelRig:
         with self._lock:
             self.truths.append((rx_ns, truth))
             del self.truths[:-2000]  # two minutes of cycles
+
+    def _event(self, event: TaskEvent, rx_ns: int) -> None:
+        with self._lock:
+            self.events.append(event)
+            del self.events[:-200]
+
+    def story(self, last: int = 12) -> str:
+        """The newest task events and the truth's contacts, for a failed test's message."""
+        with self._lock:
+            events = [e for e in self.events if e.event != TaskEventKind.STEP_PROGRESS][-last:]
+        truth = self.latest()
+        lines = [
+            f"  #{e.seq} {e.task_id} {e.event} step {e.step}/{e.total} {e.kind}"
+            + (f": {e.reason}" if e.reason else "")
+            for e in events
+        ]
+        if truth is not None:
+            lines.append(f"  truth: {truth.contacts} contact ticks, last {truth.contact!r}")
+        return "the newest task events:\n" + "\n".join(lines)
 
     def latest(self) -> SimTruth | None:
         """The newest truth."""

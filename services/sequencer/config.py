@@ -27,15 +27,19 @@ class SequencerConfig:
             (its bounded deceleration) before the sequencer asks the bridge to stop [s].
         progress_step: smallest change of a step's progress worth a ``step_progress``
             event (fraction, 0..1).
-        heartbeat_timeout_s: the deadman of every move: the ``heartbeat_timeout`` of its
-            controller goal [s] (0: none). While a task runs the sequencer answers each
-            joint state with a ``Heartbeat`` echoing it; the controller stops the arm when
-            the newest echo is older than this (docs/deployment.md, Faults).
+        heartbeat_timeout_s: the deadman of every move and gripper goal: the
+            ``heartbeat_timeout`` of its controller goal [s] (0: none). While a task runs
+            the sequencer answers each joint state with a ``Heartbeat`` echoing it; the
+            controller stops the arm when the newest echo is older than this
+            (docs/deployment.md, Faults). 0.15 s: one echo may come a cycle late. At 0.1 s
+            every round trip had to come back within the cycle, and one that did not
+            stopped a drink's fold move in CI (an echo 120 ms old, 2026-11-26, the rest in
+            time); a hung sequencer or a silently cut link stops the arm one cycle (60 ms)
+            later. A killed sequencer or a closed link stops it at once (its token).
         fold_heartbeat_timeout_s: the same deadman for folds, which the bridge drives
-            (``ArmCommand.heartbeat_timeout``) [s] (0: none). 0.15 s: one echo may come a
-            cycle late (seen in CI at a fold's start: echoes 119-144 ms old at load 3,
-            every one in time a cycle later); a lost link stops a fold one cycle (60 ms)
-            later than a move, at the fold's slow fixed speed.
+            (``ArmCommand.heartbeat_timeout``) [s] (0: none). 0.15 s, as a move's (seen in
+            CI at a fold's start: echoes 119-144 ms old at load 3, every one in time a
+            cycle later).
         link_timeout_s: no joint state for this long while a goal is active fails the task
             ("no joint states from the arm ...": the link to the arm computer is down) [s].
         history: how many ended tasks ``sequencer/history`` remembers.
@@ -60,7 +64,7 @@ class SequencerConfig:
     fold_timeout_s: float = 60.0
     cancel_timeout_s: float = 3.0
     progress_step: float = 0.02
-    heartbeat_timeout_s: float = 0.1
+    heartbeat_timeout_s: float = 0.15
     fold_heartbeat_timeout_s: float = 0.15
     link_timeout_s: float = 0.5
     history: int = 100
