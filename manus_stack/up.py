@@ -27,7 +27,6 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -44,6 +43,7 @@ from manus.session import client_settings
 from manus.validity import warm_up
 from manus_stack.bridge_ready import not_running, wait_running
 from manus_stack.guardian_can import GuardianCan, guardian_can
+from manus_stack.ports import port_in_use
 
 LIVELINESS = {
     "sim": "simulator",
@@ -135,27 +135,6 @@ class StackOptions:
     def device_file(self) -> Path:
         """Where the simulator writes its adapter's channel (a socket URL or a pty)."""
         return self.run_dir / "sim.device"
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago (for a loopback router)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def endpoint_port(endpoint: str) -> tuple[str, int]:
-    """``tcp/127.0.0.1:7447`` -> ("127.0.0.1", 7447)."""
-    host, _, port = endpoint.split("/", 1)[-1].rpartition(":")
-    return host.strip("[]"), int(port)
-
-
-def port_in_use(endpoint: str) -> bool:
-    """Something already listens on the endpoint."""
-    host, port = endpoint_port(endpoint)
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.settimeout(0.2)
-        return s.connect_ex((host, port)) == 0
 
 
 class LocalStack:

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, settings
 
 from manus.session import ZenohSettings, client_settings, open_session, router_settings
 from manus.validity import warm_up
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from tests import live_priority, scheduling
 from tests.run_report import (
     pytest_runtest_makereport,

@@ -16,7 +16,7 @@ import pytest
 from mcap.reader import make_reader
 
 from manus_stack.drink import MAX_TILT_DEG, PLACE_TOLERANCE_M
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from tests.stack_command import run_stack_command
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -14,8 +14,8 @@ import pytest
 from mcap.reader import make_reader
 
 from manus_stack.demo import THESIS_MAX_MM, THESIS_MEAN_MM
+from manus_stack.ports import free_port
 from manus_stack.regression import check_controller, check_planner
-from manus_stack.up import free_port
 from tests.stack_command import run_stack_command
 
 ROOT = Path(__file__).resolve().parent.parent

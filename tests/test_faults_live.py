@@ -25,8 +25,9 @@ import numpy as np
 import pytest
 
 from manus_stack.fuzz_live import fuzz_live
+from manus_stack.ports import free_port
 from manus_stack.status import node_health
-from manus_stack.up import Child, free_port
+from manus_stack.up import Child
 from schemas import endpoints as ep
 from services.sequencer.taskfile import task_from_args
 from tests.fault_stack import LEASE_MS, ROOT, SQUARE, FaultStack

@@ -18,7 +18,7 @@ import zenoh
 from manus.certs import write_lab
 from manus.errors import ConfigError
 from manus.session import ZenohSettings, build_config, open_session, settings_from_env
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 
 ZENOH_DIR = Path(__file__).resolve().parent.parent / "deploy" / "zenoh"
 CMD = "manus/cmd/joint_velocity"

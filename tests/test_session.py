@@ -38,7 +38,7 @@ PROBE = textwrap.dedent(
 
 
 def test_default_sessions_use_loopback_only_and_no_udp(tmp_path: Path) -> None:
-    from manus_stack.up import free_port
+    from manus_stack.ports import free_port
 
     script = tmp_path / "probe.py"
     script.write_text(PROBE)

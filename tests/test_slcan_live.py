@@ -30,8 +30,9 @@ import pytest
 
 from manus.node import Node
 from manus.session import ZenohSettings, client_settings
+from manus_stack.ports import free_port
 from manus_stack.status import collect
-from manus_stack.up import Child, LocalStack, StackError, StackOptions, free_port
+from manus_stack.up import Child, LocalStack, StackError, StackOptions
 from schemas import endpoints as ep
 from schemas.state import BridgeState
 from tests.conftest import eventually

@@ -16,7 +16,7 @@ import psutil
 import pytest
 
 from manus.world_follower import apply_update
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from schemas import endpoints as ep
 from schemas.objects import Perception, WorldObject, WorldUpdate
 from services.recorder.reading import Recording

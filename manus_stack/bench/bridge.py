@@ -40,7 +40,7 @@ import numpy as np
 from manus.node import Node
 from manus.protocol import BITRATE
 from manus.session import client_settings, open_session, router_settings
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from schemas import endpoints as ep
 from schemas.commands import JointVelocityCommand
 from schemas.state import JointState

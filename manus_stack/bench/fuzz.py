@@ -23,8 +23,9 @@ from manus.node import Node
 from manus.session import client_settings
 from manus_stack.fuzz import run_fuzz
 from manus_stack.fuzz_live import fuzz_live
+from manus_stack.ports import free_port
 from manus_stack.status import node_health
-from manus_stack.up import LocalStack, StackOptions, free_port
+from manus_stack.up import LocalStack, StackOptions
 from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, TaskEvent
 from services.sequencer.taskfile import task_from_args

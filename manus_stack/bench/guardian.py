@@ -45,7 +45,8 @@ from manus.node import Node
 from manus.protocol import FrameId
 from manus.session import client_settings
 from manus_stack.guardian_lockstep import bridge_fault_trial
-from manus_stack.up import LocalStack, StackOptions, free_port
+from manus_stack.ports import free_port
+from manus_stack.up import LocalStack, StackOptions
 from schemas import endpoints as ep
 from schemas.sequencing import SubmitReply, Task, TaskEvent, TaskStep
 from schemas.state import BridgeState, SimTruth

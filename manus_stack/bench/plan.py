@@ -30,7 +30,7 @@ from manus.node import Node, QueryError
 from manus.process import freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus.viapoints import load_path
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from schemas import endpoints as ep
 from schemas.planning import PlanReply, PlanRequest, ViaPointPath
 from services.planner.core import PlannerCore

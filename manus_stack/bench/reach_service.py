@@ -20,7 +20,7 @@ from manus.node import Node, QueryError
 from manus.process import freeze_startup_heap
 from manus.session import client_settings, open_session, router_settings
 from manus_stack.bench.reach_run import Outcome, Planning, stats_ms
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 from schemas import endpoints as ep
 from schemas.planning import PlanReply
 

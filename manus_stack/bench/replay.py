@@ -29,9 +29,9 @@ from typing import Any
 
 from manus.session import client_settings, open_session, router_settings
 from manus_stack.controlled import controller_input
+from manus_stack.ports import free_port
 from manus_stack.recordings import record_thesis_runs
 from manus_stack.regression import check_controller
-from manus_stack.up import free_port
 from schemas.base import Message
 from services.controller.core import ControllerCore
 from services.controller.wiring import WIRING as CONTROLLER

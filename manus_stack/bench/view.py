@@ -34,7 +34,8 @@ import psutil
 
 from manus.node import Node
 from manus.session import client_settings
-from manus_stack.up import LocalStack, StackOptions, free_port
+from manus_stack.ports import free_port
+from manus_stack.up import LocalStack, StackOptions
 from schemas.endpoints import BRIDGE_STATE, JOINTS
 from schemas.state import BridgeState, JointState
 

@@ -36,7 +36,8 @@ from manus_stack.chaos.schedule import (
 )
 from manus_stack.chaos.verdict import Done, Life, Verdict
 from manus_stack.chaos.watch import Watcher
-from manus_stack.up import Child, LocalStack, StackOptions, free_port, port_in_use
+from manus_stack.ports import free_port, port_in_use
+from manus_stack.up import Child, LocalStack, StackOptions
 from schemas import endpoints as ep
 from schemas.commands import ArmCommand, ArmCommandReply, EStop
 from schemas.sequencing import SubmitReply, TaskControl, TaskStatus

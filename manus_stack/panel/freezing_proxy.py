@@ -9,7 +9,7 @@ import select
 import socket
 import threading
 
-from manus_stack.up import free_port
+from manus_stack.ports import free_port
 
 
 class FreezingProxy:

@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 from manus.node import Node
 from manus.session import client_settings
 from manus_stack.panel.touch import Fingers
-from manus_stack.up import LocalStack, StackError, StackOptions, free_port, port_in_use
+from manus_stack.ports import free_port, port_in_use
+from manus_stack.up import LocalStack, StackError, StackOptions
 from schemas import endpoints as ep
 from schemas.sequencing import TaskEvent, TaskEventKind
 from schemas.state import SimTruth
