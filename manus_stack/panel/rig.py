@@ -11,6 +11,7 @@ really does is judged there, never on what the stack or the page says.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import signal
@@ -113,8 +114,9 @@ class PanelRig:
         self._lock = threading.Lock()
         self.truths: list[tuple[int, SimTruth]] = []
         """Every truth received: (receive time [ns, wall clock], truth)."""
-        self.events: list[TaskEvent] = []
-        """The sequencer's task events, as this process received them (the newest 200)."""
+        self.events: list[tuple[int, TaskEvent]] = []
+        """The sequencer's task events, as this process received them: (receive time [ns,
+        wall clock], event), the newest 200."""
 
     def start(self, timeout: float = 90.0) -> None:
         """Start the stack, then the panel; wait until the panel listens.
@@ -149,21 +151,34 @@ class PanelRig:
 
     def _event(self, event: TaskEvent, rx_ns: int) -> None:
         with self._lock:
-            self.events.append(event)
+            self.events.append((rx_ns, event))
             del self.events[:-200]
 
     def story(self, last: int = 12) -> str:
-        """The newest task events and the truth's contacts, for a failed test's message."""
+        """The newest task events and the truth's contacts (each pair, and the step that ran
+        when the count last grew), for a failed test's message."""
         with self._lock:
-            events = [e for e in self.events if e.event != TaskEventKind.STEP_PROGRESS][-last:]
-        truth = self.latest()
+            heard = [(rx, e) for rx, e in self.events if e.event != TaskEventKind.STEP_PROGRESS]
+            truths = list(self.truths)
         lines = [
             f"  #{e.seq} {e.task_id} {e.event} step {e.step}/{e.total} {e.kind}"
             + (f": {e.reason}" if e.reason else "")
-            for e in events
+            for _, e in heard[-last:]
         ]
-        if truth is not None:
+        if truths:
+            truth = truths[-1][1]
             lines.append(f"  truth: {truth.contacts} contact ticks, last {truth.contact!r}")
+            lines += [
+                f"  contact {c.first}/{c.second} ({c.cls}): {c.ticks} ticks from sim time "
+                f"{c.since_ns / 1e9:.2f} s, {c.depth * 1e3:.2f} mm deep"
+                for c in truth.object_contacts
+            ]
+            pairs = itertools.pairwise(truths)
+            grew = [rx for (_, a), (rx, b) in pairs if b.contacts > a.contacts]
+            if grew:
+                started = [e for rx, e in heard if rx <= grew[-1] and e.event == "step_started"]
+                step = f"step {started[-1].step} ({started[-1].kind})" if started else "no step"
+                lines.append(f"  the count last grew during {step} of the task then")
         return "the newest task events:\n" + "\n".join(lines)
 
     def latest(self) -> SimTruth | None:
