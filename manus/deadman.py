@@ -30,6 +30,14 @@ def judged_at(stamp_ns: int, last_ns: int | None, cycle_ns: int) -> int:
     return min(stamp_ns, last_ns + cycle_ns)
 
 
+def late_states(timeout_s: float, cycle_ns: int) -> int:
+    """How many joint states after the last echoed one still pass under a deadman of
+    ``timeout_s`` [s]: ``floor(timeout / cycle)`` (0.1 s: one, 0.15 s: two). A sender that
+    hangs just after an echo is caught at the state after those, that many cycles later
+    than a fault seen at once."""
+    return round(timeout_s * 1e9) // cycle_ns
+
+
 class Echo:
     """The newest heartbeat's echo: the joint state it refers to and who sent it.
 

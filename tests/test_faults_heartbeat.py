@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 import numpy as np
 import pytest
 
+from manus.deadman import late_states
 from manus.errors import ConfigError
 from manus.protocol import FrameId, decode_move
 from manus_stack.controlled import ControlledArm, controller_input
@@ -44,12 +45,6 @@ NS = 1_000_000_000
 CYCLE_NS = 60_000_000
 STOPS: list[tuple[int, float, float]] = []
 """(cut offset in the cycle [ms], cut -> first zero 0x374 [ms], cut -> arm at rest [ms])."""
-
-
-def deadman_cycles(timeout_s: float) -> int:
-    """The joint states after the last echoed one that still move under a deadman of
-    ``timeout_s`` [s], and the one answered with zeros: 2 at 0.1 s, 3 at 0.15 s."""
-    return 1 + int(round(timeout_s * 1e9) // CYCLE_NS)
 
 
 @dataclass
@@ -156,7 +151,7 @@ def test_cut_link_stops_the_arm_on_the_deadman_and_nothing_resumes(offset_ms: in
     # the last heartbeat the controller got echoes a state at most one cycle before the
     # cut; the states within the timeout of it move, the next is answered with zeros, sent
     # 20 ms after it (0.15 s: 3 cycles + the reply delay)
-    assert stop_ms <= deadman_cycles(timeout) * 60 + 20, stop_ms
+    assert stop_ms <= (late_states(timeout, CYCLE_NS) + 1) * 60 + 20, stop_ms
     assert all(zero for t, zero in frames if t >= first_zero), "moved again after the stop"
     # the simulator's truth: the arm's speed decays (drive lag, tau 20 ms) from the cycle
     # the zeros act in: under 0.05 deg/s within 3 cycles of the zeros' send time

@@ -30,8 +30,8 @@ from typing import IO, Any
 
 import pytest
 
+from manus.deadman import late_states
 from services.sequencer.config import SequencerConfig
-from tests.test_faults_heartbeat import deadman_cycles
 
 ROOT = Path(__file__).resolve().parent.parent
 ZENOH = ROOT / "deploy" / "zenoh"
@@ -330,6 +330,7 @@ def test_cut_link_between_the_computers(net: Net) -> None:
         f"{up_s:.1f} s, link back in {reconnect_s:.1f} s, total {time.monotonic() - t0:.1f} s"
     )
     print("NETNS sequencer:", [ln for ln in text.splitlines() if "task failed" in ln][-1])
-    # the deadman's cycles (tests/test_faults_heartbeat.py) + the reply delay + load margin
-    cycles = deadman_cycles(SequencerConfig().heartbeat_timeout_s)
+    # the states the deadman lets pass, the one answered with zeros, the reply delay, and a
+    # margin for load
+    cycles = late_states(SequencerConfig().heartbeat_timeout_s, 60_000_000) + 1
     assert stop_ms <= cycles * 60 + 20 + 60, stop_ms

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from manus.deadman import late_states
 from schemas.sequencing import TaskEvent
 from schemas.state import SimTruth
 from services.simulator.truth_log import TruthLine
@@ -48,12 +49,12 @@ def stop_limit_ns(deadman_timeout_s: float | None = None) -> int:
     ``deadman_timeout_s`` [s] (a hung sender) is seen later: the deadman stops at the
     first joint state whose newest echo is older than the timeout. The echo of a state
     cannot come before the state, so a sender that hangs just after echoing one state
-    is caught ``floor(timeout / cycle)`` states after the one at which a fault seen at
-    once would be (0.1 s: one, 0.15 s: two), and the limit grows by as many cycles.
+    is caught :func:`manus.deadman.late_states` states after the one at which a fault
+    seen at once would be (0.1 s: one, 0.15 s: two), and the limit grows by as many cycles.
     """
     if deadman_timeout_s is None:
         return STOP_LIMIT_NS
-    return STOP_LIMIT_NS + round(deadman_timeout_s * 1e9) // CYCLE_NS * CYCLE_NS
+    return STOP_LIMIT_NS + late_states(deadman_timeout_s, CYCLE_NS) * CYCLE_NS
 
 
 JOINT_TOL = float(np.radians(0.05))

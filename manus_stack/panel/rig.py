@@ -176,7 +176,8 @@ class PanelRig:
             pairs = itertools.pairwise(truths)
             grew = [rx for (_, a), (rx, b) in pairs if b.contacts > a.contacts]
             if grew:
-                started = [e for rx, e in heard if rx <= grew[-1] and e.event == "step_started"]
+                began = TaskEventKind.STEP_STARTED
+                started = [e for rx, e in heard if rx <= grew[-1] and e.event == began]
                 step = f"step {started[-1].step} ({started[-1].kind})" if started else "no step"
                 lines.append(f"  the count last grew during {step} of the task then")
         return "the newest task events:\n" + "\n".join(lines)
