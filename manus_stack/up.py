@@ -42,6 +42,7 @@ from manus.realtime import ENV, describe
 from manus.session import client_settings
 from manus.validity import warm_up
 from manus_stack.bridge_ready import not_running, wait_running
+from manus_stack.forks import Forked, forkable
 from manus_stack.guardian_can import GuardianCan, guardian_can
 from manus_stack.ports import port_in_use
 
@@ -74,8 +75,8 @@ class Child:
     name: str
     argv: list[str]
     log: Path
-    proc: subprocess.Popen[bytes]
-    stream: IO[bytes]
+    proc: subprocess.Popen[bytes] | Forked
+    stream: IO[bytes] | None = None
 
 
 @dataclass
@@ -166,17 +167,21 @@ class LocalStack:
         logs = self.options.run_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         log = logs / f"{name}.log"
-        stream = log.open("wb")
         argv = [sys.executable, "-m", "manus_stack.cli", command or name, *args]
-        proc = subprocess.Popen(
-            argv,
-            stdout=stream,
-            stderr=subprocess.STDOUT,
-            env=self._env(),
-            start_new_session=True,
-            preexec_fn=(lambda: lower_priority(NICE[name])) if name in NICE else None,  # noqa: PLW1509 (no threads yet)
-        )
-        child = Child(name, argv, log, proc, stream)
+        env = self._env()
+        if forkable(env):
+            child = Child(name, argv, log, Forked(argv, env, log, NICE.get(name, 0)))
+        else:
+            stream = log.open("wb")
+            proc = subprocess.Popen(
+                argv,
+                stdout=stream,
+                stderr=subprocess.STDOUT,
+                env=env,
+                start_new_session=True,
+                preexec_fn=(lambda: lower_priority(NICE[name])) if name in NICE else None,  # noqa: PLW1509 (no threads yet)
+            )
+            child = Child(name, argv, log, proc, stream)
         self.children.append(child)
         return child
 
@@ -185,7 +190,8 @@ class LocalStack:
         arguments or ``args``, at its place in the start (and stop) order; a fresh log."""
         with contextlib.suppress(subprocess.TimeoutExpired):
             child.proc.wait(timeout=5.0)
-        child.stream.close()
+        if child.stream is not None:
+            child.stream.close()
         index = self.children.index(child)
         self.children.remove(child)
         new = self._spawn(child.name, child.argv[4:] if args is None else args, child.argv[3])
@@ -367,8 +373,9 @@ class LocalStack:
                     with contextlib.suppress(ProcessLookupError):
                         os.kill(child.proc.pid, signal.SIGKILL)
                     child.proc.wait(timeout=grace)
-            codes[child.name] = int(child.proc.returncode)
-            child.stream.close()
+            codes[child.name] = int(child.proc.returncode or 0)
+            if child.stream is not None:
+                child.stream.close()
         self.children.clear()
         return codes
 
