@@ -149,7 +149,15 @@ class ArmModel:
         self.held: Measure | None = None
         """The held object's smallest true distance to the scene at DH angles [deg] and a
         gripper opening [mm] (None: nothing to hold; set by the simulator's objects,
-        :mod:`services.simulator.object_world`): it meets the scene as a body does."""
+        :mod:`services.simulator.object_world`): it meets the scene as a body does, but
+        for :attr:`held_touch`."""
+        self.held_touch = 0.0
+        """How deep the held object may touch the scene [m] before the arm is blocked (set
+        with :attr:`held`: the objects' contact depth). A cup standing on the table when
+        the jaws close on it touches it; the arm's lag (the drives' speed decays, never
+        quite reaching zero) then took it nanometres into the table, which blocked the arm
+        for a tick as a push into the table would (a one-tick ``cup/table`` contact, seen
+        under load when the jaws closed soon after the arm's last correction)."""
 
     def initial_state(self) -> ArmState:
         """At rest in the configured start pose, every belt's slack centred."""
@@ -202,7 +210,7 @@ class ArmModel:
         if not np.array_equal(x, x0):
             contact = self._meets(self.contacts.distance, state, q_end, g, after)
             if not contact and self.held is not None:
-                contact = self._meets(self.held, state, q_end, g)
+                contact = self._meets(self.held, state, q_end, g, touch=self.held_touch)
             if contact:
                 warnings.add(WARN_MOTOR_BLOCKED)
                 end = ArmState(x0, np.zeros(6), state.output_deg, g, gv)
@@ -220,13 +228,14 @@ class ArmModel:
         q_end: np.ndarray,
         gripper_mm: float,
         after: Distance | None = None,
+        touch: float = 0.0,
     ) -> str:
         """``body/object`` when the step from ``state`` to true DH angles ``q_end`` [deg]
-        and opening ``gripper_mm`` [mm] takes that pair deeper into contact ('': it
-        does not)."""
+        and opening ``gripper_mm`` [mm] takes that pair deeper into contact, past
+        ``touch`` [m] of penetration ('': it does not)."""
         if after is None:
             after = measure(q_end, gripper_mm)
-        if after is None or after.distance >= 0.0:
+        if after is None or after.distance >= -touch:
             return ""
         before = measure(self.q_true_deg(state), state.gripper_mm)
         return after.pair if before is None or after.distance < before.distance - _EPS else ""

@@ -56,6 +56,7 @@ from services.simulator.faults import (
     Silence,
 )
 from services.simulator.messages import MessageBoard
+from services.simulator.object_contacts import CONTACT_DEPTH
 from services.simulator.object_world import ObjectWorld
 from services.simulator.objects import SimObject
 from services.simulator.rays import Primitive
@@ -122,7 +123,7 @@ class SimCore:
         scene = scene_from_setting(cfg.scene)
         self.objects = ObjectWorld(cfg, scene)
         """The objects: resting, held, falling (:mod:`services.simulator.object_world`)."""
-        self.model.held = self.objects.held_distance
+        self.model.held, self.model.held_touch = self.objects.held_distance, CONTACT_DEPTH
         self.camera = Camera(cfg.camera, camera_rng, scene) if cfg.camera.enabled else None
         """The simulated camera (None: switched off)."""
         self.target: MovingTarget | None = None

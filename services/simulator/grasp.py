@@ -8,6 +8,11 @@ opening comes down to its width along the jaw axis
 (:func:`~services.simulator.objects.width_along`); the fingers then centre it along x
 (one finger pushes it until the other touches) and:
 
+A finger that reaches a standing object before the other (the object lies off the grasp
+point along the jaw axis) pushes it along the surface it stands on (:func:`pushed`), so
+that it only touches it: the truth counts no contact of a finger with the object it
+closes on, and at the grasp the object is where the fingers centred it.
+
 - the grasp **holds** when the object's centre is within ``tolerance`` of the grasp point
   (the gripper frame's origin) across the jaw axis (in y and in z): from then on the
   object moves with the gripper and the jaws stay at its width;
@@ -17,6 +22,7 @@ opening comes down to its width along the jaw axis
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -68,3 +74,30 @@ def between_jaws(
 def holds(contact: Contact, tolerance: float) -> bool:
     """Whether a grasp at ``contact`` holds (its offset within ``tolerance`` [m])."""
     return contact.offset <= tolerance + 1e-12
+
+
+PUSH_FLAT = 0.5
+"""A finger pushes a standing object along its surface only when the jaw axis is at most
+60 degrees from horizontal: the horizontal part of its unit vector at least this [-]."""
+
+
+def pushed(
+    pose: np.ndarray, gripper: np.ndarray, opening: float, width: float
+) -> np.ndarray | None:
+    """Where a standing object at ``pose``, ``width`` [m] wide along the jaw axis, is once
+    the jaws at ``gripper`` close to ``opening`` [m] (chair frame, (4, 4) each): pushed
+    along the surface until the finger that reached it only touches it (its centre at most
+    ``(opening - width) / 2`` off the grasp point along the jaw axis). None: no finger
+    reached it, or the jaw axis is too steep to push it along its surface
+    (:data:`PUSH_FLAT`)."""
+    x = float(np.linalg.solve(gripper, pose)[0, 3])
+    excess = abs(x) - max(0.0, (opening - width) / 2.0)
+    if excess <= 0.0:
+        return None
+    flat = np.array([gripper[0, 0], gripper[1, 0], 0.0])  # the jaw axis, horizontal part
+    n = float(np.linalg.norm(flat))
+    if n < PUSH_FLAT:
+        return None
+    out = pose.copy()
+    out[:3, 3] -= math.copysign(excess / n, x) * flat / n  # moves it by -excess along x
+    return out

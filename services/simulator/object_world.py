@@ -6,7 +6,8 @@ Each tick (after the arm's step, :meth:`ObjectWorld.tick`), on the true arm:
    jaws open wider than its width plus ``RELEASE_MARGIN`` it is released where it is;
 2. a released object falls straight down (``G``) onto the highest surface under its
    centre (:mod:`.supports`) and comes to rest there upright, its yaw kept;
-3. jaws that close past the width of an object between them (:mod:`.grasp`) hold it when
+3. a closing finger that reaches a standing object first pushes it along its surface;
+   jaws that close past the width of an object between them (:mod:`.grasp`) hold it when
    the grasp is within ``grasp_tolerance_mm``, from then on the jaws stay at its width
    (:attr:`ObjectWorld.gripper_floor_mm`, which the arm's gripper obeys), or it slips;
 4. contacts are recorded (:mod:`.object_contacts`); nothing is computed on a tick on
@@ -27,7 +28,7 @@ from schemas.objects import ObjectTruth
 from services.simulator.arm_bodies import ArmBodies, Body
 from services.simulator.config import SimConfig
 from services.simulator.contact import Distance
-from services.simulator.grasp import between_jaws, holds
+from services.simulator.grasp import between_jaws, holds, pushed
 from services.simulator.object_contacts import ObjectContacts
 from services.simulator.objects import FALLING, HELD, RESTING, SimObject, load_objects, upright
 from services.simulator.supports import Supports
@@ -218,6 +219,11 @@ class ObjectWorld:
         they passed is held, or slips."""
         for obj in self.objects:
             contact = between_jaws(obj, self.pose_at(obj, t_ns, gripper), gripper, before)
+            if contact is not None and obj.state == RESTING:  # a finger may push it first
+                moved = pushed(obj.pose, gripper, opening, contact.width)
+                if moved is not None:
+                    obj.pose = moved
+                    contact = between_jaws(obj, moved, gripper, before)
             if contact is None or not opening <= contact.width < before:
                 continue  # not between the jaws, or not reached in this tick
             if holds(contact, self.tolerance):
