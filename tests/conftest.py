@@ -44,10 +44,8 @@ pytest_unconfigure = scheduling.pytest_unconfigure
 def pytest_sessionstart(session: pytest.Session) -> None:
     """Compile the fast validity check's kernels before any test: a fresh checkout has
     an empty numba cache, and a service a test starts must not spend its start-up
-    deadline compiling them (this fills the cache they load). In a parallel run, while
-    the workers start (:func:`tests.scheduling.start_warm_up`)."""
-    if not scheduling.start_warm_up(session.config):
-        warm_up()
+    deadline compiling them (this fills the cache they load)."""
+    warm_up()
 
 
 @pytest.hookimpl(optionalhook=True)

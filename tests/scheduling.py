@@ -25,8 +25,6 @@ pure tests first). The whole suite, ``python -m pytest`` from the repository, ge
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -73,52 +71,6 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     if path is not None:
         Path(path).unlink(missing_ok=True)
         os.environ.pop(LIVE_IDS, None)
-
-
-_WARMING = pytest.StashKey[subprocess.Popen[bytes]]()
-WARM_UP_S = 300.0
-"""How long the scheduler waits for the warm-up process before it sends the first test
-(a fresh checkout's compile: 15 s on a quiet core, 55 s at load 12)."""
-
-
-def start_warm_up(config: pytest.Config) -> bool:
-    """numba's kernels compiled (:func:`manus.validity.warm_up`) in a process of its own
-    while the workers start, where this is the controlling process of a parallel run:
-    whether it started one (else the caller compiles them, a worker not at all).
-
-    A fresh checkout's compile takes one core about 15 s; before, the workers started
-    after it, while the other core idled. The workers' start (an interpreter each,
-    importing and collecting every test module) takes both cores about 20 s; the
-    scheduler waits for the compile before it sends the first test (:func:`wait_warm_up`),
-    so that no service a live test starts compiles, and no worker does."""
-    if hasattr(config, "workerinput"):
-        return True  # a worker: its tests load the kernels from the filled cache
-    if config.pluginmanager.getplugin("dsession") is None:
-        return False  # one process: the caller compiles
-    code = "from manus.validity import warm_up; warm_up()"
-    config.stash[_WARMING] = subprocess.Popen([sys.executable, "-c", code])
-    return True
-
-
-def wait_warm_up(config: pytest.Config) -> None:
-    """Wait (at most :data:`WARM_UP_S`) for the warm-up process, if one was started.
-
-    Raises:
-        pytest.UsageError: it failed or did not end in time (a service would compile
-            at its start, past its deadline).
-    """
-    proc = config.stash.get(_WARMING, None)
-    if proc is None:
-        return
-    try:
-        code = proc.wait(timeout=WARM_UP_S)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise pytest.UsageError(f"numba's warm-up did not end within {WARM_UP_S:g} s") from None
-    finally:
-        del config.stash[_WARMING]
-    if code != 0:
-        raise pytest.UsageError(f"numba's warm-up failed (exit status {code}): see above")
 
 
 def units(live: list[pytest.Item]) -> list[list[str]]:
@@ -198,7 +150,6 @@ class LiveApartScheduling:
     def __init__(self, config: pytest.Config, log: Any) -> None:
         from xdist.workermanage import parse_tx_spec_config
 
-        self.config = config
         self.numnodes = len(parse_tx_spec_config(config))
         self.log = log.livesched
         self.node2collection: dict[Any, list[str]] = {}
@@ -251,7 +202,6 @@ class LiveApartScheduling:
     def schedule(self) -> None:
         """The first distribution (or, after a worker was replaced, a new round)."""
         if self.collection is None:
-            wait_warm_up(self.config)  # numba's cache filled before the first test
             collections = list(self.node2collection.values())
             if any(c != collections[0] for c in collections):
                 self.log("the workers collected different tests: nothing runs")

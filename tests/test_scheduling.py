@@ -42,7 +42,7 @@ def _run(
     ids = tmp_path / "live.txt"  # as tell_live writes it: a unit per file here
     ids.write_text("".join(f"{n.split('::')[0]}\t{n}\n" for n in live))
     mp.setenv(LIVE_IDS, str(ids))
-    config = SimpleNamespace(getoption=lambda name: None, stash=pytest.Stash())
+    config = SimpleNamespace(getoption=lambda name: None)
     mp.setattr("xdist.workermanage.parse_tx_spec_config", lambda c: ["popen"] * workers)
     sched = LiveApartScheduling(config, SimpleNamespace(livesched=lambda *a: None))  # type: ignore[arg-type]
     nodes = [FakeWorker(f"gw{i}") for i in reversed(range(workers))]  # gw0 not first
