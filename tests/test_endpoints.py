@@ -4,6 +4,7 @@ derived from it, and a key suffix is spelled once in the code base."""
 from __future__ import annotations
 
 import ast
+import functools
 import json
 from pathlib import Path
 from typing import Any
@@ -37,40 +38,45 @@ ROOT = Path(__file__).resolve().parents[1]
 CODE = ("manus", "schemas", "services", "manus_stack")
 
 
+@functools.cache
+def _trees() -> list[tuple[Path, ast.Module]]:
+    """Every module of the code base (tests and examples aside), parsed once."""
+    paths = [p for package in CODE for p in sorted((ROOT / package).rglob("*.py"))]
+    return [(path, ast.parse(path.read_text(encoding="utf-8"))) for path in paths]
+
+
 def _string_constants(*, calls_only: bool = False) -> dict[str, list[str]]:
     """Every string constant of the code base (tests and examples aside) -> where; with
     ``calls_only``, those passed to a call (how a key is used: ``keys("estop")``)."""
     found: dict[str, list[str]] = {}
-    for package in CODE:
-        for path in sorted((ROOT / package).rglob("*.py")):
-            tree = ast.parse(path.read_text(encoding="utf-8"))
-            docstrings = {
-                id(node.body[0].value)
-                for node in ast.walk(tree)
-                if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef)
-                and node.body
-                and isinstance(node.body[0], ast.Expr)
-                and isinstance(node.body[0].value, ast.Constant)
-            }
-            subscripts = {  # bridge["estop"]: a field name that equals a suffix
-                id(node.slice) for node in ast.walk(tree) if isinstance(node, ast.Subscript)
-            }
-            arguments = {
-                id(arg)
-                for node in ast.walk(tree)
-                if isinstance(node, ast.Call)
-                for arg in [*node.args, *(k.value for k in node.keywords)]
-            }
-            for node in ast.walk(tree):
-                if (
-                    isinstance(node, ast.Constant)
-                    and isinstance(node.value, str)
-                    and id(node) not in docstrings
-                    and id(node) not in subscripts
-                    and (id(node) in arguments or not calls_only)
-                ):
-                    where = f"{path.relative_to(ROOT)}:{node.lineno}"
-                    found.setdefault(node.value, []).append(where)
+    for path, tree in _trees():
+        docstrings = {
+            id(node.body[0].value)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef)
+            and node.body
+            and isinstance(node.body[0], ast.Expr)
+            and isinstance(node.body[0].value, ast.Constant)
+        }
+        subscripts = {  # bridge["estop"]: a field name that equals a suffix
+            id(node.slice) for node in ast.walk(tree) if isinstance(node, ast.Subscript)
+        }
+        arguments = {
+            id(arg)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Call)
+            for arg in [*node.args, *(k.value for k in node.keywords)]
+        }
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Constant)
+                and isinstance(node.value, str)
+                and id(node) not in docstrings
+                and id(node) not in subscripts
+                and (id(node) in arguments or not calls_only)
+            ):
+                where = f"{path.relative_to(ROOT)}:{node.lineno}"
+                found.setdefault(node.value, []).append(where)
     return found
 
 
