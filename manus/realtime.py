@@ -202,12 +202,12 @@ def _threads() -> list[int]:
 
 
 def _apply(tid: int, priority: Priority) -> None:
-    if priority.policy == "nice":
-        os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
-        os.setpriority(os.PRIO_PROCESS, tid, priority.level)  # one thread on Linux
-        return
-    policy = os.SCHED_RR if priority.policy == "rr" else os.SCHED_FIFO
     with contextlib.suppress(ProcessLookupError):  # a thread that has just ended
+        if priority.policy == "nice":
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            os.setpriority(os.PRIO_PROCESS, tid, priority.level)  # one thread on Linux
+            return
+        policy = os.SCHED_RR if priority.policy == "rr" else os.SCHED_FIFO
         os.sched_setscheduler(tid, policy, os.sched_param(priority.level))
 
 
