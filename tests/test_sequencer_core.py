@@ -635,3 +635,35 @@ def test_joint_states_stopping_names_the_bridge_when_the_arm_computer_is_heard(
     assert rig.core.state == "failed"
     assert "no joint states from the arm for 540 ms" in rig.core.reason
     assert named in rig.core.reason, rig.core.reason
+
+
+@pytest.mark.parametrize("back", ["states", "result", "silent"])
+def test_a_sequencer_that_did_not_run_does_not_blame_the_bridge(back: str) -> None:
+    """The sequencer frozen 1.5 s mid-move (SIGSTOP, or starved of the CPU): its first
+    tick after it is no proof that the joint states stopped. The chaos soak saw it blame
+    the bridge on waking, before it read the controller's result naming the heartbeat.
+    Back, it judges the link from its return: the joint states that come on (nothing
+    fails), the controller's result (its reason), or none for 540 ms (the link, then)."""
+    rig = Rig()
+    rig.start(square_task())
+    assert rig.core.state == "running" and rig.goals()
+    rig.feed(rig.core.on_tick(rig.now))  # it ticks while it runs
+    rig.now += 1_500_000_000  # no tick, nothing read: the process did not run
+    rig.feed(rig.core.on_tick(rig.now))
+    assert rig.core.state == "running", rig.core.reason
+    if back == "result":
+        rig.result("aborted", "lost the supervisor's heartbeat", "heartbeat_lost")
+        assert rig.core.state == "failed" and "heartbeat" in rig.core.reason, rig.core.reason
+        return
+    back_at = rig.now
+    for k in range(1, 10):
+        rig.now = back_at + k * 60_000_000
+        if back == "states":
+            rig.core.on_joint_state(joint_state(UNFOLDED, k), rig.now)
+        rig.feed(rig.core.on_tick(rig.now))
+    if back == "states":
+        assert rig.core.state == "running", rig.core.reason
+    else:
+        assert rig.core.state == "failed"
+        assert "no joint states from the arm for 540 ms" in rig.core.reason, rig.core.reason
+        assert "the link to it is down" in rig.core.reason

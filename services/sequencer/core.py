@@ -231,6 +231,7 @@ class SequencerCore(TaskSubmission):
     def on_tick(self, now_ns: int) -> list[Action]:
         """Time passes (call at least every 100 ms): waits and timeouts."""
         self.now = now_ns
+        self.link_watch.on_tick(now_ns, self.config.link_timeout_s)
         if self.state == TaskState.RUNNING and self._current is not None:
             out = self._current.on_tick()
             if out is not None:

@@ -25,6 +25,19 @@ class LinkWatch:
         self.js_rx: int | None = None  # receive time of the newest joint state [ns]
         self.guardian_rx: int | None = None  # receive time of its newest report [ns]
         self.guardian_engaged_rx: int | None = None  # ... of its newest 'engaged' one
+        self.tick_ns: int | None = None  # the sequencer's own previous tick [ns]
+        self.back_ns: int | None = None  # its first tick after a gap of its own [ns]
+
+    def on_tick(self, now_ns: int, timeout_s: float) -> None:
+        """The sequencer's own tick at ``now_ns``. One more than ``timeout_s`` [s] after
+        the previous one means this process did not run meanwhile (suspended, or starved
+        of the CPU): the joint states it did not hear then were no silence of the
+        bridge's, and :meth:`silence` counts from its return. (Seen in the chaos soak: a
+        sequencer frozen 1.5 s blamed the bridge on waking, before it read the
+        controller's result naming the lost heartbeat.)"""
+        if self.tick_ns is not None and now_ns - self.tick_ns > timeout_s * NS:
+            self.back_ns = now_ns
+        self.tick_ns = now_ns
 
     def on_joint_state(self, now_ns: int) -> None:
         """A joint state arrived at ``now_ns``."""
@@ -64,10 +77,11 @@ class LinkWatch:
         ``now_ns`` ('' when one did, or none came yet)."""
         if self.js_rx is None:
             return ""
-        silent = now_ns - self.js_rx
+        since = self.js_rx if self.back_ns is None else max(self.js_rx, self.back_ns)
+        silent = now_ns - since
         if silent <= timeout_s * NS:
             return ""
         return (
             f"no joint states from the arm for {silent / 1e6:.0f} ms (more than link_timeout_s "
-            f"{timeout_s:g} s): {self.silence_cause(self.js_rx)}"
+            f"{timeout_s:g} s): {self.silence_cause(since)}"
         )
