@@ -57,6 +57,12 @@ class Watch:
         with self.lock:
             return [(f.stamp_ns, f.id) for f in self.tx if f.stamp_ns >= since_ns]
 
+    def truths(self) -> list[SimTruth]:
+        """Every truth the simulator published so far (at least one)."""
+        with self.lock:
+            assert self.truth, "no truth from the simulator"
+            return list(self.truth)
+
     def event_names(self) -> list[str]:
         with self.lock:
             return [e.event for e in self.events if e.event != "step_progress"]

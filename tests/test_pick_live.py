@@ -77,9 +77,7 @@ def test_pick_and_place_the_cup_on_the_real_stack(live: FaultStack) -> None:
 
 
 def latest(stack: FaultStack) -> SimTruth:
-    with stack.watch.lock:
-        assert stack.watch.truth, "no truth from the simulator"
-        return stack.watch.truth[-1]
+    return stack.watch.truths()[-1]
 
 
 def cup(truth: SimTruth) -> ObjectTruth:

@@ -26,7 +26,7 @@ from manus_stack.ports import free_port
 from schemas import endpoints as ep
 from schemas.control import GoalResult
 from schemas.sequencing import TaskEvent
-from schemas.state import JointState, SimTruth
+from schemas.state import JointState
 from services.can_bridge.shell import BridgeShell
 from services.controller.shell import ControllerShell
 from services.planner.shell import PlannerShell
@@ -237,7 +237,7 @@ def test_example_jog_stream_moves_the_real_arm(tmp_path: Path) -> None:
     loaded CI run: what else the process did held the bridge's thread back.)"""
     with FaultStack(tmp_path / "run", f"tcp/127.0.0.1:{free_port()}", "jog") as stack:
         stack.start()
-        first = _truth(stack)[-1]
+        first = stack.watch.truths()[-1]
         proc = subprocess.run(
             [sys.executable, str(ROOT / "examples" / "jog.py"), "--connect",
              stack.options.endpoint, "--prefix", "jog", "--level", "2", "--x", "1",
@@ -247,19 +247,13 @@ def test_example_jog_stream_moves_the_real_arm(tmp_path: Path) -> None:
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "level 2: ok" in proc.stdout and "jogging" in proc.stdout
         stack.wait("the arm at rest after the release", lambda: _at_rest(stack), 5.0)
-        moved = (np.array(_truth(stack)[-1].xyz) - np.array(first.xyz)) * 1e3
+        moved = (np.array(stack.watch.truths()[-1].xyz) - np.array(first.xyz)) * 1e3
     # 60 mm/s for about a second (ramp and latency aside), along x only
     assert 35.0 < moved[0] < 75.0, moved
     assert abs(moved[1]) < 2.0 and abs(moved[2]) < 2.0, moved
 
 
-def _truth(stack: FaultStack) -> list[SimTruth]:
-    with stack.watch.lock:
-        assert stack.watch.truth, "no truth from the simulator"
-        return list(stack.watch.truth)
-
-
 def _at_rest(stack: FaultStack) -> bool:
     """The last five truths (0.3 s) with every joint slower than 1e-4 rad/s."""
-    recent = _truth(stack)[-5:]
+    recent = stack.watch.truths()[-5:]
     return len(recent) == 5 and all(max(map(abs, t.qd_true)) < 1e-4 for t in recent)
